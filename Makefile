@@ -1,0 +1,52 @@
+# Two entry points: `make demo` (the main job) and `make test` (the test suite). Both install the Debian packages
+# they need first (apt), then build with CMake.
+BUILD ?= build
+JOBS ?= $(shell nproc)
+DEMO ?= out/demo
+CONFIG ?= configs/tiny.json
+UPLVSM = $(BUILD)/uplvsm
+export CCACHE_SLOPPINESS = pch_defines,time_macros,include_file_mtime,include_file_ctime
+export CCACHE_DIR ?= $(HOME)/.cache/ccache
+
+# Why each package is there: README.md, "Dependencies".
+APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp libgloo-dev libcli11-dev \
+  nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
+  libavutil-dev libswscale-dev libgtest-dev libbenchmark-dev
+
+.PHONY: all deps build test test-unit test-slow demo clean
+
+all: build
+
+deps:
+	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+	  echo "installing:" $$missing; \
+	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
+	  $$SUDO apt-get update -q && DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -q --no-install-recommends $$missing; \
+	fi
+
+$(BUILD)/CMakeCache.txt:
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release
+
+build: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS)
+
+test: build
+	cd $(BUILD) && ctest --output-on-failure --timeout 1800
+
+test-unit: build
+	cd $(BUILD) && ctest --output-on-failure -L unit
+
+test-slow: build
+	cd $(BUILD) && ctest --output-on-failure -L slow
+
+demo: build
+	$(UPLVSM) info
+	$(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
+	$(UPLVSM) train --config $(CONFIG) --data $(DEMO)/dataset --run $(DEMO)/run --resume auto
+	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
+	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/video
+	$(UPLVSM) report --run $(DEMO)/run --eval $(DEMO)/eval --video $(DEMO)/video --out $(DEMO)/report
+
+clean:
+	rm -rf $(BUILD)

@@ -1,0 +1,54 @@
+// `uplvsm info`: what this binary computes with (LibTorch, BLAS, threads, OpenMP policy, devices) and, given a
+// config or checkpoint, the model's size.
+#include <iostream>
+
+#include <fmt/format.h>
+
+#include "uplvsm/cli/commands.h"
+#include "uplvsm/core/config.h"
+#include "uplvsm/core/runtime.h"
+#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/uplvsm.h"
+
+namespace uplvsm::cli {
+
+namespace {
+void print_model_summary(const Config& c) {
+  model::UPLVSM net(c.model);
+  std::map<std::string, int64_t> by_module;
+  for (const auto& item : net->named_parameters(true)) {
+    auto key = item.key();
+    auto top = key.substr(0, key.find('.'));
+    by_module[top] += item.value().numel();
+  }
+  std::cout << fmt::format("model        {} ({}), {}x{} images, patch {}, {:.2f} M parameters\n", c.name,
+                           c.model.variant, c.model.image_size, c.model.image_size, c.model.patch_size,
+                           net->parameter_count() / 1e6);
+  for (const auto& [name, n] : by_module) std::cout << fmt::format("  {:<38} {:>10.3f} M\n", name, n / 1e6);
+}
+}  // namespace
+
+void add_info_command(CLI::App& app) {
+  auto* cmd = app.add_subcommand("info", "Print the LibTorch version, BLAS in use, threads, devices; with --config or "
+                                         "--checkpoint also the model's parameter counts.");
+  auto common = std::make_shared<CommonOptions>();
+  auto config = std::make_shared<std::string>();
+  auto checkpoint = std::make_shared<std::string>();
+  add_common_options(cmd, *common);
+  cmd->add_option("--config", *config, "a config JSON (configs/*.json)")->check(CLI::ExistingFile);
+  cmd->add_option("--checkpoint", *checkpoint, "a uplvsm checkpoint (file, checkpoints dir or run dir)");
+  cmd->callback([=] {
+    apply_common_options(*common);
+    std::cout << format_runtime_info(runtime_info());
+    auto device = parse_device(common->device);
+    std::cout << fmt::format("device       {}\n", device.str());
+    if (!config->empty()) print_model_summary(load_config(*config));
+    if (!checkpoint->empty()) {
+      auto ckpt = model::read_checkpoint(*checkpoint);
+      std::cout << fmt::format("checkpoint   {} (state {})\n", ckpt.path, ckpt.state.dump());
+      print_model_summary(ckpt.config);
+    }
+  });
+}
+
+}  // namespace uplvsm::cli

@@ -1,0 +1,32 @@
+// uplvsm: novel views from two unposed photos (UP-LVSM), as one native binary. `uplvsm --help` lists subcommands.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <exception>
+#include <iostream>
+
+#include "uplvsm/cli/commands.h"
+#include "uplvsm/core/runtime.h"
+
+int main(int argc, char** argv) {
+  uplvsm::ensure_passive_openmp(argv);
+  CLI::App app{
+      "uplvsm - UP-LVSM novel view synthesis from unposed images (ICLR 2026, 'The Less You Depend, The More You "
+      "Learn'), native C++/LibTorch.\nTypical flow: make-dataset -> train -> eval -> render -> report."};
+  app.require_subcommand(1);
+  uplvsm::cli::add_info_command(app);
+  uplvsm::cli::add_make_dataset_command(app);
+  uplvsm::cli::add_train_command(app);
+  uplvsm::cli::add_eval_command(app);
+  uplvsm::cli::add_render_command(app);
+  uplvsm::cli::add_report_command(app);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    std::cerr << "error: " << e.what() << "\n";
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,105 @@
+// The run configuration: model, training and built-in dataset settings, read from configs/*.json. Field names
+// follow the official UP-LVSM YAML where one exists (transformer.encoder_n_layer, training.min_frame_dist, ...).
+// Unknown keys are errors, so a typo never silently falls back to a default.
+#pragma once
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace uplvsm {
+
+struct TransformerConfig {
+  int64_t d = 768;
+  int64_t d_head = 64;
+  int64_t encoder_n_layer = 6;
+  int64_t estimator_n_layer = 4;
+  int64_t decoder_n_layer = 14;
+  int64_t n_latent_vectors = 1024;
+  double qk_norm_eps = 1e-3;  // official UP-LVSM; LVSM uses 1e-5
+  bool special_init = true;
+  bool depth_init = true;
+};
+
+struct Dinov2Config {
+  int64_t embed_dim = 768;  // must equal transformer.d: tokens are used directly
+  int64_t depth = 12;
+  int64_t num_heads = 12;
+  int64_t mlp_ratio = 4;
+  int64_t num_register_tokens = 4;
+  bool qk_norm = true;  // official UP-LVSM adds RMSNorm QK-norm (eps 1e-3) inside DINOv2 attention
+  double qk_norm_eps = 1e-3;
+  int64_t pos_grid = 37;  // pos_embed covers pos_grid^2 patches (518 px for patch 14)
+  bool interpolate_antialias = true;
+  double interpolate_offset = 0.0;
+  double layerscale_init = 1.0;
+  bool imagenet_normalize = false;  // official UP-LVSM feeds [0,1] images without mean/std
+};
+
+struct ModelConfig {
+  std::string variant = "uplvsm";
+  int64_t image_size = 224;
+  int64_t patch_size = 14;
+  TransformerConfig transformer;
+  Dinov2Config dinov2;
+};
+
+struct TrainingConfig {
+  double lr = 4e-4;
+  double beta1 = 0.9, beta2 = 0.95, eps = 1e-8;
+  double weight_decay = 0.05;
+  int64_t warmup = 4000;
+  int64_t train_steps = 100000;
+  double grad_clip_norm = 1.0;
+  double allowed_gradnorm_factor = 4.0;
+  int64_t batch_size = 16;
+  int64_t grad_accum_steps = 1;
+  int64_t num_views = 8;
+  int64_t num_input_views = 2;
+  int64_t num_target_views = 6;
+  int64_t min_frame_dist = 25;
+  int64_t max_frame_dist = 192;
+  double l2_loss_weight = 1.0;
+  double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (evaluation issue)
+  int64_t checkpoint_every = 4000;
+  int64_t keep_checkpoints = 3;
+  int64_t log_every = 10;
+  int64_t eval_every = 0;  // 0: no periodic evaluation
+  int64_t seed = 777;
+  int64_t loader_threads = 2;
+  std::string amp = "none";  // "none" or "bf16"
+};
+
+struct DatasetConfig {
+  bool square_crop = true;
+  // Built-in room walkthroughs (uplvsm make-dataset).
+  int64_t num_train_scenes = 400;
+  int64_t num_test_scenes = 64;
+  int64_t frames_per_scene = 32;
+  int64_t render_height = 72;
+  int64_t render_width = 128;
+  double frame_spacing = 1.0;
+  int64_t eval_gap = 0;  // frames between the two evaluation context views; 0: frames / 2
+  int64_t seed = 1;
+};
+
+struct EvalConfig {
+  int64_t num_target_views = 3;
+  int64_t max_scenes = 0;  // 0: all
+};
+
+struct Config {
+  std::string name = "unnamed";
+  ModelConfig model;
+  TrainingConfig training;
+  DatasetConfig dataset;
+  EvalConfig eval;
+};
+
+Config load_config(const std::string& path);
+Config config_from_json(const nlohmann::json& j, const std::string& source = "<json>");
+nlohmann::json config_to_json(const Config& c);
+// Throws with a clear message when the combination is inconsistent (sizes not divisible, d != dino width, ...).
+void validate_config(const Config& c, const std::string& source);
+
+}  // namespace uplvsm

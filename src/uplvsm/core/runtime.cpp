@@ -1,0 +1,101 @@
+#include "uplvsm/core/runtime.h"
+
+#include <dlfcn.h>
+#include <link.h>
+#include <sched.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <stdexcept>
+
+#include <fmt/format.h>
+
+namespace uplvsm {
+
+void ensure_passive_openmp(char** argv) {
+  if (std::getenv("OMP_WAIT_POLICY") != nullptr || std::getenv("UPLVSM_NO_REEXEC") != nullptr) return;
+  setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+  setenv("UPLVSM_NO_REEXEC", "1", 1);
+  execv("/proc/self/exe", argv);
+  // execv only returns on failure: carry on with the active policy rather than refuse to run.
+}
+
+int available_cores() {
+  cpu_set_t set;
+  CPU_ZERO(&set);
+  if (sched_getaffinity(0, sizeof(set), &set) == 0) {
+    int n = CPU_COUNT(&set);
+    if (n > 0) return n;
+  }
+  long n = sysconf(_SC_NPROCESSORS_ONLN);
+  return n > 0 ? static_cast<int>(n) : 1;
+}
+
+void init_runtime(int threads) {
+  int n = threads > 0 ? threads : available_cores();
+  torch::set_num_threads(n);
+  static bool interop_set = false;  // LibTorch allows setting inter-op threads only once per process
+  if (!interop_set) {
+    try {
+      torch::set_num_interop_threads(1);
+    } catch (const c10::Error&) {
+    }
+    interop_set = true;
+  }
+}
+
+namespace {
+int find_blas(struct dl_phdr_info* info, size_t, void* data) {
+  auto* out = static_cast<std::string*>(data);
+  if (info->dlpi_name && std::strstr(info->dlpi_name, "libblas.so")) *out = info->dlpi_name;
+  if (info->dlpi_name && out->empty() && std::strstr(info->dlpi_name, "openblas")) *out = info->dlpi_name;
+  return 0;
+}
+}  // namespace
+
+RuntimeInfo runtime_info() {
+  RuntimeInfo info;
+  info.torch_version = fmt::format("{}.{}.{}", TORCH_VERSION_MAJOR, TORCH_VERSION_MINOR, TORCH_VERSION_PATCH);
+  dl_iterate_phdr(find_blas, &info.blas_library);
+  if (info.blas_library.empty()) info.blas_library = "unknown";
+  using GetConfig = char* (*)();
+  if (auto fn = reinterpret_cast<GetConfig>(dlsym(RTLD_DEFAULT, "openblas_get_config"))) info.blas_config = fn();
+  info.threads = torch::get_num_threads();
+  info.interop_threads = torch::get_num_interop_threads();
+  const char* policy = std::getenv("OMP_WAIT_POLICY");
+  info.omp_wait_policy = policy ? policy : "(unset: libgomp default, active spinning)";
+  info.cuda_available = torch::cuda::is_available();
+  info.cuda_devices = info.cuda_available ? static_cast<int>(torch::cuda::device_count()) : 0;
+  return info;
+}
+
+std::string format_runtime_info(const RuntimeInfo& info) {
+  std::string blas_kind = info.blas_config.empty()
+                              ? (info.blas_library.find("/blas/") != std::string::npos ? "reference BLAS (slow!)"
+                                                                                        : "unknown BLAS")
+                              : "OpenBLAS";
+  return fmt::format(
+      "LibTorch     {}\nBLAS         {} ({})\nBLAS config  {}\nthreads      {} intra-op, {} inter-op "
+      "(cores available: {})\nOpenMP wait  {}\nCUDA         {}\n",
+      info.torch_version, blas_kind, info.blas_library, info.blas_config.empty() ? "-" : info.blas_config,
+      info.threads, info.interop_threads, available_cores(), info.omp_wait_policy,
+      info.cuda_available ? fmt::format("available, {} device(s)", info.cuda_devices) : "not available");
+}
+
+torch::Device parse_device(const std::string& name) {
+  if (name == "auto") return torch::cuda::is_available() ? torch::Device(torch::kCUDA, 0) : torch::Device(torch::kCPU);
+  if (name == "cpu") return torch::Device(torch::kCPU);
+  if (name.rfind("cuda", 0) == 0) {
+    if (!torch::cuda::is_available())
+      throw std::runtime_error("--device " + name + ": this LibTorch build has no CUDA device available "
+                               "(build against a CUDA LibTorch via CMAKE_PREFIX_PATH, or use --device cpu)");
+    try {
+      return torch::Device(name);
+    } catch (const c10::Error&) {
+    }
+  }
+  throw std::runtime_error("--device: expected cpu, cuda, cuda:N or auto, got '" + name + "'");
+}
+
+}  // namespace uplvsm

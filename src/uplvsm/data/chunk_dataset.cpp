@@ -1,0 +1,332 @@
+// pixelSplat chunk I/O through LibTorch's pickle (torch.save zip format) and the cached, indexed dataset.
+#include "uplvsm/data/chunk_dataset.h"
+
+#include <torch/csrc/jit/serialization/pickle.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <tuple>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
+
+namespace uplvsm::data {
+namespace fs = std::filesystem;
+namespace {
+
+std::string describe(const torch::Tensor& t) {
+  return t.defined() ? c10::str(t.scalar_type(), t.sizes()) : std::string("undefined");
+}
+
+// Checks one scene's fields against the chunk rules; `where` = "<file>: scene <i> (key <k>)".
+void validate_scene(const RawScene& s, const std::string& where) {
+  if (!s.timestamps.defined() || s.timestamps.dim() != 1 || s.timestamps.scalar_type() != torch::kInt64)
+    throw std::runtime_error(fmt::format("{}: field 'timestamps' must be int64 [N], got {}", where,
+                                         describe(s.timestamps)));
+  int64_t n = s.timestamps.size(0);
+  if (!s.cameras.defined() || s.cameras.scalar_type() != torch::kFloat32 || s.cameras.dim() != 2 ||
+      s.cameras.size(1) != 18)
+    throw std::runtime_error(fmt::format("{}: field 'cameras' must be float32 [N,18], got {}", where,
+                                         describe(s.cameras)));
+  if (s.cameras.size(0) != n)
+    throw std::runtime_error(fmt::format("{}: field 'cameras' has {} rows but timestamps has N={}", where,
+                                         s.cameras.size(0), n));
+  if (static_cast<int64_t>(s.images.size()) != n)
+    throw std::runtime_error(fmt::format("{}: field 'images' has {} entries but timestamps has N={}", where,
+                                         s.images.size(), n));
+  for (size_t j = 0; j < s.images.size(); ++j) {
+    const auto& im = s.images[j];
+    if (!im.defined() || im.scalar_type() != torch::kUInt8 || im.dim() != 1 || im.numel() == 0)
+      throw std::runtime_error(fmt::format("{}: field 'images' entry {} must be a non-empty uint8 1-D tensor of JPEG "
+                                           "bytes, got {}",
+                                           where, j, describe(im)));
+  }
+}
+
+const c10::IValue& field(const c10::impl::GenericDict& dict, const char* name, const std::string& where) {
+  auto it = dict.find(c10::IValue(std::string(name)));
+  if (it == dict.end()) throw std::runtime_error(fmt::format("{}: missing field '{}'", where, name));
+  return it->value();
+}
+
+std::string string_field(const c10::impl::GenericDict& dict, const char* name, const std::string& where) {
+  const auto& v = field(dict, name, where);
+  if (!v.isString()) throw std::runtime_error(fmt::format("{}: field '{}' must be a str, got {}", where, name,
+                                                         v.tagKind()));
+  return v.toStringRef();
+}
+
+torch::Tensor tensor_field(const c10::impl::GenericDict& dict, const char* name, const std::string& where) {
+  const auto& v = field(dict, name, where);
+  if (!v.isTensor())
+    throw std::runtime_error(fmt::format("{}: field '{}' must be a tensor, got {}", where, name, v.tagKind()));
+  return v.toTensor().contiguous();
+}
+
+RawScene parse_scene(const c10::IValue& item, const std::string& where) {
+  if (!item.isGenericDict()) throw std::runtime_error(fmt::format("{}: expected a dict, got {}", where, item.tagKind()));
+  auto dict = item.toGenericDict();
+  RawScene s;
+  s.key = string_field(dict, "key", where);
+  std::string at = fmt::format("{} (key {})", where, s.key);
+  s.url = string_field(dict, "url", at);
+  s.timestamps = tensor_field(dict, "timestamps", at);
+  if (s.timestamps.defined() && s.timestamps.dim() == 1 && c10::isIntegralType(s.timestamps.scalar_type(), false))
+    s.timestamps = s.timestamps.to(torch::kInt64);
+  s.cameras = tensor_field(dict, "cameras", at);
+  if (s.cameras.is_floating_point()) s.cameras = s.cameras.to(torch::kFloat32);
+  const auto& images = field(dict, "images", at);
+  if (!images.isList())
+    throw std::runtime_error(fmt::format("{}: field 'images' must be a list of tensors, got {}", at, images.tagKind()));
+  auto list = images.toList();
+  s.images.reserve(list.size());
+  for (size_t j = 0; j < list.size(); ++j) {
+    c10::IValue v = list.get(j);
+    if (!v.isTensor())
+      throw std::runtime_error(fmt::format("{}: field 'images' entry {} must be a tensor, got {}", at, j, v.tagKind()));
+    s.images.push_back(v.toTensor().contiguous());
+  }
+  validate_scene(s, at);
+  return s;
+}
+
+// A tensor that owns exactly its bytes (a view would make torch.save write the whole underlying storage).
+torch::Tensor compact(const torch::Tensor& t) {
+  auto c = t.contiguous();
+  if (c.storage_offset() != 0 || c.storage().nbytes() != static_cast<size_t>(c.nbytes())) c = c.clone();
+  return c;
+}
+
+}  // namespace
+
+void write_chunk(const std::string& path, const std::vector<RawScene>& scenes) {
+  // Generic (Any-typed) lists and dicts pickle as plain Python lists/dicts, so torch.load needs no TorchScript
+  // helpers to rebuild them.
+  c10::impl::GenericList list(c10::AnyType::get());
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    const auto& s = scenes[i];
+    validate_scene(s, fmt::format("write_chunk: {}: scene {} (key {})", path, i, s.key));
+    c10::impl::GenericDict dict(c10::StringType::get(), c10::AnyType::get());
+    dict.insert("url", s.url);
+    dict.insert("timestamps", compact(s.timestamps));
+    dict.insert("cameras", compact(s.cameras));
+    c10::impl::GenericList images(c10::AnyType::get());
+    for (const auto& im : s.images) images.push_back(compact(im));
+    dict.insert("images", images);
+    dict.insert("key", s.key);
+    list.push_back(dict);
+  }
+  std::vector<char> bytes = torch::pickle_save(list);
+  io::write_file_atomic(path, bytes.data(), bytes.size());
+}
+
+std::vector<RawScene> read_chunk(const std::string& path) {
+  std::vector<char> bytes;
+  {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw std::runtime_error(fmt::format("read_chunk: cannot open {}", path));
+    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  c10::IValue root;
+  try {
+    root = torch::pickle_load(bytes);
+  } catch (const c10::Error& e) {
+    throw std::runtime_error(fmt::format("read_chunk: {}: not a readable torch.save file (truncated or corrupt?): {}",
+                                         path, e.what_without_backtrace()));
+  } catch (const std::exception& e) {
+    throw std::runtime_error(fmt::format("read_chunk: {}: not a readable torch.save file (truncated or corrupt?): {}",
+                                         path, e.what()));
+  }
+  if (!root.isList())
+    throw std::runtime_error(fmt::format("read_chunk: {}: expected a list of scene dicts, got {}", path,
+                                         root.tagKind()));
+  auto list = root.toList();
+  std::vector<RawScene> scenes;
+  scenes.reserve(list.size());
+  for (size_t i = 0; i < list.size(); ++i)
+    scenes.push_back(parse_scene(list.get(i), fmt::format("read_chunk: {}: scene {}", path, i)));
+  return scenes;
+}
+
+std::map<std::string, std::string> read_chunk_index(const std::string& split_dir) {
+  std::map<std::string, std::string> index;
+  fs::path index_path = fs::path(split_dir) / "index.json";
+  if (fs::exists(index_path)) {
+    nlohmann::json j;
+    try {
+      std::ifstream in(index_path);
+      j = nlohmann::json::parse(in);
+    } catch (const std::exception& e) {
+      throw std::runtime_error(fmt::format("{}: not valid JSON: {}", index_path.string(), e.what()));
+    }
+    if (!j.is_object())
+      throw std::runtime_error(fmt::format("{}: expected an object {{key: chunk file}}", index_path.string()));
+    for (auto& [key, value] : j.items()) {
+      if (!value.is_string())
+        throw std::runtime_error(fmt::format("{}: value of key '{}' must be a chunk file name", index_path.string(),
+                                             key));
+      index[key] = value.get<std::string>();
+    }
+    return index;
+  }
+  // No index: every *.torch file of the folder, read once to learn its keys.
+  std::vector<std::string> files;
+  for (const auto& e : fs::directory_iterator(split_dir))
+    if (e.is_regular_file() && e.path().extension() == ".torch") files.push_back(e.path().filename().string());
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files)
+    for (const auto& s : read_chunk((fs::path(split_dir) / f).string())) index[s.key] = f;
+  return index;
+}
+
+void write_chunk_index(const std::string& split_dir, const std::map<std::string, std::string>& index) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [key, file] : index) j[key] = file;
+  std::string text = j.dump(2) + "\n";
+  io::write_file_atomic((fs::path(split_dir) / "index.json").string(), text.data(), text.size());
+}
+
+ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks)
+    : root_(std::move(root)), split_(std::move(split)), cache_chunks_(std::max(1, cache_chunks)) {
+  dir_ = (fs::path(root_) / split_).string();
+  if (!fs::is_directory(dir_))
+    throw std::runtime_error(fmt::format("ChunkDataset: {} is not a folder (expected root/{{train,test}})", dir_));
+  for (const auto& [key, file] : read_chunk_index(dir_)) {
+    if (!fs::exists(fs::path(dir_) / file))
+      throw std::runtime_error(fmt::format("ChunkDataset: {}/index.json maps key {} to missing file {}", dir_, key,
+                                           file));
+    entries_.push_back({key, file});
+  }
+  std::sort(entries_.begin(), entries_.end(),
+            [](const Entry& a, const Entry& b) { return std::tie(a.chunk, a.key) < std::tie(b.chunk, b.key); });
+  num_frames_ = std::make_unique<std::atomic<int64_t>[]>(entries_.size());
+  for (size_t i = 0; i < entries_.size(); ++i) {
+    by_key_[entries_[i].key] = static_cast<int64_t>(i);
+    num_frames_[i].store(-1);
+  }
+}
+
+void ChunkDataset::check_index(int64_t i) const {
+  if (i < 0 || i >= size())
+    throw std::out_of_range(fmt::format("ChunkDataset {}: scene index {} out of range [0, {})", dir_, i, size()));
+}
+
+const std::string& ChunkDataset::key(int64_t i) const {
+  check_index(i);
+  return entries_[i].key;
+}
+
+std::string ChunkDataset::chunk_path(int64_t i) const {
+  check_index(i);
+  return (fs::path(dir_) / entries_[i].chunk).string();
+}
+
+int64_t ChunkDataset::find(const std::string& key) const {
+  auto it = by_key_.find(key);
+  return it == by_key_.end() ? -1 : it->second;
+}
+
+std::shared_ptr<const ChunkDataset::LoadedChunk> ChunkDataset::load_chunk(const std::string& chunk) const {
+  std::promise<ChunkPtr> promise;
+  std::shared_future<ChunkPtr> future;
+  bool owner = false;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    auto it = cache_.find(chunk);
+    if (it != cache_.end()) {
+      future = it->second;
+      lru_.remove(chunk);
+    } else {
+      // We read it outside the lock; threads asking for the same chunk meanwhile wait on this future.
+      future = promise.get_future().share();
+      cache_[chunk] = future;
+      owner = true;
+    }
+    lru_.push_front(chunk);
+    while (static_cast<int>(lru_.size()) > cache_chunks_) {
+      cache_.erase(lru_.back());  // holders keep their shared_ptr alive
+      lru_.pop_back();
+    }
+  }
+  if (owner) {
+    try {
+      auto loaded = std::make_shared<LoadedChunk>();
+      loaded->scenes = read_chunk((fs::path(dir_) / chunk).string());
+      for (size_t j = 0; j < loaded->scenes.size(); ++j) {
+        loaded->by_key[loaded->scenes[j].key] = j;
+        int64_t idx = find(loaded->scenes[j].key);
+        if (idx >= 0) num_frames_[idx].store(static_cast<int64_t>(loaded->scenes[j].images.size()));
+      }
+      promise.set_value(std::move(loaded));
+    } catch (...) {
+      promise.set_exception(std::current_exception());
+      std::lock_guard<std::mutex> lock(mutex_);
+      cache_.erase(chunk);  // let a later call retry
+      lru_.remove(chunk);
+    }
+  }
+  return future.get();
+}
+
+const RawScene& ChunkDataset::scene_ref(int64_t i, ChunkPtr& holder) const {
+  check_index(i);
+  const Entry& e = entries_[i];
+  holder = load_chunk(e.chunk);
+  auto it = holder->by_key.find(e.key);
+  if (it == holder->by_key.end())
+    throw std::runtime_error(fmt::format("ChunkDataset: {}/index.json says scene {} is in {}, but that chunk has "
+                                         "no such key",
+                                         dir_, e.key, e.chunk));
+  return holder->scenes[it->second];
+}
+
+int64_t ChunkDataset::num_frames(int64_t i) const {
+  check_index(i);
+  int64_t n = num_frames_[i].load();
+  if (n >= 0) return n;
+  ChunkPtr holder;
+  return static_cast<int64_t>(scene_ref(i, holder).images.size());
+}
+
+RawScene ChunkDataset::scene(int64_t i) const {
+  ChunkPtr holder;
+  return scene_ref(i, holder);  // a copy sharing the tensors' storage (read-only use expected)
+}
+
+Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const {
+  ChunkPtr holder;
+  const RawScene& s = scene_ref(i, holder);
+  const int64_t n = static_cast<int64_t>(s.images.size());
+  const std::string where = fmt::format("{}: scene {}", chunk_path(i), s.key);
+  if (frames.empty()) throw std::runtime_error(fmt::format("{}: no frames requested", where));
+  const auto& first = s.images[0];
+  auto [h0, w0] = io::jpeg_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
+  std::vector<torch::Tensor> decoded;
+  decoded.reserve(frames.size());
+  for (int64_t f : frames) {
+    if (f < 0 || f >= n)
+      throw std::runtime_error(fmt::format("{}: frame {} out of range (scene has {} frames)", where, f, n));
+    const auto& bytes = s.images[f];
+    std::string what = fmt::format("{} frame {}", where, f);
+    auto img = io::decode_jpeg(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
+    int h = static_cast<int>(img.size(0)), w = static_cast<int>(img.size(1));
+    if (h != h0 || w != w0)
+      throw BadFrameError(fmt::format("{}: frame is {}x{} but frame 0 is {}x{} (pixelSplat skips such frames)",
+                                      what, h, w, h0, w0),
+                          s.key, f, h0, w0, h, w);
+    auto row = s.cameras[f];
+    if (!torch::isfinite(row).all().item<bool>())
+      throw std::runtime_error(fmt::format("{}: field 'cameras' has a NaN/Inf value", what));
+    decoded.push_back(img);
+  }
+  auto index = torch::tensor(frames, torch::kInt64);
+  Views views = preprocess(decoded, s.cameras.index_select(0, index), opt, where);
+  views.frames = frames;
+  return views;
+}
+
+}  // namespace uplvsm::data

@@ -1,0 +1,97 @@
+// pixelSplat chunk datasets (RealEstate10K / ACID layout): root/{train,test}/NNNNNN.torch, each a torch.save'd
+// list of scene dicts, plus index.json {key: chunk file}. Reading, writing (readable by Python's torch.load) and a
+// thread-safe indexed dataset with a small LRU cache of parsed chunks.
+#pragma once
+#include <torch/torch.h>
+
+#include <atomic>
+#include <cstdint>
+#include <future>
+#include <list>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+#include "uplvsm/data/preprocess.h"
+#include "uplvsm/data/scene.h"
+
+namespace uplvsm::data {
+
+// A requested frame decodes to another size than frame 0 of its scene. pixelSplat skips such frames; callers
+// catch this, count/log the skip and pick other views or another scene.
+struct BadFrameError : std::runtime_error {
+  std::string scene_key;
+  int64_t frame = -1;
+  int expected_height = 0, expected_width = 0;  // frame 0 of the scene
+  int height = 0, width = 0;                    // the bad frame
+  BadFrameError(const std::string& message, std::string key, int64_t frame_index, int exp_h, int exp_w, int h, int w)
+      : std::runtime_error(message), scene_key(std::move(key)), frame(frame_index), expected_height(exp_h),
+        expected_width(exp_w), height(h), width(w) {}
+};
+
+// Writes scenes as one chunk (torch.save format: list of dicts url/timestamps/cameras/images/key), atomically.
+// Validates every scene first (same rules as read_chunk).
+void write_chunk(const std::string& path, const std::vector<RawScene>& scenes);
+
+// Reads a chunk; throws std::runtime_error naming the file, scene and field for: unreadable/truncated file,
+// missing key, wrong type, wrong dtype or shape (cameras must be [N,18], timestamps [N]), image count != N.
+// Floating-point cameras of another precision are converted to float32; JPEG bytes are not decoded here.
+std::vector<RawScene> read_chunk(const std::string& path);
+
+// Reads root/<split>/index.json, or, when absent, maps every *.torch file of the folder (reading them).
+// Returns key -> chunk file name (relative to the split folder).
+std::map<std::string, std::string> read_chunk_index(const std::string& split_dir);
+
+// Writes root/<split>/index.json {key: chunk file name} atomically.
+void write_chunk_index(const std::string& split_dir, const std::map<std::string, std::string>& index);
+
+class ChunkDataset {
+ public:
+  // `cache_chunks`: how many parsed chunks to keep (a RealEstate10K chunk is ~100 MB of JPEG bytes).
+  ChunkDataset(std::string root, std::string split, int cache_chunks = 4);
+
+  int64_t size() const { return static_cast<int64_t>(entries_.size()); }
+  const std::string& key(int64_t i) const;
+  int64_t num_frames(int64_t i) const;  // may load the scene's chunk the first time
+  int64_t find(const std::string& key) const;  // -1 if absent
+  RawScene scene(int64_t i) const;
+  std::string chunk_path(int64_t i) const;
+  const std::string& root() const { return root_; }
+  const std::string& split() const { return split_; }
+
+  // Decodes the requested frames (any order, repeats allowed) and preprocesses them; Views.frames = frames.
+  // Throws BadFrameError for a frame whose size differs from frame 0, std::runtime_error for a frame index out
+  // of range, an undecodable JPEG or a NaN/Inf camera (naming the scene key and frame).
+  Views load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const;
+
+ private:
+  struct Entry {
+    std::string key;
+    std::string chunk;  // file name inside the split folder
+  };
+  struct LoadedChunk {
+    std::vector<RawScene> scenes;
+    std::unordered_map<std::string, size_t> by_key;
+  };
+  using ChunkPtr = std::shared_ptr<const LoadedChunk>;
+
+  std::shared_ptr<const LoadedChunk> load_chunk(const std::string& chunk) const;
+  const RawScene& scene_ref(int64_t i, ChunkPtr& holder) const;
+  void check_index(int64_t i) const;
+
+  std::string root_, split_, dir_;
+  int cache_chunks_;
+  std::vector<Entry> entries_;  // sorted by (chunk file, key): deterministic without reading the chunks
+  std::unordered_map<std::string, int64_t> by_key_;
+  std::unique_ptr<std::atomic<int64_t>[]> num_frames_;  // -1 until the scene's chunk was read
+
+  mutable std::mutex mutex_;  // guards cache_ and lru_
+  mutable std::map<std::string, std::shared_future<ChunkPtr>> cache_;
+  mutable std::list<std::string> lru_;  // most recently used first
+};
+
+}  // namespace uplvsm::data

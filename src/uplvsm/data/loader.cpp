@@ -1,0 +1,152 @@
+#include "uplvsm/data/loader.h"
+
+#include <algorithm>
+#include <chrono>
+#include <numeric>
+#include <random>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "uplvsm/data/view_sampler.h"
+
+namespace uplvsm::data {
+
+namespace {
+
+uint64_t mix(uint64_t a, uint64_t b) {
+  // splitmix64 of a combined value: independent streams per (seed, step, sample).
+  uint64_t z = a * 0x9E3779B97F4A7C15ULL + b + 0x632BE59BD9B4E5ULL;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ULL;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBULL;
+  return z ^ (z >> 31);
+}
+
+// Scene order of one epoch: a seeded permutation, identical on every rank.
+std::vector<int64_t> epoch_permutation(int64_t n, uint64_t seed, int64_t epoch) {
+  std::vector<int64_t> perm(n);
+  std::iota(perm.begin(), perm.end(), 0);
+  std::mt19937_64 rng(mix(seed, static_cast<uint64_t>(epoch) + 1));
+  for (int64_t i = n - 1; i > 0; --i) std::swap(perm[i], perm[uniform_int(rng, 0, i)]);
+  return perm;
+}
+
+}  // namespace
+
+TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step) {
+  const int64_t n = dataset.size();
+  if (n == 0) throw std::runtime_error("training data: split '" + dataset.split() + "' of " + dataset.root() + " has no scenes");
+  TrainingBatch batch;
+  batch.step = step;
+  std::vector<torch::Tensor> images, intrinsics, c2ws, targets;
+  int64_t epoch_cached = -1;
+  std::vector<int64_t> perm;
+  for (int64_t i = 0; i < opt.batch_size; ++i) {
+    // Global sample number: disjoint across ranks within a step, contiguous across steps.
+    const int64_t g = (step * opt.world_size + opt.rank) * opt.batch_size + i;
+    std::mt19937_64 rng(mix(opt.seed, static_cast<uint64_t>(g)));
+    bool done = false;
+    for (int64_t attempt = 0; attempt < std::min<int64_t>(n, 64) && !done; ++attempt) {
+      const int64_t slot = g + attempt * 7919;  // a bad scene is replaced by another one of the order
+      const int64_t epoch = slot / n;
+      if (epoch != epoch_cached) {
+        perm = epoch_permutation(n, opt.seed, epoch);
+        epoch_cached = epoch;
+      }
+      const int64_t scene = perm[slot % n];
+      try {
+        const int64_t frames = dataset.num_frames(scene);
+        if (!can_sample(frames, opt.num_views, opt.min_frame_dist))
+          throw std::runtime_error(fmt::format("{} frames: too few for {} views {}+ frames apart", frames, opt.num_views, opt.min_frame_dist));
+        auto chosen = sample_training_views(frames, opt.num_views, opt.min_frame_dist, opt.max_frame_dist, rng);
+        auto views = dataset.load_views(scene, chosen, opt.preprocess);
+        images.push_back(views.images);
+        intrinsics.push_back(views.fxfycxcy);
+        c2ws.push_back(views.c2w);
+        batch.keys.push_back(dataset.key(scene));
+        batch.frames.push_back(chosen);
+        // Official target_has_input=True: random.sample(range(V), num_target_views).
+        std::vector<int64_t> all(opt.num_views);
+        std::iota(all.begin(), all.end(), 0);
+        for (int k = 0; k < opt.num_target_views; ++k)
+          std::swap(all[k], all[uniform_int(rng, k, opt.num_views - 1)]);
+        targets.push_back(torch::tensor(std::vector<int64_t>(all.begin(), all.begin() + opt.num_target_views)));
+        done = true;
+      } catch (const std::exception& e) {
+        ++batch.replaced_scenes;
+        spdlog::warn("training data: skipping scene {} ({}): {}", dataset.key(scene), dataset.chunk_path(scene), e.what());
+      }
+    }
+    if (!done) throw std::runtime_error("training data: could not build a sample from 64 scenes in a row of " + dataset.root());
+  }
+  batch.images = torch::stack(images);
+  batch.fxfycxcy = torch::stack(intrinsics);
+  batch.c2w = torch::stack(c2ws);
+  batch.target_index = torch::stack(targets);
+  return batch;
+}
+
+torch::Tensor TrainingBatch::input_images(int64_t n) const { return images.narrow(1, 0, n); }
+torch::Tensor TrainingBatch::input_fxfycxcy(int64_t n) const { return fxfycxcy.narrow(1, 0, n); }
+
+torch::Tensor TrainingBatch::target_images() const {
+  auto idx = target_index.view({target_index.size(0), target_index.size(1), 1, 1, 1})
+                 .expand({-1, -1, images.size(2), images.size(3), images.size(4)});
+  return images.gather(1, idx);
+}
+
+torch::Tensor TrainingBatch::target_fxfycxcy() const {
+  return fxfycxcy.gather(1, target_index.unsqueeze(-1).expand({-1, -1, 4}));
+}
+
+TrainingLoader::TrainingLoader(const ChunkDataset& dataset, LoaderOptions opt, int64_t first_step)
+    : dataset_(dataset), opt_(std::move(opt)), next_to_hand_out_(first_step), next_to_build_(first_step) {
+  for (int i = 0; i < std::max(1, opt_.threads); ++i) workers_.emplace_back([this] { work(); });
+}
+
+TrainingLoader::~TrainingLoader() {
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    stop_ = true;
+  }
+  cv_.notify_all();
+  for (auto& w : workers_) w.join();
+}
+
+void TrainingLoader::work() {
+  while (true) {
+    int64_t step;
+    {
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [&] { return stop_ || next_to_build_ < next_to_hand_out_ + opt_.prefetch; });
+      if (stop_) return;
+      step = next_to_build_++;
+    }
+    try {
+      auto batch = make_training_batch(dataset_, opt_, step);
+      std::lock_guard<std::mutex> lock(mutex_);
+      ready_.emplace(step, std::move(batch));
+    } catch (const std::exception& e) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      errors_.emplace(step, e.what());
+    }
+    cv_.notify_all();
+  }
+}
+
+TrainingBatch TrainingLoader::next() {
+  auto t0 = std::chrono::steady_clock::now();
+  std::unique_lock<std::mutex> lock(mutex_);
+  const int64_t step = next_to_hand_out_;
+  cv_.wait(lock, [&] { return ready_.count(step) || errors_.count(step); });
+  wait_seconds_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (errors_.count(step)) throw std::runtime_error(errors_.at(step));
+  auto batch = std::move(ready_.at(step));
+  ready_.erase(step);
+  ++next_to_hand_out_;
+  lock.unlock();
+  cv_.notify_all();
+  return batch;
+}
+
+}  // namespace uplvsm::data

@@ -1,0 +1,80 @@
+// The training batch loader: for every step a batch that is a pure function of (seed, step, rank), so a resumed
+// run sees exactly the data the uninterrupted run would have seen, and ranks read disjoint shards. Scenes are
+// visited in a seeded permutation per epoch; views follow the official selector; a bad scene (too few frames, a
+// wrong-size frame) is replaced by the next scene of the permutation and counted. Worker threads decode ahead
+// into a bounded queue.
+#pragma once
+#include <torch/torch.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/preprocess.h"
+
+namespace uplvsm::data {
+
+struct LoaderOptions {
+  int64_t batch_size = 1;          // per rank
+  int num_views = 8;
+  int num_input_views = 2;
+  int num_target_views = 6;
+  int min_frame_dist = 25, max_frame_dist = 192;
+  PreprocessOptions preprocess;
+  uint64_t seed = 777;
+  int rank = 0, world_size = 1;
+  int threads = 2;
+  int prefetch = 4;                // batches decoded ahead
+};
+
+struct TrainingBatch {
+  int64_t step = 0;
+  torch::Tensor images;    // [b, V, 3, H, W]
+  torch::Tensor fxfycxcy;  // [b, V, 4]
+  torch::Tensor c2w;       // [b, V, 4, 4]
+  torch::Tensor target_index;  // int64 [b, num_target_views]: views used as targets (official: may include inputs)
+  std::vector<std::string> keys;
+  std::vector<std::vector<int64_t>> frames;
+  int64_t replaced_scenes = 0;  // bad scenes swapped for others while building this batch
+
+  // Inputs are the first num_input_views views; targets are gathered by target_index.
+  torch::Tensor input_images(int64_t n) const;
+  torch::Tensor input_fxfycxcy(int64_t n) const;
+  torch::Tensor target_images() const;
+  torch::Tensor target_fxfycxcy() const;
+};
+
+// The batch of `step` for this rank (no threads; the loader below calls it).
+TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step);
+
+class TrainingLoader {
+ public:
+  TrainingLoader(const ChunkDataset& dataset, LoaderOptions opt, int64_t first_step);
+  ~TrainingLoader();
+  TrainingLoader(const TrainingLoader&) = delete;
+  TrainingLoader& operator=(const TrainingLoader&) = delete;
+  // Batches come in step order: first_step, first_step + 1, ...
+  TrainingBatch next();
+  double wait_seconds() const { return wait_seconds_; }  // time next() spent blocked on workers
+
+ private:
+  void work();
+  const ChunkDataset& dataset_;
+  LoaderOptions opt_;
+  int64_t next_to_hand_out_, next_to_build_;
+  std::map<int64_t, TrainingBatch> ready_;
+  std::map<int64_t, std::string> errors_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  std::vector<std::thread> workers_;
+  double wait_seconds_ = 0;
+};
+
+}  // namespace uplvsm::data

@@ -1,0 +1,26 @@
+// The official UP-LVSM training view selector (official-uplvsm.md §1, dataset_scene.py view_selector): two
+// context frames `gap` apart plus random frames strictly between them.
+#pragma once
+#include <cstdint>
+#include <random>
+#include <vector>
+
+namespace uplvsm::data {
+
+// Uniform integer in [lo, hi] (inclusive) by rejection sampling on the raw 64-bit draws, so the sequence is the
+// same for a given engine state on every platform (std::uniform_int_distribution is implementation-defined).
+int64_t uniform_int(std::mt19937_64& rng, int64_t lo, int64_t hi);
+
+// Frames for one training sample: needs num_frames >= num_views (else throws).
+// gap = uniform in [min_gap, min(num_frames-1, max_gap)] (min_gap above that bound: the bound; at least 1);
+// start = uniform in [0, num_frames-gap-1]; views = [start, start+gap] followed by num_views-2 distinct frames
+// of (start, start+gap) in random order (repeats only when the interval has too few frames). num_views == 1
+// gives one uniform frame.
+std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, int min_gap, int max_gap,
+                                           std::mt19937_64& rng);
+
+// Whether the official selector can use the scene without lowering its gap: num_frames >= num_views and
+// num_frames - 1 >= min_gap (the official code raises, and replaces the scene, otherwise).
+bool can_sample(int64_t num_frames, int num_views, int min_gap);
+
+}  // namespace uplvsm::data

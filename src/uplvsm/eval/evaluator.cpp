@@ -1,0 +1,389 @@
+#include "uplvsm/eval/evaluator.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cctype>
+#include <chrono>
+#include <filesystem>
+#include <future>
+#include <stdexcept>
+#include <utility>
+
+#include "uplvsm/core/progress.h"
+#include "uplvsm/data/eval_index.h"
+#include "uplvsm/eval/baselines.h"
+#include "uplvsm/eval/metrics.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
+#include "uplvsm/io/raster.h"
+
+namespace uplvsm::eval {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct Job {
+  data::EvalEntry entry;
+  int64_t dataset_index = -1;
+  size_t position = 0;  // in index (key) order
+  bool visualise = false;
+};
+
+struct Loaded {
+  const Job* job = nullptr;
+  data::Views views;  // context frames, then target frames
+};
+
+// Where the results of one run go while batches finish in group order (main thread only).
+struct RunState {
+  std::vector<std::optional<SceneResult>> results;  // by Job::position
+  std::vector<std::string> grids;
+  int64_t bad_frames = 0, done = 0;
+  double psnr_sum = 0, ssim_sum = 0;
+};
+
+// Eval mode for the run; the previous mode comes back even when an exception escapes.
+struct EvalModeGuard {
+  explicit EvalModeGuard(model::UPLVSM& n) : net(n), was_training(n->is_training()) { net->eval(); }
+  ~EvalModeGuard() { net->train(was_training); }
+  model::UPLVSM& net;
+  bool was_training;
+};
+
+std::string safe_file_name(const std::string& key) {
+  std::string out = key;
+  for (auto& ch : out)
+    if (!std::isalnum(static_cast<unsigned char>(ch)) && ch != '-' && ch != '_' && ch != '.') ch = '_';
+  return out.empty() ? "scene" : out;
+}
+
+std::vector<Job> plan_jobs(const data::ChunkDataset& dataset, const EvalOptions& opt, const std::string& index_path,
+                           EvalSummary& summary) {
+  auto entries = data::read_eval_index(index_path, &summary.skipped_null);
+  std::vector<Job> jobs;
+  for (auto& e : entries) {
+    const int64_t i = dataset.find(e.key);
+    if (i < 0) {
+      if (summary.skipped_missing++ < 5) spdlog::debug("eval: key {} of {} is not in the dataset", e.key, index_path);
+      continue;
+    }
+    if (opt.max_scenes > 0 && static_cast<int64_t>(jobs.size()) >= opt.max_scenes) continue;
+    const size_t pos = jobs.size();
+    jobs.push_back({std::move(e), i, pos, static_cast<int64_t>(pos) < opt.num_visualised});
+  }
+  spdlog::info("eval: {} scenes from {} ({} null entries, {} keys not in {}/{}{})", jobs.size(), index_path,
+               summary.skipped_null, summary.skipped_missing, dataset.root(), dataset.split(),
+               opt.max_scenes > 0 ? fmt::format(", capped at {}", opt.max_scenes) : "");
+  return jobs;
+}
+
+// Batches of scenes with the same numbers of context and target views (the model takes dense tensors).
+std::vector<std::vector<const Job*>> make_batches(const std::vector<Job>& jobs, int64_t batch_size) {
+  std::map<std::pair<size_t, size_t>, std::vector<const Job*>> groups;
+  for (const auto& job : jobs) groups[{job.entry.context.size(), job.entry.target.size()}].push_back(&job);
+  std::vector<std::vector<const Job*>> batches;
+  const size_t bs = static_cast<size_t>(std::max<int64_t>(1, batch_size));
+  for (const auto& [counts, group] : groups)
+    for (size_t i = 0; i < group.size(); i += bs)
+      batches.emplace_back(group.begin() + i, group.begin() + std::min(group.size(), i + bs));
+  return batches;
+}
+
+// The scenes of one batch, decoded and preprocessed (on a helper thread while the previous batch runs).
+struct LoadedBatch {
+  std::vector<Loaded> scenes;
+  int64_t bad_frames = 0;
+};
+
+LoadedBatch load_batch(const data::ChunkDataset& dataset, const std::vector<const Job*>& batch,
+                       const data::PreprocessOptions& prep) {
+  LoadedBatch out;
+  for (const Job* job : batch) {
+    std::vector<int64_t> frames = job->entry.context;
+    frames.insert(frames.end(), job->entry.target.begin(), job->entry.target.end());
+    try {
+      out.scenes.push_back({job, dataset.load_views(job->dataset_index, frames, prep)});
+    } catch (const data::BadFrameError& e) {
+      // pixelSplat drops such frames; an evaluation entry names fixed frames, so the scene is dropped instead.
+      spdlog::warn("eval: skipping scene {}: {}", job->entry.key, e.what());
+      ++out.bad_frames;
+    }
+  }
+  return out;
+}
+
+SceneResult scene_result(const Job& job, torch::TensorAccessor<double, 2> m) {
+  SceneResult r;
+  r.key = job.entry.key;
+  r.context = job.entry.context;
+  r.target = job.entry.target;
+  r.overlap = job.entry.overlap;
+  r.bucket = r.overlap ? data::overlap_bucket(*r.overlap) : "none";
+  for (size_t t = 0; t < r.target.size(); ++t) {
+    const auto j = static_cast<int64_t>(t);
+    r.views.push_back({r.target[t], m[0][j], m[1][j], m[2][j], m[3][j], m[4][j], m[5][j]});
+  }
+  finalise_scene(r);
+  return r;
+}
+
+void write_grid(const std::string& out_dir, const SceneResult& r, const torch::Tensor& inputs,
+                const torch::Tensor& pred, const torch::Tensor& gt, const torch::Tensor& copy, RunState& state) {
+  const auto path = (fs::path(out_dir) / "scenes" / (safe_file_name(r.key) + ".png")).string();
+  fs::create_directories(fs::path(path).parent_path());
+  io::write_png(path, scene_grid(r, inputs, pred, gt, copy));
+  state.grids.push_back(path);
+}
+
+// One forward for scenes of equal view counts and image size; scores the model and the baselines per target.
+void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, const EvalOptions& opt,
+               RunState& state) {
+  const int64_t vi = static_cast<int64_t>(scenes[0]->job->entry.context.size());
+  const int64_t vt = static_cast<int64_t>(scenes[0]->job->entry.target.size());
+  std::vector<torch::Tensor> images, intrinsics;
+  std::vector<std::vector<int64_t>> in_frames, tgt_frames;
+  for (const auto* s : scenes) {
+    images.push_back(s->views.images);
+    intrinsics.push_back(s->views.fxfycxcy);
+    in_frames.push_back(s->job->entry.context);
+    tgt_frames.push_back(s->job->entry.target);
+  }
+  auto all = torch::stack(images).to(opt.device, torch::kFloat32);  // [b, vi + vt, 3, H, W]
+  auto k = torch::stack(intrinsics).to(opt.device, torch::kFloat32);
+  auto in_img = all.narrow(1, 0, vi), gt = all.narrow(1, vi, vt);
+  auto pred = net->forward(in_img, k.narrow(1, 0, vi), gt, k.narrow(1, vi, vt)).render;
+  auto copy = copy_nearest_input(in_img, in_frames, tgt_frames);
+  auto mean = mean_colour(gt);
+  auto metrics = torch::stack({psnr(pred, gt), ssim(pred, gt), psnr(copy, gt), ssim(copy, gt), psnr(mean, gt),
+                               ssim(mean, gt)}, 1)
+                     .to(torch::kCPU, torch::kFloat64)
+                     .contiguous();  // [b, 6, vt]
+  auto acc = metrics.accessor<double, 3>();
+  for (size_t b = 0; b < scenes.size(); ++b) {
+    const Job& job = *scenes[b]->job;
+    auto r = scene_result(job, acc[static_cast<int64_t>(b)]);
+    state.psnr_sum += r.psnr;
+    state.ssim_sum += r.ssim;
+    const auto i = static_cast<int64_t>(b);
+    if (job.visualise && !opt.out_dir.empty()) write_grid(opt.out_dir, r, in_img[i], pred[i], gt[i], copy[i], state);
+    state.results[job.position] = std::move(r);
+  }
+}
+
+void run_loaded(model::UPLVSM& net, const std::vector<Loaded>& loaded, const EvalOptions& opt, RunState& state) {
+  // Scenes of another aspect ratio preprocess to another size (square_crop off): one forward per image size.
+  std::map<std::vector<int64_t>, std::vector<const Loaded*>> by_size;
+  for (const auto& l : loaded) by_size[l.views.images.sizes().vec()].push_back(&l);
+  for (const auto& [size, group] : by_size) run_batch(net, group, opt, state);
+}
+
+std::map<std::string, std::map<std::string, double>> mean_table(const std::vector<const SceneResult*>& scenes) {
+  double sums[6] = {0, 0, 0, 0, 0, 0};
+  for (const auto* s : scenes) {
+    const double v[6] = {s->psnr, s->ssim, s->psnr_copy, s->ssim_copy, s->psnr_mean, s->ssim_mean};
+    for (int i = 0; i < 6; ++i) sums[i] += v[i];
+  }
+  const double n = static_cast<double>(scenes.size());
+  return {{"model", {{"psnr", sums[0] / n}, {"ssim", sums[1] / n}}},
+          {"copy_nearest", {{"psnr", sums[2] / n}, {"ssim", sums[3] / n}}},
+          {"mean_colour", {{"psnr", sums[4] / n}, {"ssim", sums[5] / n}}}};
+}
+
+std::string csv_field(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string out = "\"";
+  for (char ch : s) out += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+  return out + "\"";
+}
+
+void write_text(const std::string& path, const std::string& text) {
+  io::write_file_atomic(path, text.data(), text.size());
+}
+
+std::string per_scene_csv(const EvalSummary& s) {
+  std::string out = "key,bucket,overlap,num_targets,psnr,ssim,psnr_copy,ssim_copy,psnr_mean,ssim_mean\n";
+  for (const auto& r : s.per_scene)
+    out += fmt::format("{},{},{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}\n", csv_field(r.key), r.bucket,
+                       r.overlap ? fmt::format("{:.6g}", *r.overlap) : "", r.views.size(), r.psnr, r.ssim,
+                       r.psnr_copy, r.ssim_copy, r.psnr_mean, r.ssim_mean);
+  return out;
+}
+
+std::string per_view_csv(const EvalSummary& s) {
+  std::string out = "key,frame,psnr,ssim,psnr_copy,ssim_copy,psnr_mean,ssim_mean\n";
+  for (const auto& r : s.per_scene)
+    for (const auto& v : r.views)
+      out += fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}\n", csv_field(r.key), v.frame, v.psnr,
+                         v.ssim, v.psnr_copy, v.ssim_copy, v.psnr_mean, v.ssim_mean);
+  return out;
+}
+
+}  // namespace
+
+void finalise_scene(SceneResult& r) {
+  if (r.views.empty()) throw std::runtime_error("eval: scene " + r.key + " has no target views");
+  double sums[6] = {0, 0, 0, 0, 0, 0};
+  for (const auto& v : r.views) {
+    const double x[6] = {v.psnr, v.ssim, v.psnr_copy, v.ssim_copy, v.psnr_mean, v.ssim_mean};
+    for (int i = 0; i < 6; ++i) sums[i] += x[i];
+  }
+  const double n = static_cast<double>(r.views.size());
+  r.psnr = sums[0] / n;
+  r.ssim = sums[1] / n;
+  r.psnr_copy = sums[2] / n;
+  r.ssim_copy = sums[3] / n;
+  r.psnr_mean = sums[4] / n;
+  r.ssim_mean = sums[5] / n;
+}
+
+EvalSummary summarise(std::vector<SceneResult> scenes) {
+  EvalSummary s;
+  s.scenes = static_cast<int64_t>(scenes.size());
+  s.per_scene = std::move(scenes);
+  std::vector<const SceneResult*> all;
+  std::map<std::string, std::vector<const SceneResult*>> by_bucket;
+  for (const auto& r : s.per_scene) {
+    all.push_back(&r);
+    if (r.bucket != "none") by_bucket[r.bucket].push_back(&r);
+  }
+  if (!all.empty()) s.table = mean_table(all);
+  for (const auto& [bucket, members] : by_bucket) {
+    s.buckets[bucket] = mean_table(members);
+    s.bucket_scenes[bucket] = static_cast<int64_t>(members.size());
+  }
+  return s;
+}
+
+nlohmann::json summary_to_json(const EvalSummary& s) {
+  int64_t views = 0;
+  for (const auto& r : s.per_scene) views += static_cast<int64_t>(r.views.size());
+  nlohmann::json j;
+  j["scenes"] = s.scenes;
+  j["views"] = views;
+  j["skipped"] = {{"null_entries", s.skipped_null}, {"missing_keys", s.skipped_missing},
+                  {"bad_frames", s.skipped_bad_frames}};
+  j["table"] = s.table;
+  j["buckets"] = s.buckets;
+  j["bucket_scenes"] = s.bucket_scenes;
+  j["seconds"] = s.seconds;
+  j["scenes_per_second"] = s.seconds > 0 ? static_cast<double>(s.scenes) / s.seconds : 0.0;
+  j["scene_grids"] = s.scene_grids;
+  j["conventions"] = {
+      {"psnr", "clamp to [0,1], MSE over C,H,W per image (float64), mse clamped at 1e-10, -10 log10(mse)"},
+      {"ssim", "skimage structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0, "
+               "data_range=1.0)"},
+      {"averaging", "mean over each scene's targets, then mean over scenes"},
+      {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
+      {"copy_nearest", "each target predicted by the input view nearest in frame index"},
+      {"mean_colour", "oracle: each target predicted by its own per-channel mean colour"}};
+  return j;
+}
+
+void write_results(const std::string& out_dir, const EvalSummary& s, const nlohmann::json& extra) {
+  fs::create_directories(out_dir);
+  auto j = summary_to_json(s);
+  if (extra.is_object()) j.update(extra);
+  write_text((fs::path(out_dir) / "metrics.json").string(), j.dump(2) + "\n");
+  write_text((fs::path(out_dir) / "per_scene.csv").string(), per_scene_csv(s));
+  write_text((fs::path(out_dir) / "per_view.csv").string(), per_view_csv(s));
+}
+
+EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                     const EvalOptions& opt) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::string index_path =
+      opt.index_path.empty() ? (fs::path(dataset.root()) / "evaluation_index.json").string() : opt.index_path;
+  EvalSummary counts;
+  const auto jobs = plan_jobs(dataset, opt, index_path, counts);
+  RunState state;
+  state.results.resize(jobs.size());
+  {
+    EvalModeGuard mode(net);
+    torch::NoGradGuard no_grad;
+    ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
+    const auto batches = make_batches(jobs, opt.batch_size);
+    auto load = [&](size_t k) {
+      return std::async(std::launch::async, [&, k] { return load_batch(dataset, batches[k], prep); });
+    };
+    std::future<LoadedBatch> next;
+    if (!batches.empty()) next = load(0);
+    for (size_t k = 0; k < batches.size(); ++k) {
+      LoadedBatch current = next.get();
+      if (k + 1 < batches.size()) next = load(k + 1);  // decode the next batch while this one runs
+      state.bad_frames += current.bad_frames;
+      if (!current.scenes.empty()) run_loaded(net, current.scenes, opt, state);
+      state.done += static_cast<int64_t>(batches[k].size());
+      const auto ok = static_cast<double>(state.done - state.bad_frames);
+      bar.update(state.done, {{"psnr", fmt::format("{:.2f}", ok > 0 ? state.psnr_sum / ok : 0.0)},
+                              {"ssim", fmt::format("{:.4f}", ok > 0 ? state.ssim_sum / ok : 0.0)}});
+    }
+    bar.finish();
+  }
+  std::vector<SceneResult> results;
+  for (auto& r : state.results)
+    if (r) results.push_back(std::move(*r));
+  EvalSummary s = summarise(std::move(results));
+  s.skipped_null = counts.skipped_null;
+  s.skipped_missing = counts.skipped_missing;
+  s.skipped_bad_frames = state.bad_frames;
+  s.scene_grids = std::move(state.grids);
+  s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (s.scenes == 0) {
+    spdlog::warn("eval: no scene was evaluated ({})", index_path);
+  } else {
+    spdlog::info("eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} | copy nearest {:.3f} / {:.4f} | mean colour "
+                 "{:.3f} / {:.4f}",
+                 s.scenes, format_duration(s.seconds), s.table["model"]["psnr"], s.table["model"]["ssim"],
+                 s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
+                 s.table["mean_colour"]["ssim"]);
+  }
+  if (!opt.out_dir.empty()) write_results(opt.out_dir, s);
+  return s;
+}
+
+torch::Tensor error_heatmap(const torch::Tensor& pred, const torch::Tensor& gt, double gain) {
+  // Anchors of an inferno-like ramp: black, purple, red, orange, pale yellow.
+  static const std::vector<float> kAnchors = {0, 0, 4, 87, 16, 110, 188, 55, 84, 249, 142, 9, 252, 255, 164};
+  const int64_t n = static_cast<int64_t>(kAnchors.size()) / 3;
+  auto e = ((pred.to(torch::kFloat32) - gt.to(torch::kFloat32)).abs().mean(-3) * gain).clamp(0, 1);
+  auto lut = torch::tensor(kAnchors).view({n, 3}).div(255.0).to(e.device());
+  auto t = e * static_cast<double>(n - 1);
+  auto i0 = t.floor().clamp(0, static_cast<double>(n - 2)).to(torch::kInt64);
+  auto frac = (t - i0.to(torch::kFloat32)).unsqueeze(-1);
+  auto out_shape = e.sizes().vec();
+  out_shape.push_back(3);
+  auto c0 = lut.index_select(0, i0.flatten()).view(out_shape);
+  auto c1 = lut.index_select(0, (i0 + 1).flatten()).view(out_shape);
+  return (c0 + (c1 - c0) * frac).movedim(-1, -3).contiguous();
+}
+
+torch::Tensor scene_grid(const SceneResult& scene, const torch::Tensor& inputs, const torch::Tensor& pred,
+                         const torch::Tensor& gt, const torch::Tensor& copy) {
+  auto cpu = [](const torch::Tensor& t) { return t.detach().to(torch::kCPU, torch::kFloat32); };
+  auto in = cpu(inputs), p = cpu(pred), g = cpu(gt), c = cpu(copy);
+  auto heat = error_heatmap(p, g);
+  std::vector<std::string> cols;
+  for (int64_t i = 0; i < in.size(0); ++i)
+    cols.push_back(i < static_cast<int64_t>(scene.context.size())
+                       ? fmt::format("input f{}", scene.context[static_cast<size_t>(i)])
+                       : fmt::format("input {}", i));
+  for (const char* label : {"prediction", "truth", "|error|x4", "copy nearest"}) cols.emplace_back(label);
+  std::vector<std::vector<torch::Tensor>> rows;
+  std::vector<std::string> row_labels;
+  for (int64_t t = 0; t < p.size(0); ++t) {
+    std::vector<torch::Tensor> row;
+    for (int64_t i = 0; i < in.size(0); ++i) row.push_back(in[i]);
+    row.insert(row.end(), {p[t], g[t], heat[t], c[t]});
+    rows.push_back(std::move(row));
+    if (t < static_cast<int64_t>(scene.views.size())) {
+      const auto& v = scene.views[static_cast<size_t>(t)];
+      row_labels.push_back(fmt::format("frame {}\n{:.2f} dB\nSSIM {:.3f}", v.frame, v.psnr, v.ssim));
+    } else {
+      row_labels.push_back(fmt::format("target {}", t));
+    }
+  }
+  return io::make_grid(rows, row_labels, cols, /*pad=*/8);
+}
+
+}  // namespace uplvsm::eval

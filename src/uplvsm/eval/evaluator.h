@@ -1,0 +1,87 @@
+// Test-set evaluation of a UP-LVSM model with the community protocol: read an evaluation index (pixelSplat /
+// NoPoSplat format), render every scene's target views from its two context views, score each target with PSNR
+// and SSIM (eval/metrics.h) next to two trivial baselines (eval/baselines.h), average per scene then over scenes
+// (full set and NoPoSplat overlap buckets), and write metrics.json, per_scene.csv, per_view.csv and labelled
+// PNG grids of a few scenes.
+#pragma once
+#include <torch/torch.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/preprocess.h"
+#include "uplvsm/model/uplvsm.h"
+
+namespace uplvsm::eval {
+
+struct EvalOptions {
+  std::string index_path;  // empty: <dataset root>/evaluation_index.json
+  int64_t max_scenes = 0;  // 0: all (counted after dropping null entries and keys absent from the dataset)
+  int64_t batch_size = 4;  // scenes per forward
+  torch::Device device = torch::kCPU;  // where inputs go; the caller puts the model there
+  int64_t num_visualised = 8;          // PNG grids for the first scenes (index order)
+  std::string out_dir;                 // empty: write nothing, only return the summary
+};
+
+struct ViewMetrics {
+  int64_t frame = 0;
+  double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
+};
+
+struct SceneResult {
+  std::string key;
+  std::vector<int64_t> context, target;
+  std::optional<double> overlap;
+  std::string bucket = "none";  // data::overlap_bucket(overlap): small/medium/large/ignore; "none" without overlap
+  std::vector<ViewMetrics> views;
+  double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;  // means over the targets
+};
+
+struct EvalSummary {
+  int64_t scenes = 0;
+  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim" (mean over scenes of per-scene means).
+  std::map<std::string, std::map<std::string, double>> table;
+  // bucket ("small", "medium", "large", "ignore"; scenes without overlap are in no bucket) -> row -> metric.
+  std::map<std::string, std::map<std::string, std::map<std::string, double>>> buckets;
+  std::map<std::string, int64_t> bucket_scenes;  // scenes per bucket
+  std::vector<SceneResult> per_scene;            // index (key) order
+  double seconds = 0;
+  int64_t skipped_null = 0;        // null entries of the index
+  int64_t skipped_missing = 0;     // keys of the index absent from the dataset
+  int64_t skipped_bad_frames = 0;  // scenes with a frame of another size than frame 0 (pixelSplat skips them)
+  std::vector<std::string> scene_grids;  // paths of the PNG grids written
+};
+
+// Runs the evaluation (see the top comment). The model runs in eval mode under NoGradGuard with the paper's unposed
+// protocol (the pose estimator sees the target images: net->forward), in float32; its training mode is restored
+// afterwards. Scenes are batched by equal (context, target) counts and image size. Throws std::runtime_error for an
+// unreadable index, frames out of range and undecodable images (naming the scene).
+EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                     const EvalOptions& opt);
+
+// Per-scene means from the views, then the table and bucket means over scenes (community convention). Exposed so
+// results can be re-aggregated (tests, merging runs).
+void finalise_scene(SceneResult& scene);
+EvalSummary summarise(std::vector<SceneResult> scenes);
+
+// metrics.json content: scenes, views, skipped counts, table, buckets, bucket_scenes, seconds, conventions.
+nlohmann::json summary_to_json(const EvalSummary& summary);
+// Writes metrics.json (summary_to_json merged with `extra`, e.g. checkpoint/config info), per_scene.csv and
+// per_view.csv into out_dir (created if needed), atomically.
+void write_results(const std::string& out_dir, const EvalSummary& summary, const nlohmann::json& extra = {});
+
+// Visualisations. error_heatmap: mean |pred - gt| over channels, x`gain`, clamped, through a black-purple-orange-
+// yellow colormap: float [3, H, W] in [0, 1] (same device). scene_grid: a labelled uint8 [H, W, 3] grid, one row per
+// target: the inputs, prediction, ground truth, |error| heat map, copy-nearest baseline. Tensors: inputs
+// [vi, 3, H, W], pred/gt/copy [vt, 3, H, W], any device.
+torch::Tensor error_heatmap(const torch::Tensor& pred, const torch::Tensor& gt, double gain = 4.0);
+torch::Tensor scene_grid(const SceneResult& scene, const torch::Tensor& inputs, const torch::Tensor& pred,
+                         const torch::Tensor& gt, const torch::Tensor& copy);
+
+}  // namespace uplvsm::eval

@@ -1,0 +1,34 @@
+// Image-quality metrics of novel-view-synthesis evaluation, with the community's exact definitions
+// (community-formats.md §5, official-uplvsm.md §12): PSNR and scikit-image's SSIM as pixelSplat / MVSplat /
+// NoPoSplat / LVSM / UP-LVSM call them. Batched tensor ops only: they run on CPU or CUDA, on any leading shape.
+#pragma once
+#include <torch/torch.h>
+
+namespace uplvsm::eval {
+
+// Smallest MSE used by psnr(): a perfect prediction (mse 0) scores -10 log10(1e-10) = 100 dB instead of +inf, so
+// means over scenes stay finite.
+constexpr double kMinMse = 1e-10;
+
+// pred, gt: [..., 3, H, W] (any float dtype, same shape and device). Both are clamped to [0, 1], the MSE over
+// (C, H, W) of each image is computed in float64, clamped below at kMinMse, and -10 log10(mse) returned:
+// float64 [...].
+torch::Tensor psnr(const torch::Tensor& pred, const torch::Tensor& gt);
+
+// scikit-image 0.19 `structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0,
+// data_range=1.0)` per image: Gaussian window sigma 1.5 truncated at 3.5 sigma (11 taps), separable filtering
+// with scipy.ndimage mode 'reflect' (edge sample repeated), sample covariance (x 121/120), K1 0.01, K2 0.03,
+// map cropped by 5 px on every border, mean, then mean over the channels. Inputs are NOT clamped (skimage does not
+// clamp). Float32 inputs are computed as skimage does on float32 arrays (each filter pass accumulates in float64
+// and rounds to float32, the rest in float32); float64 inputs entirely in float64; half/bfloat16 are upcast to
+// float32. pred, gt: [..., C, H, W] with H, W >= 11. Returns float64 [...].
+torch::Tensor ssim(const torch::Tensor& pred, const torch::Tensor& gt);
+
+// The normalised 11-tap Gaussian window (sigma 1.5, float64, CPU), as scipy's _gaussian_kernel1d builds it.
+torch::Tensor gaussian_window();
+
+// scipy.ndimage 'reflect' padding of the last two dims by `pad` samples on every side (d c b a | a b c d |
+// d c b a), built by index_select so it works for pads larger than the image too.
+torch::Tensor reflect_pad2d(const torch::Tensor& x, int64_t pad);
+
+}  // namespace uplvsm::eval

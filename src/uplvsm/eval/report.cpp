@@ -1,0 +1,297 @@
+#include "uplvsm/eval/report.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+
+#include "uplvsm/core/progress.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
+#include "uplvsm/io/plot.h"
+
+namespace uplvsm::eval {
+namespace {
+
+namespace fs = std::filesystem;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+const std::vector<std::pair<std::string, std::string>> kRows = {
+    {"model", "UP-LVSM (ours)"}, {"copy_nearest", "Copy nearest input"}, {"mean_colour", "Mean colour (oracle)"}};
+const std::vector<std::pair<std::string, std::string>> kBuckets = {
+    {"large", "Large"}, {"medium", "Medium"}, {"small", "Small"}};
+
+const char* kCss = R"(body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}
+h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ddd;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.5em 0}th,td{border:1px solid #ccc;padding:.3em .7em;text-align:center}
+th{background:#f3f3f3}td:first-child{text-align:left}img,video{max-width:100%;border:1px solid #ddd}
+pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}figure{margin:1em 0}
+figcaption{font-size:.85em;color:#555}.note{color:#a00}.caption{font-size:.9em;color:#555})";
+
+// Copies src to out_dir/rel; returns rel, or nothing when src is empty or missing (missing is noted).
+std::optional<std::string> copy_asset(const std::string& src, const fs::path& out_dir, const std::string& rel,
+                                      std::vector<std::string>& missing) {
+  if (src.empty()) return std::nullopt;
+  if (!fs::is_regular_file(src)) {
+    spdlog::warn("report: {} does not exist; left out", src);
+    missing.push_back(src);
+    return std::nullopt;
+  }
+  const fs::path dst = out_dir / rel;
+  fs::create_directories(dst.parent_path());
+  std::error_code ec;
+  if (!fs::exists(dst) || !fs::equivalent(src, dst, ec)) fs::copy_file(src, dst, fs::copy_options::overwrite_existing);
+  return rel;
+}
+
+nlohmann::json read_metrics(const std::string& path) {
+  const auto bytes = io::read_file(path);
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(bytes.begin(), bytes.end());
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(path + ": not valid JSON: " + e.what());
+  }
+  if (!j.is_object() || !j.contains("table") || !j["table"].is_object())
+    throw std::runtime_error(path + ": no \"table\" object (expected evaluate()'s metrics.json)");
+  return j;
+}
+
+double number_or_nan(const nlohmann::json& j, const std::string& key) {
+  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kNaN;
+}
+
+double cell(const nlohmann::json& table, const std::string& row, const std::string& metric) {
+  if (!table.is_object() || !table.contains(row) || !table[row].is_object()) return kNaN;
+  return number_or_nan(table[row], metric);
+}
+
+std::string format_cell(double value, double best, int decimals) {
+  if (!std::isfinite(value)) return "<td>&ndash;</td>";
+  auto text = fmt::format("{:.{}f}", value, decimals);
+  return value == best ? "<td><b>" + text + "</b></td>" : "<td>" + text + "</td>";
+}
+
+// One column group (a bucket or the full set): the table object and its header text.
+struct Group {
+  nlohmann::json table;
+  std::string header;
+};
+
+std::vector<Group> table_groups(const nlohmann::json& m) {
+  std::vector<Group> groups;
+  const auto& buckets = m.contains("buckets") && m["buckets"].is_object() ? m["buckets"] : nlohmann::json::object();
+  const auto& counts = m.contains("bucket_scenes") ? m["bucket_scenes"] : nlohmann::json::object();
+  bool any = false;
+  for (const auto& [key, name] : kBuckets) any = any || buckets.contains(key);
+  if (any) {
+    for (const auto& [key, name] : kBuckets) {
+      const auto n = counts.contains(key) && counts[key].is_number() ? counts[key].get<int64_t>() : 0;
+      groups.push_back({buckets.contains(key) ? buckets[key] : nlohmann::json::object(),
+                        fmt::format("{} overlap ({} scenes)", name, n)});
+    }
+  }
+  const auto total = m.contains("scenes") && m["scenes"].is_number() ? m["scenes"].get<int64_t>() : 0;
+  groups.push_back({m.contains("table") ? m["table"] : nlohmann::json::object(),
+                    fmt::format("{} ({} scenes)", any ? "Full" : "Test set", total)});
+  return groups;
+}
+
+std::string section(const std::string& title, const std::string& body) {
+  return "<h2>" + html_escape(title) + "</h2>\n" + body + "\n";
+}
+
+// The training curve section; empty when there is no log or no point in it.
+std::string curve_section(const ReportInputs& in, const fs::path& out, std::vector<std::string>& missing) {
+  if (in.train_log_jsonl.empty()) return "";
+  if (!fs::is_regular_file(in.train_log_jsonl)) {
+    spdlog::warn("report: {} does not exist; no training curve", in.train_log_jsonl);
+    missing.push_back(in.train_log_jsonl);
+    return "";
+  }
+  copy_asset(in.train_log_jsonl, out, "train_log.jsonl", missing);
+  const auto points = read_train_log(in.train_log_jsonl);
+  if (points.empty()) return section("Training", "<p>The training log has no entries.</p>");
+  io::write_png((out / "training_curve.png").string(), training_curve(points));
+  const auto& last = points.back();
+  auto caption = fmt::format("{} log entries, last step {:.0f}: loss {:.4g}, PSNR {:.2f} dB", points.size(),
+                             last.step, last.loss, last.psnr);
+  return section("Training", "<img src=\"training_curve.png\" alt=\"training curve\">\n<p class=\"caption\">" +
+                                 html_escape(caption) + " (<a href=\"train_log.jsonl\">log</a>)</p>");
+}
+
+std::string metrics_section(const ReportInputs& in, const fs::path& out, std::vector<std::string>& missing) {
+  if (in.metrics_json.empty()) return "";
+  if (!fs::is_regular_file(in.metrics_json)) {
+    spdlog::warn("report: {} does not exist; no results table", in.metrics_json);
+    missing.push_back(in.metrics_json);
+    return "";
+  }
+  const auto m = read_metrics(in.metrics_json);
+  copy_asset(in.metrics_json, out, "metrics.json", missing);
+  std::string links = "<a href=\"metrics.json\">metrics.json</a>";
+  const auto dir = fs::path(in.metrics_json).parent_path();
+  for (const char* csv : {"per_scene.csv", "per_view.csv"}) {
+    if (!fs::is_regular_file(dir / csv)) continue;
+    copy_asset((dir / csv).string(), out, csv, missing);
+    links += fmt::format(", <a href=\"{0}\">{0}</a>", csv);
+  }
+  std::string caption = "PSNR (dB, higher is better) and SSIM per target view, averaged per scene then over "
+                        "scenes. Copy nearest input: each target predicted by the input view nearest in frame "
+                        "index. Mean colour: each target predicted by its own mean colour (an oracle constant).";
+  const auto& counts = m.contains("bucket_scenes") ? m["bucket_scenes"] : nlohmann::json::object();
+  if (counts.contains("ignore") && counts["ignore"].is_number())
+    caption += fmt::format(" Overlap buckets follow NoPoSplat; {} scenes with overlap above 0.8 count in Full only.",
+                           counts["ignore"].get<int64_t>());
+  if (m.contains("seconds") && m["seconds"].is_number())
+    caption += fmt::format(" Evaluation time {}.", format_duration(m["seconds"].get<double>()));
+  return section("Results", results_table_html(m) + "<p class=\"caption\">" + html_escape(caption) + "</p>\n<p>" +
+                                links + "</p>");
+}
+
+std::string video_section(const ReportInputs& in, const fs::path& out, std::vector<std::string>& missing) {
+  std::string body;
+  if (auto mp4 = copy_asset(in.video_mp4, out, "video.mp4", missing))
+    body += "<video src=\"" + *mp4 + "\" controls loop autoplay muted playsinline></video>\n";
+  if (auto gif = copy_asset(in.video_gif, out, "video.gif", missing))
+    body += "<p><img src=\"" + *gif + "\" alt=\"rendered video (GIF)\"></p>\n";
+  return body.empty() ? "" : section("Video", body);
+}
+
+std::string grids_section(const ReportInputs& in, const fs::path& out, std::vector<std::string>& missing) {
+  std::string body;
+  std::vector<std::string> used;
+  for (size_t i = 0; i < in.scene_grids.size(); ++i) {
+    std::string name = fs::path(in.scene_grids[i]).filename().string();
+    if (std::find(used.begin(), used.end(), name) != used.end()) name = fmt::format("{}_{}", i, name);
+    auto rel = copy_asset(in.scene_grids[i], out, "scenes/" + name, missing);
+    if (!rel) continue;
+    used.push_back(name);
+    body += "<figure><img src=\"" + html_escape(*rel) + "\" alt=\"" + html_escape(name) + "\"><figcaption>" +
+            html_escape(fs::path(name).stem().string()) + "</figcaption></figure>\n";
+  }
+  if (body.empty()) return "";
+  return section("Scenes", "<p class=\"caption\">Rows: target views. Columns: input views, prediction, ground "
+                           "truth, |error| heat map, copy-nearest baseline.</p>\n" + body);
+}
+
+std::string info_section(const ReportInputs& in, const fs::path& out) {
+  std::string body;
+  if (in.train_seconds > 0) body += "<p>Training time: " + format_duration(in.train_seconds) + "</p>\n";
+  if (!in.runtime_info.empty()) body += "<h3>Runtime</h3>\n<pre>" + html_escape(in.runtime_info) + "</pre>\n";
+  if (!in.config.is_null()) {
+    const auto text = in.config.dump(2);
+    io::write_file_atomic((out / "config.json").string(), text.data(), text.size());
+    body += "<h3>Configuration (<a href=\"config.json\">config.json</a>)</h3>\n<pre>" + html_escape(text) + "</pre>\n";
+  }
+  return body.empty() ? "" : section("Run", body);
+}
+
+}  // namespace
+
+std::string html_escape(const std::string& text) {
+  std::string out;
+  out.reserve(text.size());
+  for (char ch : text) {
+    switch (ch) {
+      case '&': out += "&amp;"; break;
+      case '<': out += "&lt;"; break;
+      case '>': out += "&gt;"; break;
+      case '"': out += "&quot;"; break;
+      case '\'': out += "&#39;"; break;
+      default: out += ch;
+    }
+  }
+  return out;
+}
+
+std::string results_table_html(const nlohmann::json& m) {
+  const auto groups = table_groups(m);
+  std::string head1 = "<tr><th rowspan=\"2\">Method</th>", head2 = "<tr>";
+  for (const auto& g : groups) {
+    head1 += "<th colspan=\"2\">" + html_escape(g.header) + "</th>";
+    head2 += "<th>PSNR&uarr;</th><th>SSIM&uarr;</th>";
+  }
+  std::string html = "<table>\n" + head1 + "</tr>\n" + head2 + "</tr>\n";
+  for (const auto& [row, name] : kRows) {
+    html += "<tr><td>" + html_escape(name) + "</td>";
+    for (const auto& g : groups) {
+      for (const auto& [metric, decimals] : std::vector<std::pair<std::string, int>>{{"psnr", 2}, {"ssim", 3}}) {
+        double best = -std::numeric_limits<double>::infinity();
+        for (const auto& [r, n] : kRows) {
+          const double v = cell(g.table, r, metric);
+          if (std::isfinite(v)) best = std::max(best, v);
+        }
+        html += format_cell(cell(g.table, row, metric), best, decimals);
+      }
+    }
+    html += "</tr>\n";
+  }
+  return html + "</table>\n";
+}
+
+std::vector<TrainPoint> read_train_log(const std::string& path) {
+  std::ifstream file(path);
+  if (!file) throw std::runtime_error(path + ": cannot open the training log");
+  std::vector<TrainPoint> points;
+  std::string line;
+  int64_t bad = 0;
+  while (std::getline(file, line)) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    auto j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (!j.is_object() || !j.contains("step") || !j["step"].is_number()) {
+      ++bad;
+      continue;
+    }
+    points.push_back({j["step"].get<double>(), number_or_nan(j, "loss"), number_or_nan(j, "psnr"),
+                      number_or_nan(j, "lr")});
+  }
+  if (bad > 0) spdlog::warn("report: {}: skipped {} lines that are not log entries", path, bad);
+  return points;
+}
+
+torch::Tensor training_curve(const std::vector<TrainPoint>& points) {
+  io::Series loss{"loss", {}, {}}, psnr{"PSNR", {}, {}};
+  bool positive = true;
+  for (const auto& p : points) {
+    loss.x.push_back(p.step);
+    loss.y.push_back(p.loss);
+    psnr.x.push_back(p.step);
+    psnr.y.push_back(p.psnr);
+    if (std::isfinite(p.loss) && p.loss <= 0) positive = false;
+  }
+  io::PlotOptions top{"Training loss", "step", "loss", false, positive, 800, 360};
+  io::PlotOptions bottom{"Training PSNR", "step", "PSNR (dB)", false, false, 800, 360};
+  return torch::cat({io::plot_lines({loss}, top), io::plot_lines({psnr}, bottom)}, 0).contiguous();
+}
+
+std::string write_report(const std::string& out_dir, const ReportInputs& in) {
+  const fs::path out(out_dir);
+  fs::create_directories(out);
+  std::vector<std::string> missing;
+  std::string body = "<h1>" + html_escape(in.title.empty() ? "UP-LVSM report" : in.title) + "</h1>\n";
+  body += metrics_section(in, out, missing);
+  body += curve_section(in, out, missing);
+  body += video_section(in, out, missing);
+  body += grids_section(in, out, missing);
+  body += info_section(in, out);
+  if (!missing.empty()) {
+    std::string list;
+    for (const auto& m : missing) list += "<li>" + html_escape(m) + "</li>";
+    body += section("Missing assets", "<ul class=\"note\">" + list + "</ul>");
+  }
+  const std::string html = "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>" +
+                           html_escape(in.title) + "</title>\n<style>\n" + kCss + "\n</style>\n</head>\n<body>\n" +
+                           body + "</body>\n</html>\n";
+  const auto path = (out / "index.html").string();
+  io::write_file_atomic(path, html.data(), html.size());
+  return path;
+}
+
+}  // namespace uplvsm::eval

@@ -1,0 +1,49 @@
+// A self-contained HTML report of a run: the headline results table laid out like the paper's (PSNR / SSIM per
+// overlap bucket and full), the training curve, the rendered video, scene grids, the config and runtime info.
+// Assets are copied next to index.html and linked relatively, so the folder can be moved or served as is.
+#pragma once
+#include <torch/torch.h>
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace uplvsm::eval {
+
+struct ReportInputs {
+  std::string title;
+  nlohmann::json config;              // shown pretty-printed and saved as config.json (null: omitted)
+  std::string metrics_json;           // evaluate()'s metrics.json; its per_scene.csv / per_view.csv come along
+  std::string train_log_jsonl;        // lines {"step":..,"loss":..,"psnr":..,"lr":..}; may be empty
+  std::vector<std::string> scene_grids;
+  std::string video_mp4, video_gif;   // may be empty
+  std::string runtime_info;
+  double train_seconds = 0;
+};
+
+// Writes out_dir/index.html (creating out_dir), copying the assets under it (scenes/, video.mp4, video.gif,
+// metrics.json, ...) and rendering training_curve.png from the log. Empty paths are omitted; paths that do not
+// exist are logged, omitted and listed on the page, so a failed video never costs the rest of the report. Throws
+// std::runtime_error naming the file for a metrics.json that is not valid JSON or has no "table" object.
+// Returns the path of index.html.
+std::string write_report(const std::string& out_dir, const ReportInputs& in);
+
+// One line of the training log; missing numbers are NaN.
+struct TrainPoint {
+  double step = 0, loss = 0, psnr = 0, lr = 0;
+};
+// Reads a JSONL training log; lines that are blank, not JSON (e.g. cut off by a crash) or without "step" are
+// skipped (a warning counts them). Throws when the file cannot be read.
+std::vector<TrainPoint> read_train_log(const std::string& path);
+// Loss (log scale when all positive) above PSNR, vs step: uint8 [H, W, 3].
+torch::Tensor training_curve(const std::vector<TrainPoint>& points);
+
+// The headline table of a metrics.json object as an HTML <table>: rows UP-LVSM (ours), copy nearest input, mean
+// colour; columns PSNR / SSIM, grouped under Large / Medium / Small / Full when buckets exist. Best value in bold.
+std::string results_table_html(const nlohmann::json& metrics);
+
+std::string html_escape(const std::string& text);
+
+}  // namespace uplvsm::eval

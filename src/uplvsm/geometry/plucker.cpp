@@ -1,0 +1,40 @@
+#include "uplvsm/geometry/plucker.h"
+
+namespace uplvsm::geometry {
+
+using torch::indexing::Ellipsis;
+using torch::indexing::Slice;
+
+std::pair<torch::Tensor, torch::Tensor> compute_rays(const torch::Tensor& c2w, const torch::Tensor& fxfycxcy,
+                                                     int64_t height, int64_t width) {
+  TORCH_CHECK(c2w.size(-1) == 4 && c2w.size(-2) == 4, "compute_rays: c2w must be [..., 4, 4], got ", c2w.sizes());
+  TORCH_CHECK(fxfycxcy.size(-1) == 4, "compute_rays: intrinsics must be [..., 4], got ", fxfycxcy.sizes());
+  auto batch = c2w.sizes().slice(0, c2w.dim() - 2).vec();
+  auto cam = c2w.reshape({-1, 4, 4});
+  auto k = fxfycxcy.reshape({-1, 4}).to(c2w.scalar_type());
+  TORCH_CHECK(cam.size(0) == k.size(0), "compute_rays: ", cam.size(0), " cameras but ", k.size(0), " intrinsics");
+  auto opts = c2w.options();
+  auto xs = torch::arange(width, opts).add_(0.5);   // pixel centres
+  auto ys = torch::arange(height, opts).add_(0.5);
+  auto fx = k.select(1, 0).view({-1, 1, 1}), fy = k.select(1, 1).view({-1, 1, 1});
+  auto cx = k.select(1, 2).view({-1, 1, 1}), cy = k.select(1, 3).view({-1, 1, 1});
+  auto x = ((xs.view({1, 1, width}) - cx) / fx).expand({-1, height, width});
+  auto y = ((ys.view({1, height, 1}) - cy) / fy).expand({-1, height, width});
+  auto dirs_cam = torch::stack({x, y, torch::ones_like(x)}, 1).reshape({-1, 3, height * width});
+  auto R = cam.index({Slice(), Slice(0, 3), Slice(0, 3)});
+  auto d = torch::bmm(R, dirs_cam);
+  auto d32 = d.to(torch::kFloat32);
+  d = (d32 / d32.norm(2, 1, true).clamp_min(1e-3)).to(d.scalar_type());
+  auto o = cam.index({Slice(), Slice(0, 3), Slice(3, 4)}).expand({-1, 3, height * width});
+  auto shape = batch;
+  shape.insert(shape.end(), {3, height, width});
+  return {o.reshape(shape), d.reshape(shape)};
+}
+
+torch::Tensor plucker_rays(const torch::Tensor& c2w, const torch::Tensor& fxfycxcy, int64_t height, int64_t width) {
+  auto [o, d] = compute_rays(c2w, fxfycxcy, height, width);
+  int64_t ch = o.dim() - 3;
+  return torch::cat({torch::linalg_cross(o, d, ch), d}, ch);
+}
+
+}  // namespace uplvsm::geometry

@@ -1,0 +1,228 @@
+// Line plots on an RGB image (see plot.h). Layout: title on top, y label rotated on the left, tick labels next to
+// the frame, x label at the bottom, legend in the top-right corner of the plotting area.
+#include "uplvsm/io/plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <fmt/format.h>
+#include <limits>
+#include <stdexcept>
+
+#include "uplvsm/io/raster.h"
+
+namespace uplvsm::io {
+namespace {
+
+const Rgb kBlack{0, 0, 0}, kWhite{255, 255, 255}, kGrid{225, 225, 225}, kLegendBorder{160, 160, 160};
+// matplotlib's "tab10": distinct, colour-blind friendly enough, familiar.
+const Rgb kColours[10] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40},  {148, 103, 189},
+                          {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207}};
+
+// One axis: limits and ticks in plotted coordinates (log10 of the value on log axes).
+struct Axis {
+  bool log = false;
+  double lo = 0, hi = 1;
+  std::vector<double> ticks;
+  std::vector<std::string> labels;
+};
+
+bool usable(double v, bool log) { return std::isfinite(v) && (!log || v > 0); }
+double to_axis(double v, bool log) { return log ? std::log10(v) : v; }
+
+double nice_step(double raw) {
+  double e = std::pow(10.0, std::floor(std::log10(raw)));
+  double f = raw / e;
+  return (f < 1.5 ? 1 : f < 3 ? 2 : f < 7 ? 5 : 10) * e;
+}
+
+// Data range over all usable points of one coordinate; false when there is none.
+bool data_range(const std::vector<Series>& series, bool use_x, bool log_x, bool log_y, double& lo, double& hi) {
+  lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (const auto& s : series) {
+    size_t n = std::min(s.x.size(), s.y.size());
+    for (size_t i = 0; i < n; ++i) {
+      if (!usable(s.x[i], log_x) || !usable(s.y[i], log_y)) continue;
+      double v = to_axis(use_x ? s.x[i] : s.y[i], use_x ? log_x : log_y);
+      lo = std::min(lo, v), hi = std::max(hi, v);
+    }
+  }
+  return lo <= hi;
+}
+
+Axis linear_axis(double lo, double hi, int target) {
+  Axis a;
+  if (hi - lo <= std::max(std::abs(lo), std::abs(hi)) * 1e-12) {  // constant data: open a window around it
+    double d = lo == 0 ? 1.0 : std::abs(lo) * 0.1;
+    lo -= d, hi += d;
+  }
+  a.ticks = nice_ticks(lo, hi, target);
+  double step = a.ticks.size() > 1 ? a.ticks[1] - a.ticks[0] : 1.0;
+  a.lo = a.ticks.front(), a.hi = a.ticks.back();
+  for (double t : a.ticks) a.labels.push_back(format_tick(t, step));
+  return a;
+}
+
+std::string format_power(int e) {
+  if (e >= -3 && e <= 4) return format_tick(std::pow(10.0, e), std::pow(10.0, std::min(e, 0)));
+  return fmt::format("1e{}", e);
+}
+
+// Ticks at powers of ten (every k-th decade when there are many); with at most two decades also 2x and 5x.
+Axis log_axis(double lo, double hi) {
+  Axis a;
+  a.log = true;
+  int e0 = int(std::floor(lo + 1e-9)), e1 = int(std::ceil(hi - 1e-9));
+  if (e1 <= e0) e1 = e0 + 1;
+  a.lo = e0, a.hi = e1;
+  int every = std::max(1, (e1 - e0 + 7) / 8);
+  for (int e = e0; e <= e1; e += every) {
+    a.ticks.push_back(e);
+    a.labels.push_back(format_power(e));
+    if (e1 - e0 > 2 || e == e1) continue;
+    for (int m : {2, 5}) {
+      a.ticks.push_back(e + std::log10(double(m)));
+      a.labels.push_back(e >= -3 && e <= 4 ? format_tick(m * std::pow(10.0, e), std::pow(10.0, std::min(e, 0)))
+                                           : fmt::format("{}e{}", m, e));
+    }
+  }
+  return a;
+}
+
+Axis make_axis(const std::vector<Series>& series, bool is_x, const PlotOptions& opt, int pixels) {
+  double lo = 0, hi = 1;
+  bool log = is_x ? opt.log_x : opt.log_y;
+  if (!data_range(series, is_x, opt.log_x, opt.log_y, lo, hi)) lo = 0, hi = 1;  // log: 1 to 10
+  return log ? log_axis(lo, hi) : linear_axis(lo, hi, std::max(2, pixels / (is_x ? 90 : 55)));
+}
+
+struct Layout {
+  int x0, y0, x1, y1;  // plotting frame, inclusive pixel coordinates
+  int title_scale;
+};
+
+Layout compute_layout(const PlotOptions& opt, const Axis& ax, const Axis& ay) {
+  const int pad = 8, tick = 4;
+  Layout l;
+  l.title_scale = opt.width >= 480 ? 2 : 1;
+  int ytick_w = 0;
+  for (const auto& s : ay.labels) ytick_w = std::max(ytick_w, text_width(s));
+  int top = pad + (opt.title.empty() ? 0 : text_height(opt.title, l.title_scale) + pad);
+  int left = pad + (opt.ylabel.empty() ? 0 : text_height(opt.ylabel) + pad) + ytick_w + tick + 3;
+  int bottom = tick + 3 + text_height("0") + pad + (opt.xlabel.empty() ? 0 : text_height(opt.xlabel) + pad);
+  int right = pad + (ax.labels.empty() ? 0 : text_width(ax.labels.back()) / 2);
+  l.x0 = left, l.x1 = opt.width - 1 - right, l.y0 = top + text_height("0") / 2, l.y1 = opt.height - 1 - bottom;
+  return l;
+}
+
+double to_pixel(double v, const Axis& a, int p0, int p1) { return p0 + (v - a.lo) / (a.hi - a.lo) * (p1 - p0); }
+
+void draw_axes(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis& ay) {
+  for (size_t i = 0; i < ax.ticks.size(); ++i) {
+    int x = int(std::lround(to_pixel(ax.ticks[i], ax, l.x0, l.x1)));
+    draw_line(img, x, l.y0 + 1, x, l.y1 - 1, kGrid);
+    draw_line(img, x, l.y1, x, l.y1 + 4, kBlack);
+    draw_text(img, x - text_width(ax.labels[i]) / 2, l.y1 + 7, ax.labels[i], kBlack);
+  }
+  for (size_t i = 0; i < ay.ticks.size(); ++i) {
+    int y = int(std::lround(to_pixel(ay.ticks[i], ay, l.y1, l.y0)));
+    draw_line(img, l.x0 + 1, y, l.x1 - 1, y, kGrid);
+    draw_line(img, l.x0 - 4, y, l.x0, y, kBlack);
+    draw_text(img, l.x0 - 7 - text_width(ay.labels[i]), y - text_height("0") / 2, ay.labels[i], kBlack);
+  }
+  draw_rect(img, l.x0, l.y0, l.x1 - l.x0 + 1, l.y1 - l.y0 + 1, kBlack);
+}
+
+void draw_labels(torch::Tensor& img, const Layout& l, const PlotOptions& opt) {
+  const int pad = 8;
+  if (!opt.title.empty())
+    draw_text(img, (opt.width - text_width(opt.title, l.title_scale)) / 2, pad, opt.title, kBlack, l.title_scale);
+  if (!opt.xlabel.empty())
+    draw_text(img, (l.x0 + l.x1 - text_width(opt.xlabel)) / 2, opt.height - pad - text_height(opt.xlabel),
+              opt.xlabel, kBlack);
+  if (!opt.ylabel.empty()) {  // drawn horizontally, then turned a quarter counter-clockwise
+    torch::Tensor label = blank_image(text_height(opt.ylabel), text_width(opt.ylabel));
+    draw_text(label, 0, 0, opt.ylabel, kBlack);
+    torch::Tensor turned = torch::rot90(label, 1, {0, 1}).contiguous();
+    paste(img, turned, pad, (l.y0 + l.y1 - int(turned.size(0))) / 2);
+  }
+}
+
+// Lines between consecutive usable points, clipped to the frame; isolated points become 4x4 squares.
+void draw_series(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis& ay, const Series& s, Rgb colour) {
+  if (l.y1 - l.y0 < 2 || l.x1 - l.x0 < 2) return;
+  torch::Tensor area = img.narrow(0, l.y0 + 1, l.y1 - l.y0 - 1).narrow(1, l.x0 + 1, l.x1 - l.x0 - 1);
+  size_t n = std::min(s.x.size(), s.y.size());
+  auto ok = [&](size_t i) { return i < n && usable(s.x[i], ax.log) && usable(s.y[i], ay.log); };
+  auto px = [&](size_t i) { return to_pixel(to_axis(s.x[i], ax.log), ax, l.x0, l.x1) - (l.x0 + 1); };
+  auto py = [&](size_t i) { return to_pixel(to_axis(s.y[i], ay.log), ay, l.y1, l.y0) - (l.y0 + 1); };
+  auto clamp_px = [](double v) { return int(std::lround(std::clamp(v, -1e8, 1e8))); };
+  for (size_t i = 0; i < n; ++i) {
+    if (!ok(i)) continue;
+    bool prev = i > 0 && ok(i - 1), next = ok(i + 1);
+    if (next)
+      draw_line(area, clamp_px(px(i)), clamp_px(py(i)), clamp_px(px(i + 1)), clamp_px(py(i + 1)), colour, 2);
+    else if (!prev)
+      fill_rect(area, clamp_px(px(i)) - 2, clamp_px(py(i)) - 2, 4, 4, colour);
+  }
+}
+
+void draw_legend(torch::Tensor& img, const Layout& l, const std::vector<Series>& series) {
+  int name_w = 0, count = 0;
+  for (const auto& s : series)
+    if (!s.name.empty()) name_w = std::max(name_w, text_width(s.name)), ++count;
+  if (count == 0) return;
+  const int row = 14, sample = 18;
+  int w = 6 + sample + 6 + name_w + 6, h = 6 + count * row;
+  int x = l.x1 - 8 - w, y = l.y0 + 8;
+  fill_rect(img, x, y, w, h, kWhite);
+  draw_rect(img, x, y, w, h, kLegendBorder);
+  int yy = y + 5;
+  for (size_t i = 0; i < series.size(); ++i) {
+    if (series[i].name.empty()) continue;
+    Rgb c = kColours[i % 10];
+    draw_line(img, x + 6, yy + 4, x + 6 + sample, yy + 4, c, 2);
+    draw_text(img, x + 6 + sample + 6, yy, series[i].name, kBlack);
+    yy += row;
+  }
+}
+
+}  // namespace
+
+std::vector<double> nice_ticks(double lo, double hi, int target) {
+  if (!std::isfinite(lo) || !std::isfinite(hi) || hi <= lo) throw std::runtime_error("nice_ticks: need lo < hi");
+  double step = nice_step((hi - lo) / std::max(target, 1));
+  double first = std::floor(lo / step + 1e-9), last = std::ceil(hi / step - 1e-9);
+  std::vector<double> ticks;
+  for (double k = first; k <= last + 0.5 && ticks.size() < 1000; ++k) ticks.push_back(std::abs(k) < 0.5 ? 0.0 : k * step);
+  return ticks;
+}
+
+std::string format_tick(double value, double step) {
+  if (std::abs(value) < std::abs(step) * 1e-9) value = 0;
+  double mag = std::max(std::abs(value), std::abs(step));
+  if (mag >= 1e6 || (value != 0 && std::abs(step) < 1e-4)) {
+    // Scientific with just enough mantissa digits to tell neighbouring ticks apart.
+    auto exponent = [](double v) { return int(std::floor(std::log10(std::abs(v)) + 1e-9)); };
+    int digits = std::clamp(exponent(mag) - exponent(step), 0, 6);
+    return fmt::format("{:.{}e}", value, digits);
+  }
+  int decimals = std::max(0, int(-std::floor(std::log10(std::abs(step)) + 1e-9)));
+  return fmt::format("{:.{}f}", value, decimals);
+}
+
+torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& opt) {
+  if (opt.width < 160 || opt.height < 120)
+    throw std::runtime_error(fmt::format("plot_lines: size {}x{} is too small (at least 160x120)", opt.width,
+                                         opt.height));
+  Axis ax = make_axis(series, true, opt, opt.width - 120);
+  Axis ay = make_axis(series, false, opt, opt.height - 100);
+  Layout l = compute_layout(opt, ax, ay);
+  torch::Tensor img = blank_image(opt.height, opt.width, kWhite);
+  draw_axes(img, l, ax, ay);
+  for (size_t i = 0; i < series.size(); ++i) draw_series(img, l, ax, ay, series[i], kColours[i % 10]);
+  draw_legend(img, l, series);
+  draw_labels(img, l, opt);
+  return img;
+}
+
+}  // namespace uplvsm::io

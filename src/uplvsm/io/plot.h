@@ -1,0 +1,33 @@
+// Minimal line plots rendered straight to an RGB image (training curves, metric sweeps) without any plotting
+// library: axes with round-number ticks and numeric labels, optional log axes, title, axis labels and a legend.
+#pragma once
+#include <torch/torch.h>
+
+#include <string>
+#include <vector>
+
+namespace uplvsm::io {
+
+struct Series {
+  std::string name;  // shown in the legend when non-empty
+  std::vector<double> x, y;
+};
+
+struct PlotOptions {
+  std::string title, xlabel, ylabel;
+  bool log_x = false;
+  bool log_y = false;
+  int width = 800, height = 480;
+};
+
+// uint8 [height, width, 3]. Points with a non-finite coordinate (or <= 0 on a log axis) are skipped and break the
+// line there; isolated points are drawn as small squares. Empty series and all-empty plots are fine (unit axes).
+// Series beyond 10 reuse the colours. Throws when width < 160 or height < 120.
+torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& opt);
+
+// Round tick positions covering [lo, hi] (1, 2 or 5 times a power of ten, about `target` of them) and their labels;
+// exposed for tests and other figures.
+std::vector<double> nice_ticks(double lo, double hi, int target);
+std::string format_tick(double value, double step);
+
+}  // namespace uplvsm::io

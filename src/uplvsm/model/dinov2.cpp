@@ -1,0 +1,126 @@
+#include "uplvsm/model/dinov2.h"
+
+#include <cmath>
+
+namespace uplvsm::model {
+
+using torch::indexing::Slice;
+
+DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, double eps) : heads(heads_) {
+  qkv = register_module("qkv", torch::nn::Linear(torch::nn::LinearOptions(dim, 3 * dim).bias(true)));
+  proj = register_module("proj", torch::nn::Linear(torch::nn::LinearOptions(dim, dim).bias(true)));
+  if (qk_norm) {
+    q_norm = register_module("q_norm", RMSNorm(dim / heads, eps));
+    k_norm = register_module("k_norm", RMSNorm(dim / heads, eps));
+  }
+}
+
+torch::Tensor DinoAttentionImpl::forward(const torch::Tensor& x) {
+  const int64_t B = x.size(0), N = x.size(1), C = x.size(2);
+  auto qkv_ = qkv(x).view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4});
+  auto q = qkv_[0], k = qkv_[1], v = qkv_[2];
+  if (q_norm) {
+    q = q_norm(q);
+    k = k_norm(k);
+  }
+  auto o = attention(q, k, v);
+  return proj(o.transpose(1, 2).reshape({B, N, C}));
+}
+
+DinoMlpImpl::DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out) {
+  fc1 = register_module("fc1", torch::nn::Linear(dim, hidden));
+  fc2 = register_module("fc2", torch::nn::Linear(hidden, out));
+}
+
+LayerScaleImpl::LayerScaleImpl(int64_t dim, double init) {
+  gamma = register_parameter("gamma", torch::full({dim}, init));
+}
+
+DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
+  norm1 = register_module("norm1", LayerNorm(c.embed_dim, 1e-6, true));
+  attn = register_module("attn", DinoAttention(c.embed_dim, c.num_heads, c.qk_norm, c.qk_norm_eps));
+  ls1 = register_module("ls1", LayerScale(c.embed_dim, c.layerscale_init));
+  norm2 = register_module("norm2", LayerNorm(c.embed_dim, 1e-6, true));
+  mlp = register_module("mlp", DinoMlp(c.embed_dim, c.embed_dim * c.mlp_ratio, c.embed_dim));
+  ls2 = register_module("ls2", LayerScale(c.embed_dim, c.layerscale_init));
+}
+
+torch::Tensor DinoBlockImpl::forward(const torch::Tensor& x) {
+  auto h = x + ls1(attn(norm1(x)));
+  return h + ls2(mlp(norm2(h)));
+}
+
+Dinov2Impl::Dinov2Impl(const Dinov2Config& c, int64_t patch) : config(c), patch_size(patch) {
+  const int64_t D = c.embed_dim;
+  cls_token = register_parameter("cls_token", torch::randn({1, 1, D}) * 1e-6);
+  pos_embed = register_parameter("pos_embed", torch::randn({1, 1 + c.pos_grid * c.pos_grid, D}).clamp_(-2, 2) * 0.02);
+  if (c.num_register_tokens > 0)
+    register_tokens = register_parameter("register_tokens", torch::randn({1, c.num_register_tokens, D}) * 1e-6);
+  auto patch_embed = register_module("patch_embed", std::make_shared<torch::nn::Module>());
+  patch_embed_proj = patch_embed->register_module(
+      "proj", torch::nn::Conv2d(torch::nn::Conv2dOptions(3, D, patch).stride(patch)));
+  blocks = register_module("blocks", torch::nn::ModuleList());
+  for (int64_t i = 0; i < c.depth; ++i) blocks->push_back(DinoBlock(c));
+  norm = register_module("norm", LayerNorm(D, 1e-6, true));
+  // timm-style init for the linears (the paper configs start from pretrained weights instead).
+  torch::NoGradGuard no_grad;
+  for (auto& m : blocks->modules()) {
+    if (auto* lin = m->as<torch::nn::Linear>()) {
+      lin->weight.normal_(0.0, 0.02).clamp_(-0.04, 0.04);
+      lin->bias.zero_();
+    }
+  }
+}
+
+torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width) {
+  const int64_t gh = height / patch_size, gw = width / patch_size;
+  const int64_t M = config.pos_grid;
+  if (gh == M && gw == M) return pos_embed;
+  auto pe = pos_embed.to(torch::kFloat32);
+  auto cls_pe = pe.index({Slice(), Slice(0, 1)});
+  auto grid = pe.index({Slice(), Slice(1)}).reshape({1, M, M, -1}).permute({0, 3, 1, 2});
+  namespace F = torch::nn::functional;
+  auto opts = F::InterpolateFuncOptions().mode(torch::kBicubic).align_corners(false).antialias(
+      config.interpolate_antialias);
+  if (config.interpolate_offset != 0.0) {
+    // Coordinates follow the given scale factor, not gh / M: reproduces the official 0.1-offset values.
+    opts.scale_factor(std::vector<double>{(gh + config.interpolate_offset) / M, (gw + config.interpolate_offset) / M});
+    opts.recompute_scale_factor(false);
+  } else {
+    opts.size(std::vector<int64_t>{gh, gw});
+  }
+  auto resized = F::interpolate(grid, opts);
+  TORCH_CHECK(resized.size(2) == gh && resized.size(3) == gw, "DINOv2 pos-embed interpolation gave ",
+              resized.sizes(), " for a ", gh, "x", gw, " grid");
+  auto patches = resized.permute({0, 2, 3, 1}).reshape({1, gh * gw, -1});
+  return torch::cat({cls_pe, patches}, 1).to(pos_embed.scalar_type());
+}
+
+DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x) {
+  const int64_t N = x.size(0), H = x.size(2), W = x.size(3);
+  TORCH_CHECK(H % patch_size == 0 && W % patch_size == 0, "DINOv2: image ", H, "x", W,
+              " is not a multiple of the patch size ", patch_size);
+  auto t = patch_embed_proj(x).flatten(2).transpose(1, 2);  // [N, h*w, D]
+  t = torch::cat({cls_token.expand({N, -1, -1}), t}, 1) + interpolate_pos_encoding(H, W);
+  const int64_t R = config.num_register_tokens;
+  if (R > 0)
+    t = torch::cat({t.index({Slice(), Slice(0, 1)}), register_tokens.expand({N, -1, -1}), t.index({Slice(), Slice(1)})}, 1);
+  for (const auto& block : *blocks) t = block->as<DinoBlockImpl>()->forward(t);
+  auto normed = norm(t);
+  return {normed.select(1, 0), normed.index({Slice(), Slice(1 + R)}), t};
+}
+
+DinoTokenizerImpl::DinoTokenizerImpl(const Dinov2Config& c, int64_t patch_size)
+    : imagenet_normalize(c.imagenet_normalize) {
+  dino_vit = register_module("dino_vit", Dinov2(c, patch_size));
+}
+
+torch::Tensor DinoTokenizerImpl::forward(const torch::Tensor& images01) {
+  if (!imagenet_normalize) return dino_vit(images01);
+  auto opts = images01.options();
+  auto mean = torch::tensor({0.485, 0.456, 0.406}, opts).view({1, 3, 1, 1});
+  auto std = torch::tensor({0.229, 0.224, 0.225}, opts).view({1, 3, 1, 1});
+  return dino_vit((images01 - mean) / std);
+}
+
+}  // namespace uplvsm::model

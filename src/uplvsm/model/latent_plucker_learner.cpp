@@ -1,0 +1,35 @@
+#include "uplvsm/model/latent_plucker_learner.h"
+
+#include "uplvsm/geometry/quaternion.h"
+
+namespace uplvsm::model {
+
+using torch::indexing::Slice;
+
+LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
+  // The official init uses std 0.02 for the whole estimator (no depth scaling).
+  transformer_estimator = register_module(
+      "transformer_estimator", make_transformer_stack(c.estimator_n_layer, c.d, c.d_head, c.qk_norm_eps, false));
+  absT_head = register_module("absT_head", DinoMlp(c.d, c.d / 2, 3));
+  quaR_head = register_module("quaR_head", DinoMlp(c.d, c.d / 2, 4));
+  init_linear_weights(*absT_head, 0.02);
+  init_linear_weights(*quaR_head, 0.02);
+}
+
+torch::Tensor LatentPluckerLearnerImpl::pooled(const torch::Tensor& image_tokens, const torch::Tensor& scene_latents) {
+  const int64_t n = image_tokens.size(1);
+  auto x = run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1));
+  return x.index({Slice(), Slice(0, n)}).mean(1);
+}
+
+torch::Tensor LatentPluckerLearnerImpl::heads(const torch::Tensor& pooled) {
+  auto t = absT_head(pooled);
+  auto q = geometry::normalize_quat(quaR_head(pooled), 1e-3);
+  return torch::cat({t, q}, -1);
+}
+
+torch::Tensor LatentPluckerLearnerImpl::forward(const torch::Tensor& image_tokens, const torch::Tensor& scene_latents) {
+  return heads(pooled(image_tokens, scene_latents));
+}
+
+}  // namespace uplvsm::model

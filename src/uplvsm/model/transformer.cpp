@@ -1,0 +1,109 @@
+#include "uplvsm/model/transformer.h"
+
+#include <cmath>
+
+namespace uplvsm::model {
+
+LayerNormImpl::LayerNormImpl(int64_t dim_, double eps_, bool with_bias) : dim(dim_), eps(eps_) {
+  weight = register_parameter("weight", torch::ones({dim}));
+  if (with_bias) bias = register_parameter("bias", torch::zeros({dim}));
+}
+
+torch::Tensor LayerNormImpl::forward(const torch::Tensor& x) {
+  return torch::layer_norm(x, {dim}, weight, bias, eps);
+}
+
+RMSNormImpl::RMSNormImpl(int64_t dim, double eps_) : eps(eps_) {
+  weight = register_parameter("weight", torch::ones({dim}));
+}
+
+torch::Tensor RMSNormImpl::forward(const torch::Tensor& x) {
+  auto x32 = x.to(torch::kFloat32);
+  auto y = x32 * torch::rsqrt(x32.pow(2).mean(-1, true) + eps);
+  return y.to(x.scalar_type()) * weight;
+}
+
+torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  const double scale = 1.0 / std::sqrt(static_cast<double>(q.size(-1)));
+#if TORCH_VERSION_MAJOR >= 2
+  return at::scaled_dot_product_attention(q, k, v);
+#else
+  auto scores = torch::matmul(q, k.transpose(-2, -1)).mul_(scale);
+  return torch::matmul(torch::softmax(scores, -1), v);
+#endif
+}
+
+QKNormAttentionImpl::QKNormAttentionImpl(int64_t d, int64_t d_head_, double eps) : heads(d / d_head_), d_head(d_head_) {
+  to_qkv = register_module("to_qkv", torch::nn::Linear(torch::nn::LinearOptions(d, 3 * d).bias(false)));
+  fc = register_module("fc", torch::nn::Linear(torch::nn::LinearOptions(d, d).bias(false)));
+  q_norm = register_module("q_norm", RMSNorm(d_head, eps));
+  k_norm = register_module("k_norm", RMSNorm(d_head, eps));
+}
+
+std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::project(const torch::Tensor& x) {
+  const int64_t B = x.size(0), L = x.size(1);
+  auto qkv = to_qkv(x).chunk(3, -1);  // q | k | v, each head-major (heads, d_head)
+  auto split = [&](const torch::Tensor& t) { return t.view({B, L, heads, d_head}); };
+  auto q = q_norm(split(qkv[0])).transpose(1, 2);
+  auto k = k_norm(split(qkv[1])).transpose(1, 2);
+  auto v = split(qkv[2]).transpose(1, 2);
+  return {q, k, v};
+}
+
+torch::Tensor QKNormAttentionImpl::forward(const torch::Tensor& x) {
+  auto [q, k, v] = project(x);
+  auto o = attention(q, k, v);  // [B, heads, L, d_head]
+  return fc(o.transpose(1, 2).reshape({x.size(0), x.size(1), heads * d_head}));
+}
+
+torch::Tensor QKNormAttentionImpl::attention_map(const torch::Tensor& x) {
+  auto [q, k, v] = project(x);
+  auto scores = torch::matmul(q, k.transpose(-2, -1)) / std::sqrt(static_cast<double>(d_head));
+  return torch::softmax(scores.to(torch::kFloat32), -1).mean(1);
+}
+
+MLPImpl::MLPImpl(int64_t d, int64_t hidden) {
+  mlp = register_module("mlp", torch::nn::Sequential(torch::nn::Linear(torch::nn::LinearOptions(d, hidden).bias(false)),
+                                                     torch::nn::Functional(
+                                                         [](const torch::Tensor& t) { return torch::gelu(t); }),
+                                                     torch::nn::Linear(torch::nn::LinearOptions(hidden, d).bias(false))));
+}
+
+TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps) {
+  norm1 = register_module("norm1", LayerNorm(d, 1e-5, false));
+  attn = register_module("attn", QKNormAttention(d, d_head, eps));
+  norm2 = register_module("norm2", LayerNorm(d, 1e-5, false));
+  mlp = register_module("mlp", MLP(d, 4 * d));
+}
+
+torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x) {
+  auto h = x + attn(norm1(x));
+  return h + mlp(norm2(h));
+}
+
+void init_linear_weights(torch::nn::Module& module, double std) {
+  torch::NoGradGuard no_grad;
+  for (auto& m : module.modules()) {
+    if (auto* lin = m->as<torch::nn::Linear>()) {
+      lin->weight.normal_(0.0, std);
+      if (lin->bias.defined()) lin->bias.zero_();
+    }
+  }
+}
+
+torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double eps, bool depth_init) {
+  torch::nn::ModuleList stack;
+  for (int64_t i = 0; i < n_layer; ++i) {
+    auto block = TransformerBlock(d, d_head, eps);
+    init_linear_weights(*block, depth_init ? 0.02 / std::sqrt(2.0 * static_cast<double>(i + 1)) : 0.02);
+    stack->push_back(block);
+  }
+  return stack;
+}
+
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x) {
+  for (const auto& block : *stack) x = block->as<TransformerBlock>()->forward(x);
+  return x;
+}
+
+}  // namespace uplvsm::model

@@ -1,0 +1,71 @@
+// The LVSM / official UP-LVSM transformer block: pre-LayerNorm without bias, QK RMSNorm per head (one [d_head]
+// weight shared by all heads, eps a parameter: 1e-5 in LVSM, 1e-3 in UP-LVSM), bias-free linears, GELU MLP 4x.
+// Module and parameter names equal the official state_dict names (norm1, attn.to_qkv, attn.fc, attn.q_norm,
+// attn.k_norm, norm2, mlp.mlp.0, mlp.mlp.2) so official checkpoints load without renaming.
+#pragma once
+#include <torch/torch.h>
+
+namespace uplvsm::model {
+
+// LayerNorm with an optional bias (torch >= 2.1's LayerNorm(bias=False) keeps only `weight`).
+struct LayerNormImpl : torch::nn::Module {
+  LayerNormImpl(int64_t dim, double eps, bool bias);
+  torch::Tensor forward(const torch::Tensor& x);
+  torch::Tensor weight, bias;
+  int64_t dim;
+  double eps;
+};
+TORCH_MODULE(LayerNorm);
+
+// y = x_fp32 * rsqrt(mean(x_fp32^2) + eps), cast back, times weight (official RMSNorm).
+struct RMSNormImpl : torch::nn::Module {
+  RMSNormImpl(int64_t dim, double eps);
+  torch::Tensor forward(const torch::Tensor& x);
+  torch::Tensor weight;
+  double eps;
+};
+TORCH_MODULE(RMSNorm);
+
+// softmax(q k^T * scale) v for q, k, v [B, heads, L, d_head]. One seam for the attention kernel.
+torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
+
+struct QKNormAttentionImpl : torch::nn::Module {
+  QKNormAttentionImpl(int64_t d, int64_t d_head, double qk_norm_eps);
+  torch::Tensor forward(const torch::Tensor& x);
+  // The attention probabilities (head-mean, [B, L, L]) for analysis tools; not used by forward.
+  torch::Tensor attention_map(const torch::Tensor& x);
+  torch::nn::Linear to_qkv{nullptr}, fc{nullptr};
+  RMSNorm q_norm{nullptr}, k_norm{nullptr};
+  int64_t heads, d_head;
+
+ private:
+  std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> project(const torch::Tensor& x);
+};
+TORCH_MODULE(QKNormAttention);
+
+struct MLPImpl : torch::nn::Module {
+  MLPImpl(int64_t d, int64_t hidden);
+  torch::Tensor forward(const torch::Tensor& x) { return mlp->forward(x); }
+  torch::nn::Sequential mlp{nullptr};  // 0: Linear, 1: GELU, 2: Linear (official names mlp.mlp.0 / mlp.mlp.2)
+};
+TORCH_MODULE(MLP);
+
+struct TransformerBlockImpl : torch::nn::Module {
+  TransformerBlockImpl(int64_t d, int64_t d_head, double qk_norm_eps);
+  torch::Tensor forward(const torch::Tensor& x);
+  LayerNorm norm1{nullptr}, norm2{nullptr};
+  QKNormAttention attn{nullptr};
+  MLP mlp{nullptr};
+};
+TORCH_MODULE(TransformerBlock);
+
+// A stack of blocks in a ModuleList (keys "<name>.<i>.*"). Depth init: block i's linears ~ N(0, std_i) with
+// std_i = 0.02 / sqrt(2 (i + 1)) when depth_init, else 0.02 (official init_weights).
+torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double qk_norm_eps,
+                                             bool depth_init);
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x);
+
+// N(0, std) for every Linear weight under `module` (biases zero); norms keep their ones/zeros.
+void init_linear_weights(torch::nn::Module& module, double std);
+
+}  // namespace uplvsm::model

@@ -1,0 +1,102 @@
+#include "uplvsm/train/checkpoint.h"
+
+#include <algorithm>
+#include <filesystem>
+#include <type_traits>
+
+#include <fmt/format.h>
+
+#include "uplvsm/train/optimizer.h"
+
+namespace uplvsm::train {
+
+namespace fs = std::filesystem;
+
+nlohmann::json TrainState::to_json() const {
+  return {{"step", step}, {"scheduler_step", scheduler_step}, {"param_update_step", param_update_step},
+          {"skipped_nonfinite", skipped_nonfinite}, {"skipped_gradnorm", skipped_gradnorm},
+          {"train_seconds", train_seconds}};
+}
+
+TrainState TrainState::from_json(const nlohmann::json& j) {
+  TrainState s;
+  s.step = j.at("step").get<int64_t>();
+  s.scheduler_step = j.at("scheduler_step").get<int64_t>();
+  s.param_update_step = j.at("param_update_step").get<int64_t>();
+  s.skipped_nonfinite = j.value("skipped_nonfinite", int64_t{0});
+  s.skipped_gradnorm = j.value("skipped_gradnorm", int64_t{0});
+  s.train_seconds = j.value("train_seconds", 0.0);
+  return s;
+}
+
+std::string checkpoint_name(int64_t step) { return fmt::format("ckpt_{:016d}.safetensors", step); }
+
+namespace {
+// LibTorch keys optimiser state by the parameter's TensorImpl: a string in 1.x, a pointer in newer releases.
+template <typename Map>
+typename Map::key_type state_key(const Map&, const torch::Tensor& p) {
+  if constexpr (std::is_same_v<typename Map::key_type, std::string>)
+    return c10::guts::to_string(p.unsafeGetTensorImpl());
+  else
+    return static_cast<typename Map::key_type>(p.unsafeGetTensorImpl());
+}
+
+std::map<std::string, torch::Tensor> named_trainable(const torch::nn::Module& module) {
+  std::map<std::string, torch::Tensor> out;
+  for (const auto& item : module.named_parameters(true))
+    if (item.value().requires_grad()) out[item.key()] = item.value();
+  return out;
+}
+}  // namespace
+
+model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module) {
+  model::NamedTensors out;
+  auto& states = opt.state();
+  for (const auto& [name, p] : named_trainable(module)) {
+    auto it = states.find(state_key(states, p));
+    if (it == states.end()) continue;  // no step taken yet
+    auto& s = static_cast<torch::optim::AdamWParamState&>(*it->second);
+    out["exp_avg/" + name] = s.exp_avg().detach().cpu();
+    out["exp_avg_sq/" + name] = s.exp_avg_sq().detach().cpu();
+    out["step/" + name] = torch::tensor(static_cast<int64_t>(s.step()), torch::kInt64);
+  }
+  return out;
+}
+
+void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module,
+                             const model::NamedTensors& state, const std::string& source) {
+  auto& states = opt.state();
+  int64_t restored = 0;
+  for (const auto& [name, p] : named_trainable(module)) {
+    auto m = state.find("exp_avg/" + name), v = state.find("exp_avg_sq/" + name), s = state.find("step/" + name);
+    if (m == state.end() || v == state.end() || s == state.end()) continue;
+    if (m->second.sizes() != p.sizes() || v->second.sizes() != p.sizes())
+      throw std::runtime_error(fmt::format("{}: optimiser state of '{}' has shape [{}] but the parameter is [{}]", source,
+                                           name, fmt::join(m->second.sizes(), ","), fmt::join(p.sizes(), ",")));
+    auto ps = std::make_unique<torch::optim::AdamWParamState>();
+    ps->step(s->second.item<int64_t>());
+    ps->exp_avg(m->second.to(p.options()).clone());
+    ps->exp_avg_sq(v->second.to(p.options()).clone());
+    states[state_key(states, p)] = std::move(ps);
+    ++restored;
+  }
+  if (restored == 0 && !state.empty())
+    throw std::runtime_error(fmt::format("{}: optimiser state matches no parameter of the model", source));
+}
+
+std::string save_training_checkpoint(const std::string& dir, const Config& config, const TrainState& state,
+                                     const torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep) {
+  fs::create_directories(dir);
+  auto path = (fs::path(dir) / checkpoint_name(state.step)).string();
+  model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), optimizer_state(opt, module));
+  std::vector<std::string> all;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    auto name = e.path().filename().string();
+    if (name.rfind("ckpt_", 0) == 0 && e.path().extension() == ".safetensors") all.push_back(e.path().string());
+  }
+  std::sort(all.begin(), all.end());
+  for (size_t i = 0; keep > 0 && i + static_cast<size_t>(keep) < all.size(); ++i) fs::remove(all[i]);
+  return path;
+}
+
+}  // namespace uplvsm::train

@@ -1,0 +1,35 @@
+// Training checkpoints: model + AdamW state + training state in one safetensors file (model/checkpoint_io.h),
+// written atomically as <run>/checkpoints/ckpt_<step:016>.safetensors, the oldest beyond `keep` deleted.
+#pragma once
+#include <torch/torch.h>
+
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "uplvsm/core/config.h"
+#include "uplvsm/model/checkpoint_io.h"
+
+namespace uplvsm::train {
+
+struct TrainState {
+  int64_t step = 0;               // forward/backward passes done (the next step to run)
+  int64_t scheduler_step = 0;     // drives the learning rate; not advanced on a non-finite loss
+  int64_t param_update_step = 0;  // optimiser steps taken
+  int64_t skipped_nonfinite = 0, skipped_gradnorm = 0;
+  double train_seconds = 0;       // wall time spent training, over all resumes
+  nlohmann::json to_json() const;
+  static TrainState from_json(const nlohmann::json& j);
+};
+
+std::string checkpoint_name(int64_t step);
+
+// Optimiser state as named tensors "<kind>/<param name>" (kind: exp_avg, exp_avg_sq, step) and back.
+model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module);
+void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module,
+                             const model::NamedTensors& state, const std::string& source);
+
+// Writes the checkpoint and prunes old ones; returns its path.
+std::string save_training_checkpoint(const std::string& checkpoint_dir, const Config& config, const TrainState& state,
+                                     const torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep);
+
+}  // namespace uplvsm::train

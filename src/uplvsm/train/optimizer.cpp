@@ -1,0 +1,44 @@
+#include "uplvsm/train/optimizer.h"
+
+#include <cmath>
+
+namespace uplvsm::train {
+
+ParamGroups split_param_groups(const torch::nn::Module& module) {
+  ParamGroups g;
+  for (const auto& item : module.named_parameters(true)) {
+    if (!item.value().requires_grad()) continue;
+    if (item.value().dim() > 1) {
+      g.decay_names.push_back(item.key());
+      g.decay.push_back(item.value());
+    } else {
+      g.no_decay_names.push_back(item.key());
+      g.no_decay.push_back(item.value());
+    }
+  }
+  return g;
+}
+
+std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& module, const TrainingConfig& c) {
+  auto groups = split_param_groups(module);
+  auto options = [&](double wd) {
+    return std::make_unique<torch::optim::AdamWOptions>(
+        torch::optim::AdamWOptions(c.lr).betas({c.beta1, c.beta2}).eps(c.eps).weight_decay(wd));
+  };
+  std::vector<torch::optim::OptimizerParamGroup> param_groups;
+  param_groups.emplace_back(groups.decay, options(c.weight_decay));
+  param_groups.emplace_back(groups.no_decay, options(0.0));
+  return std::make_unique<torch::optim::AdamW>(param_groups, torch::optim::AdamWOptions(c.lr));
+}
+
+double lr_lambda(int64_t step, int64_t warmup, int64_t total) {
+  if (step < warmup) return static_cast<double>(step) / static_cast<double>(std::max<int64_t>(1, warmup));
+  double progress = static_cast<double>(step - warmup) / static_cast<double>(std::max<int64_t>(1, total - warmup));
+  return std::max(0.0, 0.5 * (1.0 + std::cos(M_PI * progress)));
+}
+
+void set_learning_rate(torch::optim::Optimizer& opt, double lr) {
+  for (auto& group : opt.param_groups()) static_cast<torch::optim::AdamWOptions&>(group.options()).lr(lr);
+}
+
+}  // namespace uplvsm::train

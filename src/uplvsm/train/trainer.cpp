@@ -1,0 +1,221 @@
+#include "uplvsm/train/trainer.h"
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <filesystem>
+#include <fstream>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "uplvsm/core/progress.h"
+#include "uplvsm/data/loader.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/checkpoint.h"
+#include "uplvsm/train/optimizer.h"
+
+namespace uplvsm::train {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::atomic<int> g_signal{0};
+extern "C" void on_signal(int sig) { g_signal = sig; }
+
+struct SignalScope {
+  SignalScope() {
+    g_signal = 0;
+    old_int = std::signal(SIGINT, on_signal);
+    old_term = std::signal(SIGTERM, on_signal);
+  }
+  ~SignalScope() {
+    std::signal(SIGINT, old_int);
+    std::signal(SIGTERM, old_term);
+  }
+  void (*old_int)(int);
+  void (*old_term)(int);
+};
+
+data::LoaderOptions loader_options(const Config& c) {
+  const auto& t = c.training;
+  data::LoaderOptions o;
+  o.batch_size = t.batch_size;
+  o.num_views = static_cast<int>(t.num_views);
+  o.num_input_views = static_cast<int>(t.num_input_views);
+  o.num_target_views = static_cast<int>(t.num_target_views);
+  o.min_frame_dist = static_cast<int>(t.min_frame_dist);
+  o.max_frame_dist = static_cast<int>(t.max_frame_dist);
+  o.preprocess.image_size = static_cast<int>(c.model.image_size);
+  o.preprocess.patch_size = static_cast<int>(c.model.patch_size);
+  o.preprocess.square_crop = c.dataset.square_crop;
+  o.seed = static_cast<uint64_t>(t.seed);
+  o.threads = static_cast<int>(t.loader_threads);
+  return o;
+}
+
+// Keeps metrics.jsonl consistent with the checkpoint we resume from: lines past its step are dropped.
+void truncate_metrics(const std::string& path, int64_t step) {
+  if (!fs::exists(path)) return;
+  std::ifstream in(path);
+  std::string kept, line;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    try {
+      if (json::parse(line).value("step", int64_t{0}) > step) continue;
+    } catch (const json::exception&) {
+      continue;  // a line cut by a crash
+    }
+    kept += line + "\n";
+  }
+  io::write_file_atomic(path, kept.data(), kept.size());
+}
+
+void check_same_model(const Config& a, const Config& b, const std::string& source) {
+  auto ja = config_to_json(a)["model"], jb = config_to_json(b)["model"];
+  if (ja != jb)
+    throw std::runtime_error(fmt::format("resume from {}: its model config differs from the given one\n  checkpoint: {}\n  "
+                                         "given:      {}",
+                                         source, jb.dump(), ja.dump()));
+}
+
+}  // namespace
+
+double psnr_from_mse(double mse) { return -10.0 * std::log10(std::max(mse, 1e-10)); }
+
+TrainResult train(const Config& config, const TrainOptions& opt) {
+  const auto& tc = config.training;
+  const auto t_start = std::chrono::steady_clock::now();
+  fs::create_directories(opt.run_dir);
+  const std::string ckpt_dir = (fs::path(opt.run_dir) / "checkpoints").string();
+  const std::string metrics_path = (fs::path(opt.run_dir) / "metrics.jsonl").string();
+  auto cfg_text = config_to_json(config).dump(2) + "\n";
+  io::write_file_atomic((fs::path(opt.run_dir) / "config.json").string(), cfg_text.data(), cfg_text.size());
+
+  torch::manual_seed(static_cast<uint64_t>(tc.seed));
+  model::UPLVSM net(config.model);
+  net->to(opt.device);
+  net->train();
+  auto optimizer = make_optimizer(*net, tc);
+  TrainState state;
+
+  std::string resume_from;
+  if (opt.resume == "auto") {
+    if (fs::exists(ckpt_dir)) {
+      try {
+        resume_from = model::resolve_checkpoint(ckpt_dir);
+      } catch (const std::runtime_error&) {
+      }
+    }
+  } else if (opt.resume != "none") {
+    resume_from = model::resolve_checkpoint(opt.resume);
+  }
+  if (!resume_from.empty()) {
+    auto ckpt = model::read_checkpoint(resume_from);
+    check_same_model(config, ckpt.config, resume_from);
+    model::load_state_dict(*net, ckpt.model, resume_from);
+    restore_optimizer_state(*optimizer, *net, ckpt.optimizer, resume_from);
+    state = TrainState::from_json(ckpt.state);
+    spdlog::info("resumed from {} at step {}", resume_from, state.step);
+  }
+  truncate_metrics(metrics_path, state.step);
+
+  TrainResult result;
+  result.step = state.step;
+  if (state.step >= tc.train_steps) {
+    spdlog::info("run {} already finished ({} of {} steps)", opt.run_dir, state.step, tc.train_steps);
+    return result;
+  }
+  data::ChunkDataset dataset(opt.data_root, "train");
+  spdlog::info("training {} ({} parameters) on {} scenes of {}, steps {} -> {}", config.name, net->parameter_count(),
+               dataset.size(), opt.data_root, state.step, tc.train_steps);
+  data::TrainingLoader loader(dataset, loader_options(config), state.step);
+  if (tc.perceptual_loss_weight > 0)
+    spdlog::warn("perceptual_loss_weight {} ignored: no VGG19 weights are loaded yet; training with MSE only",
+                 tc.perceptual_loss_weight);
+
+  SignalScope signals;
+  std::ofstream metrics(metrics_path, std::ios::app);
+  ProgressBar bar("train", tc.train_steps, "step", state.step);
+  std::vector<torch::Tensor> params;
+  for (const auto& p : net->parameters())
+    if (p.requires_grad()) params.push_back(p);
+  double loss_ema = -1;
+  const int64_t first_step = state.step;
+  while (state.step < tc.train_steps) {
+    auto t0 = std::chrono::steady_clock::now();
+    optimizer->zero_grad();
+    double loss_value = 0;
+    for (int64_t micro = 0; micro < tc.grad_accum_steps; ++micro) {
+      auto batch = loader.next();
+      auto dev = [&](const torch::Tensor& t) { return t.to(opt.device); };
+      auto target = dev(batch.target_images());
+      auto out = net->forward(dev(batch.input_images(tc.num_input_views)), dev(batch.input_fxfycxcy(tc.num_input_views)),
+                              target, dev(batch.target_fxfycxcy()));
+      auto loss = tc.l2_loss_weight * torch::mse_loss(out.render, target);
+      (loss / static_cast<double>(tc.grad_accum_steps)).backward();
+      loss_value += loss.item<double>() / static_cast<double>(tc.grad_accum_steps);
+    }
+    const double lr = tc.lr * lr_lambda(state.scheduler_step, tc.warmup, tc.train_steps);
+    double grad_norm = 0;
+    bool skipped = false;
+    if (!std::isfinite(loss_value)) {
+      ++state.skipped_nonfinite;  // official: no optimiser step, no scheduler step
+      skipped = true;
+    } else {
+      for (auto& p : params)
+        if (p.grad().defined()) p.grad().nan_to_num_(0.0, 1e-6, -1e-6);
+      grad_norm = torch::nn::utils::clip_grad_norm_(params, tc.grad_clip_norm);
+      if (grad_norm > tc.grad_clip_norm * tc.allowed_gradnorm_factor) {
+        ++state.skipped_gradnorm;  // official: skip the update, still advance the schedule
+        skipped = true;
+      } else {
+        set_learning_rate(*optimizer, lr);
+        optimizer->step();
+        ++state.param_update_step;
+      }
+      ++state.scheduler_step;
+    }
+    ++state.step;
+    const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    state.train_seconds += step_seconds;
+    const double psnr = psnr_from_mse(loss_value / tc.l2_loss_weight);
+    if (std::isfinite(loss_value)) loss_ema = loss_ema < 0 ? loss_value : 0.95 * loss_ema + 0.05 * loss_value;
+    result.last_loss = loss_value;
+    result.last_psnr = psnr;
+    if (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1) {
+      metrics << json{{"step", state.step}, {"loss", loss_value}, {"psnr", psnr}, {"lr", lr}, {"grad_norm", grad_norm},
+                      {"skipped", skipped}, {"step_seconds", step_seconds}, {"data_wait_seconds", loader.wait_seconds()},
+                      {"train_seconds", state.train_seconds}}
+                     .dump()
+              << "\n";
+      metrics.flush();
+    }
+    if (opt.progress)
+      bar.update(state.step, {{"loss", fmt::format("{:.4f}", loss_ema)},
+                              {"psnr", fmt::format("{:.2f}", psnr_from_mse(loss_ema / tc.l2_loss_weight))},
+                              {"lr", fmt::format("{:.2e}", lr)}});
+    const bool stop_now = g_signal != 0 || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
+    if (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now) {
+      result.last_checkpoint = save_training_checkpoint(ckpt_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
+    }
+    if (stop_now) {
+      result.interrupted = g_signal != 0;
+      if (result.interrupted) spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);
+      break;
+    }
+  }
+  if (opt.progress) bar.finish();
+  result.step = state.step;
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  if (state.skipped_nonfinite + state.skipped_gradnorm > 0)
+    spdlog::warn("skipped updates: {} non-finite losses, {} gradient norms above {} x clip", state.skipped_nonfinite,
+                 state.skipped_gradnorm, tc.allowed_gradnorm_factor);
+  return result;
+}
+
+}  // namespace uplvsm::train

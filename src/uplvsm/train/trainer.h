@@ -1,0 +1,35 @@
+// The training loop (official recipe): batches from the step-keyed loader, the UP-LVSM forward with the estimator
+// on the target images, MSE (+ perceptual when available) loss, AdamW with warmup+cosine, gradient clipping with the
+// official skip rules, JSONL metrics, atomic checkpoints with rotation, exact resume, SIGINT/SIGTERM checkpointing.
+#pragma once
+#include <torch/torch.h>
+
+#include <string>
+
+#include "uplvsm/core/config.h"
+
+namespace uplvsm::train {
+
+struct TrainOptions {
+  std::string data_root;           // pixelSplat-format root with a train/ split
+  std::string run_dir;             // config.json, metrics.jsonl, checkpoints/
+  std::string resume = "auto";     // "auto" (latest in run_dir if any), "none", or a checkpoint path
+  torch::Device device = torch::kCPU;
+  int64_t stop_after_steps = -1;   // stop (with a checkpoint) after this many steps of this invocation
+  bool progress = true;
+};
+
+struct TrainResult {
+  int64_t step = 0;          // steps completed in total
+  double last_loss = 0, last_psnr = 0;
+  double seconds = 0;        // this invocation
+  std::string last_checkpoint;
+  bool interrupted = false;  // stopped by a signal
+};
+
+TrainResult train(const Config& config, const TrainOptions& options);
+
+// The MSE/PSNR of a prediction, as the official LossComputer logs them.
+double psnr_from_mse(double mse);
+
+}  // namespace uplvsm::train

@@ -1,0 +1,61 @@
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <string>
+
+#include "test_util.h"
+
+namespace {
+struct Run {
+  int status;
+  std::string output;
+};
+
+Run run(const std::string& args) {
+  std::string cmd = std::string(UPLVSM_CLI) + " " + args + " 2>&1";
+  Run r{0, ""};
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  size_t n;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) r.output.append(buf, n);
+  r.status = pclose(pipe);
+  return r;
+}
+}  // namespace
+
+TEST(Cli, HelpListsEverySubcommand) {
+  auto r = run("--help");
+  EXPECT_EQ(r.status, 0) << r.output;
+  for (std::string sub : {"info", "make-dataset", "train", "eval", "render", "report"})
+    EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
+  for (std::string sub : {"info", "make-dataset", "train", "eval", "render", "report"}) {
+    auto h = run(sub + " --help");
+    EXPECT_EQ(h.status, 0) << sub << ": " << h.output;
+    EXPECT_NE(h.output.find("--"), std::string::npos) << sub;
+  }
+}
+
+TEST(Cli, InfoReportsOpenBlas) {
+  auto r = run("info --config " + std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny.json");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("OpenBLAS"), std::string::npos) << r.output;  // not the reference BLAS
+  EXPECT_NE(r.output.find("PASSIVE"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("M parameters"), std::string::npos) << r.output;
+}
+
+TEST(Cli, BadArgumentsAndFilesGiveClearErrors) {
+  auto missing = run("train --config /nonexistent/tiny.json --data /tmp --run /tmp/x");
+  EXPECT_NE(missing.status, 0);
+  EXPECT_NE(missing.output.find("/nonexistent/tiny.json"), std::string::npos) << missing.output;
+
+  auto no_ckpt = run("eval --checkpoint /nonexistent/run --data /tmp --out /tmp/e");
+  EXPECT_NE(no_ckpt.status, 0);
+  EXPECT_NE(no_ckpt.output.find("/nonexistent/run"), std::string::npos) << no_ckpt.output;
+
+  auto device = run("info --device tpu");
+  EXPECT_NE(device.status, 0);
+  EXPECT_NE(device.output.find("tpu"), std::string::npos) << device.output;
+
+  auto unknown = run("fly");
+  EXPECT_NE(unknown.status, 0);
+}

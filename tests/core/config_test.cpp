@@ -1,0 +1,66 @@
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include "test_util.h"
+#include "uplvsm/core/config.h"
+#include "uplvsm/core/progress.h"
+
+using namespace uplvsm;
+
+TEST(Config, ShippedConfigsLoadAndRoundTrip) {
+  for (std::string name : {"tiny", "paper_x224"}) {
+    auto c = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json");
+    EXPECT_EQ(c.name, name);
+    auto again = config_from_json(config_to_json(c));
+    EXPECT_EQ(config_to_json(again), config_to_json(c));
+  }
+  auto paper = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/paper_x224.json");
+  EXPECT_EQ(paper.model.transformer.d, 768);
+  EXPECT_EQ(paper.model.transformer.decoder_n_layer, 14);
+  EXPECT_EQ(paper.model.transformer.n_latent_vectors, 1024);
+  EXPECT_EQ(paper.model.dinov2.num_register_tokens, 4);
+}
+
+TEST(Config, UnknownFieldIsAnErrorNamingThePath) {
+  nlohmann::json j = {{"model", {{"transformer", {{"dd", 3}}}}}};
+  try {
+    config_from_json(j, "x.json");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("x.json: model.transformer: unknown field 'dd'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Config, InconsistentSizesAreRejected) {
+  nlohmann::json j = {{"model", {{"image_size", 100}, {"patch_size", 14}}}};
+  EXPECT_THROW(config_from_json(j, "bad.json"), std::runtime_error);
+  nlohmann::json k = {{"model", {{"transformer", {{"d", 64}}}}}};  // dinov2 width stays 768
+  try {
+    config_from_json(k, "bad.json");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("embed_dim"), std::string::npos);
+  }
+  nlohmann::json t = {{"training", {{"batch_size", "eight"}}}};
+  EXPECT_THROW(config_from_json(t, "bad.json"), std::runtime_error);
+}
+
+TEST(Config, MissingOrInvalidFile) {
+  EXPECT_THROW(load_config("/nonexistent/config.json"), std::runtime_error);
+  auto dir = test::temp_dir("config");
+  std::ofstream(dir / "broken.json") << "{ not json";
+  try {
+    load_config((dir / "broken.json").string());
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("broken.json"), std::string::npos);
+  }
+}
+
+TEST(Progress, DurationFormat) {
+  EXPECT_EQ(format_duration(5), "00:05");
+  EXPECT_EQ(format_duration(125), "02:05");
+  EXPECT_EQ(format_duration(3725), "1:02:05");
+  EXPECT_EQ(format_duration(-1), "--:--");
+}

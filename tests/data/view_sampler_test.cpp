@@ -1,0 +1,80 @@
+// Tests of data/view_sampler: bounds, gap rule, distinct interior frames, determinism and the fallbacks.
+#include "uplvsm/data/view_sampler.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <set>
+
+namespace uplvsm::data {
+namespace {
+
+TEST(ViewSampler, RespectsGapAndBounds) {
+  std::mt19937_64 rng(123);
+  std::set<int64_t> gaps;
+  for (int rep = 0; rep < 2000; ++rep) {
+    auto v = sample_training_views(300, 5, 25, 192, rng);
+    ASSERT_EQ(v.size(), 5u);
+    int64_t start = v[0], gap = v[1] - v[0];
+    gaps.insert(gap);
+    EXPECT_GE(gap, 25);
+    EXPECT_LE(gap, 192);
+    EXPECT_GE(start, 0);
+    EXPECT_LE(v[1], 299);
+    std::set<int64_t> interior(v.begin() + 2, v.end());
+    EXPECT_EQ(interior.size(), 3u);  // distinct
+    for (int64_t f : interior) {
+      EXPECT_GT(f, start);
+      EXPECT_LT(f, start + gap);
+    }
+  }
+  EXPECT_EQ(*gaps.begin(), 25);    // both ends of [25, 192] reachable
+  EXPECT_EQ(*gaps.rbegin(), 192);
+}
+
+TEST(ViewSampler, GapCappedByScene) {
+  std::mt19937_64 rng(5);
+  for (int rep = 0; rep < 200; ++rep) {
+    auto v = sample_training_views(40, 4, 25, 192, rng);  // upper bound min(39, 192)
+    EXPECT_LE(v[1] - v[0], 39);
+    EXPECT_GE(v[1] - v[0], 25);
+    auto w = sample_training_views(10, 4, 25, 192, rng);  // min_gap above the bound: gap = 9
+    EXPECT_EQ(w[0], 0);
+    EXPECT_EQ(w[1], 9);
+  }
+}
+
+TEST(ViewSampler, DeterministicForSeed) {
+  std::mt19937_64 a(42), b(42), c(43);
+  std::vector<std::vector<int64_t>> ra, rb, rc;
+  for (int i = 0; i < 20; ++i) {
+    ra.push_back(sample_training_views(100, 6, 10, 50, a));
+    rb.push_back(sample_training_views(100, 6, 10, 50, b));
+    rc.push_back(sample_training_views(100, 6, 10, 50, c));
+  }
+  EXPECT_EQ(ra, rb);
+  EXPECT_NE(ra, rc);
+}
+
+TEST(ViewSampler, SmallScenesAndErrors) {
+  std::mt19937_64 rng(1);
+  EXPECT_THROW(sample_training_views(3, 4, 1, 10, rng), std::invalid_argument);
+  // Gap 1 leaves no interior frame: the extra views repeat frames of the span.
+  auto v = sample_training_views(2, 2, 25, 192, rng);
+  EXPECT_EQ(v, (std::vector<int64_t>{0, 1}));
+  auto w = sample_training_views(3, 3, 1, 1, rng);
+  EXPECT_EQ(w[1] - w[0], 1);
+  EXPECT_TRUE(w[2] == w[0] || w[2] == w[1]);
+  EXPECT_EQ(sample_training_views(5, 1, 1, 1, rng).size(), 1u);
+  EXPECT_TRUE(can_sample(26, 4, 25));
+  EXPECT_FALSE(can_sample(25, 4, 25));  // the official selector would raise and replace the scene
+  EXPECT_FALSE(can_sample(3, 4, 1));
+  for (int i = 0; i < 1000; ++i) {
+    int64_t x = uniform_int(rng, -3, 3);
+    EXPECT_GE(x, -3);
+    EXPECT_LE(x, 3);
+  }
+}
+
+}  // namespace
+}  // namespace uplvsm::data

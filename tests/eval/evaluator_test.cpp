@@ -1,0 +1,197 @@
+// Tests of eval/evaluator: a tiny random model evaluated on the fixture dataset (counts, skipped entries, written
+// files, baseline numbers recomputed independently, training mode restored) and the aggregation rules.
+#include "uplvsm/eval/evaluator.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "test_util.h"
+#include "uplvsm/data/eval_index.h"
+#include "uplvsm/eval/baselines.h"
+#include "uplvsm/eval/metrics.h"
+
+namespace uplvsm::eval {
+namespace {
+
+namespace fs = std::filesystem;
+const char* kKey = "20e408dd375292a1";
+
+ModelConfig tiny_config() {
+  ModelConfig c;
+  c.image_size = 32;
+  c.patch_size = 8;
+  c.transformer.d = 32;
+  c.transformer.d_head = 16;
+  c.transformer.encoder_n_layer = 1;
+  c.transformer.estimator_n_layer = 1;
+  c.transformer.decoder_n_layer = 1;
+  c.transformer.n_latent_vectors = 8;
+  c.dinov2.embed_dim = 32;
+  c.dinov2.depth = 1;
+  c.dinov2.num_heads = 2;
+  c.dinov2.pos_grid = 4;
+  return c;
+}
+
+data::PreprocessOptions tiny_prep() {
+  data::PreprocessOptions p;
+  p.image_size = 32;
+  p.patch_size = 8;
+  return p;
+}
+
+std::string root() { return test::fixture("re10k_chunks/root"); }
+
+size_t count_lines(const fs::path& path) {
+  std::ifstream f(path);
+  size_t n = 0;
+  for (std::string line; std::getline(f, line);) ++n;
+  return n;
+}
+
+TEST(Evaluator, TinyModelOnFixtureDataset) {
+  torch::manual_seed(0);
+  model::UPLVSM net(tiny_config());
+  net->train();
+  data::ChunkDataset dataset(root(), "test");
+  const auto out = test::temp_dir("eval_tiny");
+  EvalOptions opt;
+  opt.out_dir = out.string();
+  auto s = evaluate(net, dataset, tiny_prep(), opt);
+  EXPECT_TRUE(net->is_training());  // mode restored
+
+  EXPECT_EQ(s.scenes, 1);
+  EXPECT_EQ(s.skipped_null, 1);
+  EXPECT_EQ(s.skipped_missing, 0);
+  EXPECT_EQ(s.skipped_bad_frames, 0);
+  ASSERT_EQ(s.per_scene.size(), 1u);
+  const auto& r = s.per_scene[0];
+  EXPECT_EQ(r.key, kKey);
+  EXPECT_EQ(r.context, (std::vector<int64_t>{1, 13}));
+  EXPECT_EQ(r.bucket, "large");
+  ASSERT_EQ(r.views.size(), 3u);
+  EXPECT_EQ(r.views[1].frame, 8);
+  for (const auto& v : r.views) {
+    EXPECT_TRUE(std::isfinite(v.psnr) && v.psnr > 0 && v.psnr < 60) << v.psnr;
+    EXPECT_TRUE(v.ssim > -1 && v.ssim <= 1);
+  }
+  EXPECT_NEAR(r.psnr, (r.views[0].psnr + r.views[1].psnr + r.views[2].psnr) / 3, 1e-12);
+  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), r.psnr);
+  EXPECT_DOUBLE_EQ(s.buckets.at("large").at("copy_nearest").at("ssim"), r.ssim_copy);
+  EXPECT_EQ(s.bucket_scenes.at("large"), 1);
+  EXPECT_EQ(s.buckets.count("small"), 0u);
+
+  // The baselines, recomputed from the views directly (targets 4, 8, 11 copy context frames 1, 13, 13).
+  auto views = dataset.load_views(dataset.find(kKey), {1, 13, 4, 8, 11}, tiny_prep());
+  auto gt = views.images.narrow(0, 2, 3);
+  auto copy = views.images.index_select(0, torch::tensor({0, 1, 1}, torch::kInt64));
+  auto psnr_copy = psnr(copy, gt), ssim_mean = ssim(mean_colour(gt), gt);
+  for (int t = 0; t < 3; ++t) {
+    EXPECT_NEAR(r.views[t].psnr_copy, psnr_copy[t].item<double>(), 1e-9);
+    EXPECT_NEAR(r.views[t].ssim_mean, ssim_mean[t].item<double>(), 1e-9);
+  }
+
+  // Files.
+  EXPECT_TRUE(fs::is_regular_file(out / "metrics.json"));
+  EXPECT_EQ(count_lines(out / "per_scene.csv"), 2u);
+  EXPECT_EQ(count_lines(out / "per_view.csv"), 4u);
+  EXPECT_TRUE(fs::is_regular_file(out / "scenes" / (std::string(kKey) + ".png")));
+  ASSERT_EQ(s.scene_grids.size(), 1u);
+  std::ifstream f(out / "metrics.json");
+  auto j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["scenes"], 1);
+  EXPECT_EQ(j["views"], 3);
+  EXPECT_EQ(j["skipped"]["null_entries"], 1);
+  EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.psnr, 1e-12);
+  EXPECT_TRUE(j["buckets"].contains("large"));
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(out);
+}
+
+TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
+  const auto dir = test::temp_dir("eval_index");
+  std::vector<data::EvalEntry> entries = {{kKey, {1, 13}, {4, 8, 11}, std::nullopt},
+                                          {"ffffffffffffffff", {0, 2}, {1, 1, 1}, 0.2}};
+  data::write_eval_index((dir / "index.json").string(), entries);
+  torch::manual_seed(0);
+  model::UPLVSM net(tiny_config());
+  data::ChunkDataset dataset(root(), "test");
+  EvalOptions opt;
+  opt.index_path = (dir / "index.json").string();
+  opt.batch_size = 1;
+  auto s = evaluate(net, dataset, tiny_prep(), opt);  // no out_dir: nothing written
+  EXPECT_EQ(s.scenes, 1);
+  EXPECT_EQ(s.skipped_null, 0);
+  EXPECT_EQ(s.skipped_missing, 1);
+  EXPECT_EQ(s.per_scene[0].bucket, "none");
+  EXPECT_TRUE(s.buckets.empty());
+  EXPECT_TRUE(s.scene_grids.empty());
+  EXPECT_TRUE(net->is_training());  // modules start in training mode; evaluate() restores it
+  opt.max_scenes = 1;
+  opt.index_path.clear();
+  EXPECT_EQ(evaluate(net, dataset, tiny_prep(), opt).scenes, 1);
+  fs::remove_all(dir);
+}
+
+TEST(Evaluator, RunsOnCuda) {
+  if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device";
+  torch::manual_seed(0);
+  model::UPLVSM net(tiny_config());
+  data::ChunkDataset dataset(root(), "test");
+  EvalOptions opt;
+  auto cpu = evaluate(net, dataset, tiny_prep(), opt);
+  net->to(torch::kCUDA);
+  opt.device = torch::kCUDA;
+  auto gpu = evaluate(net, dataset, tiny_prep(), opt);
+  ASSERT_EQ(gpu.scenes, 1);
+  EXPECT_NEAR(gpu.table.at("model").at("psnr"), cpu.table.at("model").at("psnr"), 1e-3);
+  EXPECT_NEAR(gpu.table.at("copy_nearest").at("ssim"), cpu.table.at("copy_nearest").at("ssim"), 1e-9);
+}
+
+SceneResult fake_scene(const std::string& key, std::optional<double> overlap, std::vector<double> psnrs) {
+  SceneResult r;
+  r.key = key;
+  r.overlap = overlap;
+  r.bucket = overlap ? data::overlap_bucket(*overlap) : "none";
+  for (size_t i = 0; i < psnrs.size(); ++i)
+    r.views.push_back({static_cast<int64_t>(i), psnrs[i], 0.5, psnrs[i] - 5, 0.25, 10, 0.01});
+  finalise_scene(r);
+  return r;
+}
+
+TEST(Evaluator, AveragesPerSceneThenOverScenes) {
+  // A scene with 1 target counts as much as a scene with 3 (community convention).
+  auto s = summarise({fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30, 30, 30}),
+                      fake_scene("c", std::nullopt, {10, 20})});
+  EXPECT_EQ(s.scenes, 3);
+  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), (20.0 + 30.0 + 15.0) / 3);
+  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("psnr"), (15.0 + 25.0 + 10.0) / 3);
+  EXPECT_DOUBLE_EQ(s.table.at("mean_colour").at("ssim"), 0.01);
+  EXPECT_DOUBLE_EQ(s.buckets.at("large").at("model").at("psnr"), 20.0);
+  EXPECT_DOUBLE_EQ(s.buckets.at("small").at("model").at("psnr"), 30.0);
+  EXPECT_EQ(s.buckets.count("none"), 0u);
+  EXPECT_EQ(s.bucket_scenes.at("small"), 1);
+  auto j = summary_to_json(s);
+  EXPECT_EQ(j["views"], 6);
+}
+
+TEST(Evaluator, ErrorHeatmapAndGrid) {
+  auto gt = torch::zeros({2, 3, 16, 16});
+  auto pred = gt.clone();
+  pred[1].fill_(1.0);
+  auto heat = error_heatmap(pred, gt);
+  ASSERT_EQ(heat.sizes(), gt.sizes());
+  EXPECT_LE(heat[0].max().item<float>(), 4.0f / 255 + 1e-6);  // no error: black end of the ramp
+  EXPECT_NEAR(heat[1][0].mean().item<float>(), 252.0f / 255, 1e-5);  // saturated: pale yellow
+  auto scene = fake_scene("k", std::nullopt, {20, 21});
+  scene.context = {0, 5};
+  auto grid = scene_grid(scene, torch::rand({2, 3, 16, 16}), pred, gt, gt);
+  EXPECT_EQ(grid.scalar_type(), torch::kUInt8);
+  EXPECT_EQ(grid.dim(), 3);
+  EXPECT_GT(grid.size(1), 6 * 16);
+}
+
+}  // namespace
+}  // namespace uplvsm::eval

@@ -1,0 +1,125 @@
+// Tests of eval/report: a report from a fake metrics.json, training log and scene grid contains index.html that
+// links exactly the assets that exist, the training curve and the paper-style table.
+#include "uplvsm/eval/report.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "test_util.h"
+#include "uplvsm/io/image.h"
+
+namespace uplvsm::eval {
+namespace {
+
+namespace fs = std::filesystem;
+
+void write(const fs::path& path, const std::string& text) {
+  std::ofstream f(path);
+  f << text;
+}
+
+std::string read(const fs::path& path) {
+  std::ifstream f(path);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  return ss.str();
+}
+
+nlohmann::json fake_metrics() {
+  nlohmann::json row = {{"model", {{"psnr", 25.5}, {"ssim", 0.8}}},
+                        {"copy_nearest", {{"psnr", 14.25}, {"ssim", 0.4}}},
+                        {"mean_colour", {{"psnr", 12.0}, {"ssim", 0.05}}}};
+  return {{"scenes", 3}, {"table", row}, {"buckets", {{"large", row}, {"small", row}}},
+          {"bucket_scenes", {{"large", 2}, {"small", 1}}}, {"seconds", 12.5}};
+}
+
+TEST(Report, WritesIndexWithExistingAssets) {
+  const auto src = test::temp_dir("report_src");
+  const auto out = test::temp_dir("report_out");
+  write(src / "metrics.json", fake_metrics().dump());
+  write(src / "per_scene.csv", "key,psnr\na,1\n");
+  std::string log;
+  for (int step = 10; step <= 50; step += 10)
+    log += fmt::format("{{\"step\":{},\"loss\":{},\"psnr\":{},\"lr\":0.001}}\n", step, 1.0 / step, 10 + step / 10.0);
+  log += "{\"step\": 60, \"loss\"";  // a line cut off by a crash
+  write(src / "train.jsonl", log);
+  io::write_png((src / "tiny.png").string(), torch::full({4, 6, 3}, 128, torch::kUInt8));
+
+  ReportInputs in;
+  in.title = "Test <run>";
+  in.config = {{"name", "tiny"}, {"model", {{"d", 32}}}};
+  in.metrics_json = (src / "metrics.json").string();
+  in.train_log_jsonl = (src / "train.jsonl").string();
+  in.scene_grids = {(src / "tiny.png").string(), (src / "absent.png").string()};
+  in.video_gif = (src / "absent.gif").string();
+  in.runtime_info = "torch 1.13.1";
+  in.train_seconds = 3725;
+  const auto index = write_report(out.string(), in);
+
+  EXPECT_EQ(fs::path(index), out / "index.html");
+  for (const char* file : {"index.html", "training_curve.png", "metrics.json", "per_scene.csv", "scenes/tiny.png",
+                           "config.json", "train_log.jsonl"})
+    EXPECT_TRUE(fs::is_regular_file(out / file)) << file;
+  EXPECT_FALSE(fs::exists(out / "video.gif"));
+  const auto html = read(index);
+  EXPECT_NE(html.find("src=\"training_curve.png\""), std::string::npos);
+  EXPECT_NE(html.find("src=\"scenes/tiny.png\""), std::string::npos);
+  EXPECT_EQ(html.find("src=\"scenes/absent.png\""), std::string::npos);
+  EXPECT_EQ(html.find("video.gif"), std::string::npos);
+  EXPECT_EQ(html.find("<video"), std::string::npos);
+  EXPECT_NE(html.find("Test &lt;run&gt;"), std::string::npos);
+  EXPECT_NE(html.find("UP-LVSM (ours)"), std::string::npos);
+  EXPECT_NE(html.find("Large overlap (2 scenes)"), std::string::npos);
+  EXPECT_NE(html.find("Medium overlap (0 scenes)"), std::string::npos);
+  EXPECT_NE(html.find("Full (3 scenes)"), std::string::npos);
+  EXPECT_NE(html.find("<b>25.50</b>"), std::string::npos);
+  EXPECT_NE(html.find("14.25"), std::string::npos);
+  EXPECT_NE(html.find("1:02:05"), std::string::npos);  // training time
+  EXPECT_NE(html.find("absent.png"), std::string::npos);  // listed as missing
+  auto curve = io::read_image((out / "training_curve.png").string());
+  EXPECT_EQ(curve.size(1), 800);
+  EXPECT_EQ(read_train_log(in.train_log_jsonl).size(), 5u);
+  if (std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) return;
+  fs::remove_all(src);
+  fs::remove_all(out);
+}
+
+TEST(Report, VideoAndPlainTable) {
+  const auto src = test::temp_dir("report_src2");
+  const auto out = test::temp_dir("report_out2");
+  auto m = fake_metrics();
+  m.erase("buckets");
+  write(src / "metrics.json", m.dump());
+  write(src / "v.mp4", "not really a video");
+  ReportInputs in;
+  in.metrics_json = (src / "metrics.json").string();
+  in.video_mp4 = (src / "v.mp4").string();
+  const auto html = read(write_report(out.string(), in));
+  EXPECT_TRUE(fs::is_regular_file(out / "video.mp4"));
+  EXPECT_NE(html.find("<video src=\"video.mp4\" controls loop autoplay muted"), std::string::npos);
+  EXPECT_EQ(html.find("Large"), std::string::npos);
+  EXPECT_NE(html.find("Test set (3 scenes)"), std::string::npos);
+  EXPECT_FALSE(fs::exists(out / "training_curve.png"));
+  fs::remove_all(src);
+  fs::remove_all(out);
+}
+
+TEST(Report, RejectsMalformedMetrics) {
+  const auto src = test::temp_dir("report_bad");
+  write(src / "metrics.json", "{\"scenes\": 1");
+  ReportInputs in;
+  in.metrics_json = (src / "metrics.json").string();
+  EXPECT_THROW(write_report((src / "out").string(), in), std::runtime_error);
+  write(src / "metrics.json", "{\"scenes\": 1}");
+  EXPECT_THROW(write_report((src / "out").string(), in), std::runtime_error);
+  fs::remove_all(src);
+}
+
+TEST(Report, HtmlEscape) { EXPECT_EQ(html_escape("a<b & \"c\"'"), "a&lt;b &amp; &quot;c&quot;&#39;"); }
+
+}  // namespace
+}  // namespace uplvsm::eval

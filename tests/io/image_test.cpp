@@ -1,0 +1,129 @@
+// Tests of io/image: JPEG decode against PIL's decode of the fixture, encode/decode and PNG round trips, layout
+// conversions and error messages.
+#include "uplvsm/io/image.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "test_util.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/io/safetensors.h"
+
+namespace uplvsm::io {
+namespace {
+
+using test::fixture;
+
+// A smooth test image (JPEG-friendly).
+torch::Tensor gradient_image(int h, int w) {
+  auto y = torch::linspace(0, 1, h).view({h, 1, 1}).expand({h, w, 1});
+  auto x = torch::linspace(0, 1, w).view({1, w, 1}).expand({h, w, 1});
+  auto img = torch::cat({x, y, (x + y) / 2}, 2);
+  return img.mul(255).round().to(torch::kUInt8).contiguous();
+}
+
+template <typename F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
+TEST(Image, DecodeFixtureFrameMatchesPil) {
+  auto scenes = data::read_chunk(fixture("re10k_chunks/root/test/000000.torch"));
+  const data::RawScene* scene = nullptr;
+  for (const auto& s : scenes)
+    if (s.key == "20e408dd375292a1") scene = &s;
+  ASSERT_NE(scene, nullptr);
+  const auto& bytes = scene->images[0];
+  auto img = decode_jpeg(bytes.data_ptr<uint8_t>(), bytes.numel(), "frame0");
+  auto truth = read_safetensors(fixture("re10k_chunks/truth.safetensors")).tensors.at("decoded.20e408dd375292a1.frame0");
+  ASSERT_EQ(img.sizes(), truth.sizes());
+  auto diff = (img.to(torch::kInt32) - truth.to(torch::kInt32)).abs();
+  EXPECT_LT(diff.to(torch::kFloat64).mean().item<double>(), 1.0);
+  EXPECT_LE(diff.max().item<int>(), 8);
+  auto [h, w] = jpeg_size(bytes.data_ptr<uint8_t>(), bytes.numel(), "frame0");
+  EXPECT_EQ(h, 360);
+  EXPECT_EQ(w, 640);
+}
+
+TEST(Image, JpegRoundTripIsClose) {
+  auto img = gradient_image(48, 80);
+  auto bytes = encode_jpeg(img, 95);
+  ASSERT_GT(bytes.size(), 100u);
+  auto back = decode_jpeg(bytes.data(), bytes.size(), "roundtrip");
+  ASSERT_EQ(back.sizes(), img.sizes());
+  EXPECT_LT(test::max_abs_diff(back, img), 8.0);
+  // Gray input encodes as a gray JPEG and decodes expanded to RGB.
+  auto gray = img.select(2, 0).contiguous();
+  auto gbytes = encode_jpeg(gray, 90);
+  auto gback = decode_jpeg(gbytes.data(), gbytes.size(), "gray");
+  EXPECT_EQ(gback.sizes(), (std::vector<int64_t>{48, 80, 3}));
+  EXPECT_EQ(test::max_abs_diff(gback.select(2, 0), gback.select(2, 2)), 0.0);
+}
+
+TEST(Image, GarbageAndTruncatedJpegThrowNamingSource) {
+  std::vector<uint8_t> garbage(100, 0x42);
+  EXPECT_NE(error_of([&] { decode_jpeg(garbage.data(), garbage.size(), "scene abc frame 3"); }).find("scene abc frame 3"),
+            std::string::npos);
+  auto bytes = encode_jpeg(gradient_image(64, 64), 90);
+  // A JPEG header followed by garbage: libjpeg's own error, with our source name.
+  std::vector<uint8_t> bad(bytes.begin(), bytes.begin() + 20);
+  bad.insert(bad.end(), 200, 0x00);
+  auto msg = error_of([&] { decode_jpeg(bad.data(), bad.size(), "bad.jpg"); });
+  EXPECT_NE(msg.find("bad.jpg"), std::string::npos) << msg;
+  std::vector<uint8_t> truncated(bytes.begin(), bytes.begin() + bytes.size() / 2);
+  msg = error_of([&] { decode_jpeg(truncated.data(), truncated.size(), "half.jpg"); });
+  EXPECT_NE(msg.find("half.jpg"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("truncated"), std::string::npos) << msg;
+}
+
+TEST(Image, PngRoundTripAndReadImageByMagic) {
+  auto dir = test::temp_dir("image_png");
+  auto img = gradient_image(30, 50);
+  write_png((dir / "rgb.png").string(), img);
+  EXPECT_EQ(test::max_abs_diff(read_image((dir / "rgb.png").string()), img), 0.0);
+  auto gray = img.select(2, 1).contiguous();
+  write_png((dir / "gray.png").string(), gray);
+  auto back = read_image((dir / "gray.png").string());
+  EXPECT_EQ(test::max_abs_diff(back.select(2, 0), gray), 0.0);
+  EXPECT_EQ(test::max_abs_diff(back.select(2, 2), gray), 0.0);
+  // A JPEG saved under a .png name is still read as JPEG (magic bytes decide).
+  auto bytes = encode_jpeg(img, 95);
+  std::ofstream((dir / "fake.png").string(), std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
+                                                                      bytes.size());
+  EXPECT_LT(test::max_abs_diff(read_image((dir / "fake.png").string()), img), 8.0);
+  std::ofstream((dir / "text.png").string()) << "hello";
+  EXPECT_NE(error_of([&] { read_image((dir / "text.png").string()); }).find("text.png"), std::string::npos);
+  EXPECT_NE(error_of([&] { read_image((dir / "missing.png").string()); }).find("missing.png"), std::string::npos);
+  // No temporary files are left behind by the atomic writes.
+  int files = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) files += e.is_regular_file();
+  EXPECT_EQ(files, 4);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Image, FloatConversions) {
+  auto img = gradient_image(5, 7);
+  auto f = to_float_chw(img);
+  EXPECT_EQ(f.sizes(), (std::vector<int64_t>{3, 5, 7}));
+  EXPECT_EQ(f.scalar_type(), torch::kFloat32);
+  EXPECT_FLOAT_EQ(f[0][0][6].item<float>(), img[0][6][0].item<uint8_t>() / 255.0f);
+  EXPECT_EQ(test::max_abs_diff(to_u8_hwc(f), img), 0.0);
+  auto out_of_range = torch::tensor({-0.5f, 0.5f, 1.5f, 0.4999f, 0.502f, 1.0f}).view({3, 1, 2});
+  auto u8 = to_u8_hwc(out_of_range);
+  EXPECT_EQ(u8[0][0][0].item<uint8_t>(), 0);    // clamped
+  EXPECT_EQ(u8[0][1][0].item<uint8_t>(), 128);  // 0.5 * 255 = 127.5 -> 128 (torch.round, half to even)
+  EXPECT_EQ(u8[0][1][1].item<uint8_t>(), 127);  // 0.4999 * 255 = 127.47
+  EXPECT_EQ(u8[0][0][1].item<uint8_t>(), 255);  // clamped
+  EXPECT_THROW(to_float_chw(torch::zeros({3, 4, 4})), std::runtime_error);
+  EXPECT_THROW(to_u8_hwc(torch::zeros({4, 4, 3})), std::runtime_error);
+}
+
+}  // namespace
+}  // namespace uplvsm::io

@@ -1,0 +1,59 @@
+// A micro UP-LVSM config and a tiny built-in dataset for fast training tests.
+#pragma once
+#include <filesystem>
+#include <string>
+
+#include "test_util.h"
+#include "uplvsm/core/config.h"
+#include "uplvsm/data/synthetic/room_scenes.h"
+
+namespace uplvsm::test {
+
+inline Config micro_config() {
+  Config c;
+  c.name = "micro";
+  auto& m = c.model;
+  m.image_size = 32;
+  m.patch_size = 8;
+  m.transformer.d = 32;
+  m.transformer.d_head = 16;
+  m.transformer.encoder_n_layer = 1;
+  m.transformer.estimator_n_layer = 1;
+  m.transformer.decoder_n_layer = 1;
+  m.transformer.n_latent_vectors = 8;
+  m.dinov2.embed_dim = 32;
+  m.dinov2.depth = 1;
+  m.dinov2.num_heads = 2;
+  m.dinov2.pos_grid = 4;
+  auto& t = c.training;
+  t.lr = 3e-3;
+  t.warmup = 2;
+  t.train_steps = 40;
+  t.batch_size = 2;
+  t.num_views = 4;
+  t.num_input_views = 2;
+  t.num_target_views = 2;
+  t.min_frame_dist = 2;
+  t.max_frame_dist = 6;
+  t.checkpoint_every = 1000;
+  t.log_every = 1;
+  t.loader_threads = 1;
+  c.dataset.frames_per_scene = 12;
+  return c;
+}
+
+// Six train and two test scenes of 12 frames at 36x64, written once per test binary run.
+inline std::string micro_dataset() {
+  static std::string root;
+  if (root.empty()) {
+    root = temp_dir("micro_dataset").string();
+    data::RoomSceneOptions opt;
+    opt.height = 36;
+    opt.width = 64;
+    opt.frames = 12;
+    data::write_builtin_dataset(root, 6, 2, 5, opt);
+  }
+  return root;
+}
+
+}  // namespace uplvsm::test
