@@ -50,7 +50,7 @@ RawScene make_scene(const std::string& key, int n, int h = 24, int w = 32) {
   for (int i = 0; i < n; ++i) {
     auto row = s.cameras[i];
     row[0] = 0.8, row[1] = 1.4, row[2] = 0.5, row[3] = 0.5;
-    row[6] = 1, row[10] = 1, row[14] = 1;  // rotation identity
+    row[6] = 1, row[11] = 1, row[16] = 1;  // rotation identity (r00, r11, r22)
     row[17] = -0.1 * i;                     // t_z
   }
   for (int i = 0; i < n; ++i) {

@@ -103,6 +103,9 @@ TEST(Preprocess, BadCamerasAndFramesThrow) {
   EXPECT_NE(msg.find("scene s"), std::string::npos) << msg;
   EXPECT_NE(msg.find("cameras"), std::string::npos) << msg;
   EXPECT_NE(msg.find("frame 1"), std::string::npos) << msg;
+  msg = error_of([&] { cameras_to_c2w(torch::zeros({2, 18}), "scene s"); });
+  EXPECT_NE(msg.find("singular"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("frame 0"), std::string::npos) << msg;
   msg = error_of([&] { preprocess({img}, torch::zeros({1, 16}), opt, "scene s"); });
   EXPECT_NE(msg.find("[N,18]"), std::string::npos) << msg;
   msg = error_of([&] { preprocess({img, img}, cams.slice(0, 0, 1), opt, "scene s"); });

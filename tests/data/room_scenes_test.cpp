@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <regex>
 #include <set>
@@ -168,6 +171,20 @@ TEST(RoomScenes, WriteBuiltinDatasetReadsBack) {
   ChunkDataset other((dir / "c").string(), "train");
   EXPECT_EQ(keys.count(other.key(0)), 0u);
   fs::remove_all(dir);
+}
+
+// Developer benchmark: the default built-in dataset (400 train + 100 test scenes, 72x128, 32 frames) written to
+// $UPLVSM_ROOM_BENCH_DIR, with the wall time printed. Skipped unless that variable is set.
+TEST(RoomScenesBench, WriteDefaultDataset) {
+  const char* out = std::getenv("UPLVSM_ROOM_BENCH_DIR");
+  if (!out) GTEST_SKIP() << "set UPLVSM_ROOM_BENCH_DIR to time write_builtin_dataset(400 train, 100 test)";
+  auto t0 = std::chrono::steady_clock::now();
+  write_builtin_dataset(out, 400, 100, 2024, RoomSceneOptions{});
+  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("write_builtin_dataset(400 train + 100 test, 72x128 x 32 frames): %.2f s with %d threads\n", seconds,
+              at::get_num_threads());
+  EXPECT_EQ(ChunkDataset(out, "train").size(), 400);
+  EXPECT_EQ(ChunkDataset(out, "test").size(), 100);
 }
 
 }  // namespace

@@ -175,6 +175,10 @@ TEST(Evaluator, AveragesPerSceneThenOverScenes) {
   EXPECT_EQ(s.bucket_scenes.at("small"), 1);
   auto j = summary_to_json(s);
   EXPECT_EQ(j["views"], 6);
+  auto empty = summarise({});
+  EXPECT_EQ(empty.scenes, 0);
+  EXPECT_TRUE(std::isnan(empty.table.at("model").at("psnr")));
+  EXPECT_TRUE(summary_to_json(empty)["table"]["model"]["psnr"].is_null());
 }
 
 TEST(Evaluator, ErrorHeatmapAndGrid) {

@@ -203,9 +203,11 @@ torch::Tensor cameras_to_c2w(const torch::Tensor& cameras18, const std::string& 
   int64_t n = cameras18.size(0);
   auto w2c = torch::eye(4, torch::kFloat64).repeat({n, 1, 1});
   w2c.slice(1, 0, 3).copy_(cameras18.slice(1, 6, 18).to(torch::kFloat64).reshape({n, 3, 4}));
-  auto c2w = torch::linalg_inv(w2c);
-  if (!torch::isfinite(c2w).all().item<bool>())
-    throw std::runtime_error(fmt::format("{}: field 'cameras' has a singular world-to-camera matrix", what));
+  auto [c2w, info] = torch::linalg_inv_ex(w2c);
+  auto bad = torch::nonzero(info != 0);
+  if (bad.numel() > 0)
+    throw std::runtime_error(fmt::format("{}: field 'cameras' has a singular world-to-camera matrix in frame {}", what,
+                                         bad[0][0].item<int64_t>()));
   return c2w.to(torch::kFloat32);
 }
 

@@ -247,7 +247,7 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
     all.push_back(&r);
     if (r.bucket != "none") by_bucket[r.bucket].push_back(&r);
   }
-  if (!all.empty()) s.table = mean_table(all);
+  s.table = mean_table(all);  // NaN (null in JSON) without scenes, so every row/column is always present
   for (const auto& [bucket, members] : by_bucket) {
     s.buckets[bucket] = mean_table(members);
     s.bucket_scenes[bucket] = static_cast<int64_t>(members.size());

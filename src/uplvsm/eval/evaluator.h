@@ -45,7 +45,8 @@ struct SceneResult {
 
 struct EvalSummary {
   int64_t scenes = 0;
-  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim" (mean over scenes of per-scene means).
+  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim" (mean over scenes of per-scene means;
+  // NaN when no scene was evaluated).
   std::map<std::string, std::map<std::string, double>> table;
   // bucket ("small", "medium", "large", "ignore"; scenes without overlap are in no bucket) -> row -> metric.
   std::map<std::string, std::map<std::string, std::map<std::string, double>>> buckets;
