@@ -13,7 +13,7 @@ APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
   libavutil-dev libswscale-dev libgtest-dev libbenchmark-dev
 
-.PHONY: all deps build test test-unit test-slow demo clean
+.PHONY: all deps build build-cli test test-unit test-slow demo clean
 
 all: build
 
@@ -31,6 +31,10 @@ $(BUILD)/CMakeCache.txt:
 build: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS)
 
+# The demo needs only the binary, not the test programs.
+build-cli: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS) --target uplvsm_cli
+
 test: build
 	cd $(BUILD) && ctest --output-on-failure --timeout 1800
 
@@ -40,9 +44,9 @@ test-unit: build
 test-slow: build
 	cd $(BUILD) && ctest --output-on-failure -L slow
 
-demo: build
+demo: build-cli
 	$(UPLVSM) info
-	$(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
+	test -f $(DEMO)/dataset/evaluation_index.json || $(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
 	$(UPLVSM) train --config $(CONFIG) --data $(DEMO)/dataset --run $(DEMO)/run --resume auto
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/video

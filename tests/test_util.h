@@ -17,6 +17,17 @@ inline std::filesystem::path temp_dir(const std::string& name) {
   return dir;
 }
 
+// The message of the exception f() throws, or "(no exception)".
+template <typename F>
+std::string error_of(F&& f) {
+  try {
+    f();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "(no exception)";
+}
+
 inline double max_abs_diff(const torch::Tensor& a, const torch::Tensor& b) {
   return (a.to(torch::kFloat64) - b.to(torch::kFloat64)).abs().max().item<double>();
 }

@@ -19,21 +19,13 @@
 
 namespace uplvsm::data {
 namespace {
+using test::error_of;
 
 namespace fs = std::filesystem;
 using test::fixture;
 
 const std::string kRoot = "re10k_chunks/root";
 
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
 
 const io::TensorMap& truth() {
   static io::TensorMap t = io::read_safetensors(fixture("re10k_chunks/truth.safetensors")).tensors;
@@ -138,6 +130,11 @@ TEST(ChunkDataset, WriteReadRoundTrip) {
     for (size_t f = 0; f < scenes[j].images.size(); ++f)
       EXPECT_TRUE(torch::equal(back[j].images[f], scenes[j].images[f]));
   }
+  // Only what Python's torch.save writes: no TorchScript type tags (torch.load(weights_only=True) refuses them).
+  auto raw = io::read_file(path);
+  std::string text(raw.begin(), raw.end());
+  EXPECT_EQ(text.find("torch.jit"), std::string::npos);
+  EXPECT_NE(text.find("_rebuild_tensor_v2"), std::string::npos);
   // Same content, same bytes (no timestamps in the zip).
   write_chunk((dir / "again.torch").string(), scenes);
   EXPECT_EQ(io::read_file(path), io::read_file((dir / "again.torch").string()));

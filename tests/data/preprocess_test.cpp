@@ -16,18 +16,9 @@
 
 namespace uplvsm::data {
 namespace {
+using test::error_of;
 
 using test::fixture;
-
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
-}
 
 // Frame 0 of test scene 20e408dd375292a1, decoded, and its camera row.
 std::pair<torch::Tensor, torch::Tensor> fixture_frame0() {

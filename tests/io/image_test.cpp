@@ -13,6 +13,7 @@
 
 namespace uplvsm::io {
 namespace {
+using test::error_of;
 
 using test::fixture;
 
@@ -22,16 +23,6 @@ torch::Tensor gradient_image(int h, int w) {
   auto x = torch::linspace(0, 1, w).view({1, w, 1}).expand({h, w, 1});
   auto img = torch::cat({x, y, (x + y) / 2}, 2);
   return img.mul(255).round().to(torch::kUInt8).contiguous();
-}
-
-template <typename F>
-std::string error_of(F&& f) {
-  try {
-    f();
-  } catch (const std::exception& e) {
-    return e.what();
-  }
-  return "(no exception)";
 }
 
 TEST(Image, DecodeFixtureFrameMatchesPil) {

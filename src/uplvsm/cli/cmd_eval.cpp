@@ -48,10 +48,9 @@ void add_eval_command(CLI::App& app) {
     opt.device = device;
     opt.num_visualised = a->visualise;
     opt.out_dir = a->out;
+    opt.extra = {{"checkpoint", model::resolve_checkpoint(a->checkpoint)}, {"data", a->data}, {"split", a->split},
+                 {"config", config.name}};
     auto summary = eval::evaluate(net, dataset, prep, opt);
-    eval::write_results(a->out, summary,
-                        {{"checkpoint", model::resolve_checkpoint(a->checkpoint)}, {"data", a->data},
-                         {"split", a->split}, {"config", config.name}});
     const auto& t = summary.table;
     std::cout << fmt::format(
         "evaluated {} scenes in {:.1f} s -> {}/metrics.json\n  UP-LVSM        PSNR {:6.2f}  SSIM {:.4f}\n"

@@ -43,97 +43,113 @@ class Reader {
   std::set<std::string> seen_;
 };
 
-void read_transformer(const json& j, const std::string& p, TransformerConfig& c) {
-  Reader r(j, p);
-  r.get("d", c.d);
-  r.get("d_head", c.d_head);
-  r.get("encoder_n_layer", c.encoder_n_layer);
-  r.get("estimator_n_layer", c.estimator_n_layer);
-  r.get("decoder_n_layer", c.decoder_n_layer);
-  r.get("n_latent_vectors", c.n_latent_vectors);
-  r.get("qk_norm_eps", c.qk_norm_eps);
-  r.get("special_init", c.special_init);
-  r.get("depth_init", c.depth_init);
+// One list of fields per section, used both to read (with unknown-field checks) and to write JSON.
+template <typename C, typename F>
+void transformer_fields(C& c, F&& f) {
+  f("d", c.d);
+  f("d_head", c.d_head);
+  f("encoder_n_layer", c.encoder_n_layer);
+  f("estimator_n_layer", c.estimator_n_layer);
+  f("decoder_n_layer", c.decoder_n_layer);
+  f("n_latent_vectors", c.n_latent_vectors);
+  f("qk_norm_eps", c.qk_norm_eps);
+  f("special_init", c.special_init);
+  f("depth_init", c.depth_init);
+}
+
+template <typename C, typename F>
+void dinov2_fields(C& c, F&& f) {
+  f("embed_dim", c.embed_dim);
+  f("depth", c.depth);
+  f("num_heads", c.num_heads);
+  f("mlp_ratio", c.mlp_ratio);
+  f("num_register_tokens", c.num_register_tokens);
+  f("qk_norm", c.qk_norm);
+  f("qk_norm_eps", c.qk_norm_eps);
+  f("pos_grid", c.pos_grid);
+  f("interpolate_antialias", c.interpolate_antialias);
+  f("interpolate_offset", c.interpolate_offset);
+  f("layerscale_init", c.layerscale_init);
+  f("imagenet_normalize", c.imagenet_normalize);
+}
+
+template <typename C, typename F>
+void model_fields(C& c, F&& f) {
+  f("variant", c.variant);
+  f("image_size", c.image_size);
+  f("patch_size", c.patch_size);
+}
+
+template <typename C, typename F>
+void training_fields(C& c, F&& f) {
+  f("lr", c.lr);
+  f("beta1", c.beta1);
+  f("beta2", c.beta2);
+  f("eps", c.eps);
+  f("weight_decay", c.weight_decay);
+  f("warmup", c.warmup);
+  f("train_steps", c.train_steps);
+  f("grad_clip_norm", c.grad_clip_norm);
+  f("allowed_gradnorm_factor", c.allowed_gradnorm_factor);
+  f("batch_size", c.batch_size);
+  f("grad_accum_steps", c.grad_accum_steps);
+  f("num_views", c.num_views);
+  f("num_input_views", c.num_input_views);
+  f("num_target_views", c.num_target_views);
+  f("min_frame_dist", c.min_frame_dist);
+  f("max_frame_dist", c.max_frame_dist);
+  f("l2_loss_weight", c.l2_loss_weight);
+  f("perceptual_loss_weight", c.perceptual_loss_weight);
+  f("checkpoint_every", c.checkpoint_every);
+  f("keep_checkpoints", c.keep_checkpoints);
+  f("log_every", c.log_every);
+  f("eval_every", c.eval_every);
+  f("seed", c.seed);
+  f("loader_threads", c.loader_threads);
+  f("amp", c.amp);
+}
+
+template <typename C, typename F>
+void dataset_fields(C& c, F&& f) {
+  f("square_crop", c.square_crop);
+  f("num_train_scenes", c.num_train_scenes);
+  f("num_test_scenes", c.num_test_scenes);
+  f("frames_per_scene", c.frames_per_scene);
+  f("render_height", c.render_height);
+  f("render_width", c.render_width);
+  f("frame_spacing", c.frame_spacing);
+  f("eval_gap", c.eval_gap);
+  f("seed", c.seed);
+}
+
+template <typename C, typename F>
+void eval_fields(C& c, F&& f) {
+  f("num_target_views", c.num_target_views);
+  f("max_scenes", c.max_scenes);
+}
+
+// Reads one flat section; `children` reads nested sections before the unknown-field check.
+template <typename C, typename Fields, typename Children>
+void read_section(const json& j, const std::string& path, C& c, Fields fields, Children children) {
+  Reader r(j, path);
+  fields(c, [&](const char* key, auto& member) { r.get(key, member); });
+  children(r);
   r.finish();
 }
 
-void read_dinov2(const json& j, const std::string& p, Dinov2Config& c) {
-  Reader r(j, p);
-  r.get("embed_dim", c.embed_dim);
-  r.get("depth", c.depth);
-  r.get("num_heads", c.num_heads);
-  r.get("mlp_ratio", c.mlp_ratio);
-  r.get("num_register_tokens", c.num_register_tokens);
-  r.get("qk_norm", c.qk_norm);
-  r.get("qk_norm_eps", c.qk_norm_eps);
-  r.get("pos_grid", c.pos_grid);
-  r.get("interpolate_antialias", c.interpolate_antialias);
-  r.get("interpolate_offset", c.interpolate_offset);
-  r.get("layerscale_init", c.layerscale_init);
-  r.get("imagenet_normalize", c.imagenet_normalize);
-  r.finish();
+template <typename C, typename Fields>
+void read_section(const json& j, const std::string& path, C& c, Fields fields) {
+  read_section(j, path, c, fields, [](Reader&) {});
 }
 
-void read_model(const json& j, const std::string& p, ModelConfig& c) {
-  Reader r(j, p);
-  r.get("variant", c.variant);
-  r.get("image_size", c.image_size);
-  r.get("patch_size", c.patch_size);
-  if (auto t = r.child("transformer")) read_transformer(*t, p + ".transformer", c.transformer);
-  if (auto d = r.child("dinov2")) read_dinov2(*d, p + ".dinov2", c.dinov2);
-  r.finish();
+template <typename C, typename Fields>
+json write_section(const C& c, Fields fields) {
+  json out = json::object();
+  fields(c, [&](const char* key, const auto& member) { out[key] = member; });
+  return out;
 }
 
-void read_training(const json& j, const std::string& p, TrainingConfig& c) {
-  Reader r(j, p);
-  r.get("lr", c.lr);
-  r.get("beta1", c.beta1);
-  r.get("beta2", c.beta2);
-  r.get("eps", c.eps);
-  r.get("weight_decay", c.weight_decay);
-  r.get("warmup", c.warmup);
-  r.get("train_steps", c.train_steps);
-  r.get("grad_clip_norm", c.grad_clip_norm);
-  r.get("allowed_gradnorm_factor", c.allowed_gradnorm_factor);
-  r.get("batch_size", c.batch_size);
-  r.get("grad_accum_steps", c.grad_accum_steps);
-  r.get("num_views", c.num_views);
-  r.get("num_input_views", c.num_input_views);
-  r.get("num_target_views", c.num_target_views);
-  r.get("min_frame_dist", c.min_frame_dist);
-  r.get("max_frame_dist", c.max_frame_dist);
-  r.get("l2_loss_weight", c.l2_loss_weight);
-  r.get("perceptual_loss_weight", c.perceptual_loss_weight);
-  r.get("checkpoint_every", c.checkpoint_every);
-  r.get("keep_checkpoints", c.keep_checkpoints);
-  r.get("log_every", c.log_every);
-  r.get("eval_every", c.eval_every);
-  r.get("seed", c.seed);
-  r.get("loader_threads", c.loader_threads);
-  r.get("amp", c.amp);
-  r.finish();
-}
-
-void read_dataset(const json& j, const std::string& p, DatasetConfig& c) {
-  Reader r(j, p);
-  r.get("square_crop", c.square_crop);
-  r.get("num_train_scenes", c.num_train_scenes);
-  r.get("num_test_scenes", c.num_test_scenes);
-  r.get("frames_per_scene", c.frames_per_scene);
-  r.get("render_height", c.render_height);
-  r.get("render_width", c.render_width);
-  r.get("frame_spacing", c.frame_spacing);
-  r.get("eval_gap", c.eval_gap);
-  r.get("seed", c.seed);
-  r.finish();
-}
-
-void read_eval(const json& j, const std::string& p, EvalConfig& c) {
-  Reader r(j, p);
-  r.get("num_target_views", c.num_target_views);
-  r.get("max_scenes", c.max_scenes);
-  r.finish();
-}
+#define UPLVSM_FIELDS(fn) [](auto& c, auto&& f) { fn(c, f); }
 
 void require(bool ok, const std::string& source, const std::string& what) {
   if (!ok) throw std::runtime_error(fmt::format("{}: {}", source, what));
@@ -145,10 +161,16 @@ Config config_from_json(const json& j, const std::string& source) {
   Config c;
   Reader r(j, source);
   r.get("name", c.name);
-  if (auto m = r.child("model")) read_model(*m, source + ": model", c.model);
-  if (auto t = r.child("training")) read_training(*t, source + ": training", c.training);
-  if (auto d = r.child("dataset")) read_dataset(*d, source + ": dataset", c.dataset);
-  if (auto e = r.child("eval")) read_eval(*e, source + ": eval", c.eval);
+  if (auto m = r.child("model"))
+    read_section(*m, source + ": model", c.model, UPLVSM_FIELDS(model_fields), [&](Reader& mr) {
+      if (auto t = mr.child("transformer"))
+        read_section(*t, source + ": model.transformer", c.model.transformer, UPLVSM_FIELDS(transformer_fields));
+      if (auto d = mr.child("dinov2"))
+        read_section(*d, source + ": model.dinov2", c.model.dinov2, UPLVSM_FIELDS(dinov2_fields));
+    });
+  if (auto t = r.child("training")) read_section(*t, source + ": training", c.training, UPLVSM_FIELDS(training_fields));
+  if (auto d = r.child("dataset")) read_section(*d, source + ": dataset", c.dataset, UPLVSM_FIELDS(dataset_fields));
+  if (auto e = r.child("eval")) read_section(*e, source + ": eval", c.eval, UPLVSM_FIELDS(eval_fields));
   r.finish();
   validate_config(c, source);
   return c;
@@ -196,44 +218,14 @@ void validate_config(const Config& c, const std::string& s) {
 }
 
 json config_to_json(const Config& c) {
-  const auto& t = c.model.transformer;
-  const auto& d = c.model.dinov2;
-  const auto& tr = c.training;
-  const auto& ds = c.dataset;
-  return json{
-      {"name", c.name},
-      {"model",
-       {{"variant", c.model.variant},
-        {"image_size", c.model.image_size},
-        {"patch_size", c.model.patch_size},
-        {"transformer",
-         {{"d", t.d}, {"d_head", t.d_head}, {"encoder_n_layer", t.encoder_n_layer},
-          {"estimator_n_layer", t.estimator_n_layer}, {"decoder_n_layer", t.decoder_n_layer},
-          {"n_latent_vectors", t.n_latent_vectors}, {"qk_norm_eps", t.qk_norm_eps},
-          {"special_init", t.special_init}, {"depth_init", t.depth_init}}},
-        {"dinov2",
-         {{"embed_dim", d.embed_dim}, {"depth", d.depth}, {"num_heads", d.num_heads}, {"mlp_ratio", d.mlp_ratio},
-          {"num_register_tokens", d.num_register_tokens}, {"qk_norm", d.qk_norm}, {"qk_norm_eps", d.qk_norm_eps},
-          {"pos_grid", d.pos_grid}, {"interpolate_antialias", d.interpolate_antialias},
-          {"interpolate_offset", d.interpolate_offset}, {"layerscale_init", d.layerscale_init},
-          {"imagenet_normalize", d.imagenet_normalize}}}}},
-      {"training",
-       {{"lr", tr.lr}, {"beta1", tr.beta1}, {"beta2", tr.beta2}, {"eps", tr.eps}, {"weight_decay", tr.weight_decay},
-        {"warmup", tr.warmup}, {"train_steps", tr.train_steps}, {"grad_clip_norm", tr.grad_clip_norm},
-        {"allowed_gradnorm_factor", tr.allowed_gradnorm_factor}, {"batch_size", tr.batch_size},
-        {"grad_accum_steps", tr.grad_accum_steps}, {"num_views", tr.num_views},
-        {"num_input_views", tr.num_input_views}, {"num_target_views", tr.num_target_views},
-        {"min_frame_dist", tr.min_frame_dist}, {"max_frame_dist", tr.max_frame_dist},
-        {"l2_loss_weight", tr.l2_loss_weight}, {"perceptual_loss_weight", tr.perceptual_loss_weight},
-        {"checkpoint_every", tr.checkpoint_every}, {"keep_checkpoints", tr.keep_checkpoints},
-        {"log_every", tr.log_every}, {"eval_every", tr.eval_every}, {"seed", tr.seed},
-        {"loader_threads", tr.loader_threads}, {"amp", tr.amp}}},
-      {"dataset",
-       {{"square_crop", ds.square_crop}, {"num_train_scenes", ds.num_train_scenes},
-        {"num_test_scenes", ds.num_test_scenes}, {"frames_per_scene", ds.frames_per_scene},
-        {"render_height", ds.render_height}, {"render_width", ds.render_width},
-        {"frame_spacing", ds.frame_spacing}, {"eval_gap", ds.eval_gap}, {"seed", ds.seed}}},
-      {"eval", {{"num_target_views", c.eval.num_target_views}, {"max_scenes", c.eval.max_scenes}}}};
+  json model = write_section(c.model, UPLVSM_FIELDS(model_fields));
+  model["transformer"] = write_section(c.model.transformer, UPLVSM_FIELDS(transformer_fields));
+  model["dinov2"] = write_section(c.model.dinov2, UPLVSM_FIELDS(dinov2_fields));
+  return json{{"name", c.name},
+              {"model", model},
+              {"training", write_section(c.training, UPLVSM_FIELDS(training_fields))},
+              {"dataset", write_section(c.dataset, UPLVSM_FIELDS(dataset_fields))},
+              {"eval", write_section(c.eval, UPLVSM_FIELDS(eval_fields))}};
 }
 
 }  // namespace uplvsm

@@ -1,7 +1,10 @@
 // pixelSplat chunk I/O through LibTorch's pickle (torch.save zip format) and the cached, indexed dataset.
 #include "uplvsm/data/chunk_dataset.h"
 
+#include <caffe2/serialize/inline_container.h>
+#include <torch/csrc/jit/serialization/export.h>
 #include <torch/csrc/jit/serialization/pickle.h>
+#include <torch/csrc/jit/serialization/pickler.h>
 
 #include <algorithm>
 #include <filesystem>
@@ -101,11 +104,32 @@ torch::Tensor compact(const torch::Tensor& t) {
   return c;
 }
 
+// torch::pickle_save, but without TorchScript type tags on lists and dicts (tag_aggregates = false): tagged
+// containers unpickle through torch.jit._pickle.restore_type_tag, which torch.load(weights_only=True) - the
+// default since torch 2.6 - refuses. Untagged, the file holds only what Python's torch.save itself writes.
+std::vector<char> pickle_save_plain(const c10::IValue& value) {
+  std::vector<char> pickle;
+  torch::jit::Pickler pickler([&](const char* buf, size_t size) { pickle.insert(pickle.end(), buf, buf + size); },
+                              /*tensor_table=*/nullptr, /*type_renamer=*/nullptr, /*memoized_class_types=*/nullptr,
+                              /*get_tensor_id=*/nullptr, /*tag_aggregates=*/false);
+  pickler.protocol();
+  pickler.pushIValue(value);
+  pickler.stop();
+  std::vector<char> container;
+  caffe2::serialize::PyTorchStreamWriter writer([&](const void* data, size_t size) {
+    const char* bytes = static_cast<const char*>(data);
+    container.insert(container.end(), bytes, bytes + size);
+    return size;
+  });
+  torch::jit::writeArchiveAndTensors("data", pickle.data(), pickle.size(), pickler.tensorData(), writer);
+  writer.writeEndOfFile();
+  return container;
+}
+
 }  // namespace
 
 void write_chunk(const std::string& path, const std::vector<RawScene>& scenes) {
-  // Generic (Any-typed) lists and dicts pickle as plain Python lists/dicts, so torch.load needs no TorchScript
-  // helpers to rebuild them.
+  // Generic (Any-typed) lists and dicts, pickled untagged: plain Python lists/dicts for torch.load.
   c10::impl::GenericList list(c10::AnyType::get());
   for (size_t i = 0; i < scenes.size(); ++i) {
     const auto& s = scenes[i];
@@ -120,7 +144,7 @@ void write_chunk(const std::string& path, const std::vector<RawScene>& scenes) {
     dict.insert("key", s.key);
     list.push_back(dict);
   }
-  std::vector<char> bytes = torch::pickle_save(list);
+  std::vector<char> bytes = pickle_save_plain(list);
   io::write_file_atomic(path, bytes.data(), bytes.size());
 }
 

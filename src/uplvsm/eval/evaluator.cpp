@@ -338,7 +338,7 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
                  s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
                  s.table["mean_colour"]["ssim"]);
   }
-  if (!opt.out_dir.empty()) write_results(opt.out_dir, s);
+  if (!opt.out_dir.empty()) write_results(opt.out_dir, s, opt.extra);
   return s;
 }
 

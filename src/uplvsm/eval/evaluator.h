@@ -27,6 +27,7 @@ struct EvalOptions {
   torch::Device device = torch::kCPU;  // where inputs go; the caller puts the model there
   int64_t num_visualised = 8;          // PNG grids for the first scenes (index order)
   std::string out_dir;                 // empty: write nothing, only return the summary
+  nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
 };
 
 struct ViewMetrics {

@@ -193,7 +193,8 @@ std::vector<double> nice_ticks(double lo, double hi, int target) {
   double step = nice_step((hi - lo) / std::max(target, 1));
   double first = std::floor(lo / step + 1e-9), last = std::ceil(hi / step - 1e-9);
   std::vector<double> ticks;
-  for (double k = first; k <= last + 0.5 && ticks.size() < 1000; ++k) ticks.push_back(std::abs(k) < 0.5 ? 0.0 : k * step);
+  for (double k = first; k <= last + 0.5 && ticks.size() < 1000; ++k)
+    ticks.push_back(std::abs(k) < 0.5 ? 0.0 : k * step);  // exact 0, never -0
   return ticks;
 }
 

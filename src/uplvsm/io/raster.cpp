@@ -167,7 +167,8 @@ void paste(torch::Tensor& img, const torch::Tensor& src, int x, int y) {
   canvas(img);
   torch::Tensor s = to_hwc_u8(src);
   int x0 = std::max(x, 0), y0 = std::max(y, 0);
-  int x1 = std::min<int>(x + int(s.size(1)), int(img.size(1))), y1 = std::min<int>(y + int(s.size(0)), int(img.size(0)));
+  int x1 = std::min<int>(x + int(s.size(1)), int(img.size(1)));
+  int y1 = std::min<int>(y + int(s.size(0)), int(img.size(0)));
   if (x1 <= x0 || y1 <= y0) return;
   img.narrow(0, y0, y1 - y0).narrow(1, x0, x1 - x0).copy_(s.narrow(0, y0 - y, y1 - y0).narrow(1, x0 - x, x1 - x0));
 }

@@ -2,17 +2,19 @@
 // the dataset writer. World axes follow the cameras (OpenCV): y points down, so the floor is at +floor_y.
 #include "uplvsm/data/synthetic/room_scenes.h"
 
-#include <ATen/Parallel.h>
-
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <map>
+#include <mutex>
 #include <optional>
 #include <random>
 #include <set>
 #include <stdexcept>
+#include <thread>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -37,6 +39,7 @@ double dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 Vec3 cross(Vec3 a, Vec3 b) { return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x}; }
 Vec3 normalize(Vec3 a) { return a * (1.0 / std::sqrt(dot(a, a))); }
 Vec3 lerp(Vec3 a, Vec3 b, double t) { return a + (b - a) * t; }
+double lerp1(double a, double b, double t) { return a + (b - a) * t; }
 double smoothstep(double e0, double e1, double x) {
   double t = std::clamp((x - e0) / (e1 - e0), 0.0, 1.0);
   return t * t * (3 - 2 * t);
@@ -76,6 +79,12 @@ struct Texture {
   int kind = 0;  // 0 checker, 1 stripes, 2 dots
   Vec3 a, b, c;
   double period = 1.0, angle = 0.0, grad_length = 2.0, grad_angle = 0.0, strength = 0.4;
+  // Cached trigonometry of the angles (the texture is evaluated once per pixel).
+  double cos_angle = 1, sin_angle = 0, cos_grad = 1, sin_grad = 0;
+  void cache() {
+    cos_angle = std::cos(angle), sin_angle = std::sin(angle);
+    cos_grad = std::cos(grad_angle), sin_grad = std::sin(grad_angle);
+  }
 };
 
 Texture random_texture(Rng& rng, double base_hue, double period_lo, double period_hi) {
@@ -90,44 +99,55 @@ Texture random_texture(Rng& rng, double base_hue, double period_lo, double perio
   t.grad_length = rng.uniform(1.5, 4.0);
   t.grad_angle = rng.uniform(0, 2 * M_PI);
   t.strength = rng.uniform(0.3, 0.6);
+  t.cache();
   return t;
 }
 
-Vec3 eval_texture(const Texture& t, double u, double v) {
-  double g = 0.5 + 0.5 * std::sin((u * std::cos(t.grad_angle) + v * std::sin(t.grad_angle)) / t.grad_length);
+// Fades a pattern towards its mean once a pixel covers a good part of its feature size `scale`: a cheap
+// pre-filter, so distant or grazing surfaces show no aliasing noise (there is one ray per pixel).
+double fade_detail(double value, double mean, double scale, double footprint) {
+  return lerp1(value, mean, smoothstep(0.2 * scale, 0.6 * scale, footprint));
+}
+
+// `footprint`: approximate size (metres) of the pixel's footprint on the surface.
+Vec3 eval_texture(const Texture& t, double u, double v, double footprint) {
+  double g = 0.5 + 0.5 * std::sin((u * t.cos_grad + v * t.sin_grad) / t.grad_length);
   Vec3 base = lerp(t.a, t.b, g);
   const double w = 2 * M_PI / t.period;
-  double p = 0;
+  double p = 0, mean = 0.5;
   if (t.kind == 0) {
     p = smoothstep(-0.25, 0.25, std::sin(w * u) * std::sin(w * v));
   } else if (t.kind == 1) {
-    p = smoothstep(-0.3, 0.3, std::sin(w * (u * std::cos(t.angle) + v * std::sin(t.angle))));
+    p = smoothstep(-0.3, 0.3, std::sin(w * (u * t.cos_angle + v * t.sin_angle)));
   } else {
     p = smoothstep(0.35, 0.65, std::cos(w * u) * std::cos(w * v));
+    mean = 0.2;  // area share of the dots
   }
-  return lerp(base, t.c, t.strength * p);
+  return lerp(base, t.c, t.strength * fade_detail(p, mean, 0.5 * t.period, footprint));
 }
 
 struct FloorTexture {
   Vec3 wood_a, wood_b;
-  double plank_width = 0.3, plank_length = 1.5, angle = 0.0;
+  double plank_width = 0.3, plank_length = 1.5;
+  bool along_z = false;  // boards run along z instead of x
   uint64_t salt = 0;
 };
 
 // Planks: each board a shade between two wood colours, soft dark grooves, a gentle grain along the board.
-Vec3 eval_floor(const FloorTexture& f, double x, double z) {
-  double u = x * std::cos(f.angle) + z * std::sin(f.angle), v = -x * std::sin(f.angle) + z * std::cos(f.angle);
+Vec3 eval_floor(const FloorTexture& f, double x, double z, double footprint) {
+  double u = f.along_z ? z : x, v = f.along_z ? x : z;
   double row = std::floor(v / f.plank_width);
   double shifted = u / f.plank_length + 0.37 * row;
   double col = std::floor(shifted);
-  uint64_t h = splitmix64(f.salt ^ splitmix64(static_cast<uint64_t>(row * 7919 + col * 104729 + 1e6)));
-  double shade = static_cast<double>(h >> 11) / 9007199254740992.0;
+  uint64_t cell = static_cast<uint64_t>(static_cast<int64_t>(row) * 7919 + static_cast<int64_t>(col) * 104729);
+  uint64_t h = splitmix64(f.salt ^ splitmix64(cell));
+  double shade = fade_detail(static_cast<double>(h >> 11) / 9007199254740992.0, 0.5, f.plank_width, footprint);
   Vec3 wood = lerp(f.wood_a, f.wood_b, shade);
   double dv = std::min(v / f.plank_width - row, 1 - (v / f.plank_width - row)) * f.plank_width;
   double du = std::min(shifted - col, 1 - (shifted - col)) * f.plank_length;
-  double groove = smoothstep(0.0, 0.025, std::min(dv, du));
-  double grain = 1.0 + 0.06 * std::sin(u * 6.0 + row * 1.7);
-  return wood * ((0.55 + 0.45 * groove) * grain);
+  double groove = fade_detail(smoothstep(0.0, 0.04, std::min(dv, du)), 0.85, 0.5 * f.plank_width, footprint);
+  double grain = 1.0 + 0.05 * std::sin(u * 2.5 + row * 1.7);
+  return wood * ((0.6 + 0.4 * groove) * grain);
 }
 
 // ---------------------------------------------------------------------------------------------------- scene
@@ -141,6 +161,7 @@ struct Box {
   Vec3 center, half;  // half extents in the box frame
   double yaw = 0;     // rotation about the world y axis
   Texture tex;
+  double cos_yaw = 1, sin_yaw = 0;
 };
 
 struct Camera {
@@ -161,15 +182,28 @@ struct Room {
   double fx = 100;
 };
 
+// Nearest intersection so far; the texture is evaluated once, for the final hit only.
 struct Hit {
   double t = 1e30;
+  int kind = -1;   // 0 room surface, 1 sphere, 2 box
+  int index = -1;  // surface (walls x-, x+, z-, z+, floor, ceiling) or object index
   Vec3 normal;
-  Vec3 albedo;
+  Vec3 local;      // box: hit point in the box frame
+  int axis = 0;    // box: axis of the face hit
 };
+
+// Distance from o along direction f to the room's boundary (o inside the room).
+double view_depth(const Room& room, Vec3 o, Vec3 f) {
+  double t = 1e30;
+  if (f.x != 0) t = std::min(t, ((f.x > 0 ? room.x_half : -room.x_half) - o.x) / f.x);
+  if (f.z != 0) t = std::min(t, ((f.z > 0 ? room.z_half : -room.z_half) - o.z) / f.z);
+  if (f.y != 0) t = std::min(t, ((f.y > 0 ? room.floor_y : room.ceiling_y) - o.y) / f.y);
+  return t;
+}
 
 // Walkthrough path: forward motion, heading drifting slowly and wobbling, view yaw/pitch near the heading.
 std::vector<Camera> sample_path(Rng& rng, const Room& room, int frames, double spacing) {
-  const double margin = 0.9;
+  const double margin = 0.9, min_view_depth = 3.0;
   for (int attempt = 0;; ++attempt) {
     double speed = rng.uniform(0.05, 0.09) * spacing * std::pow(0.8, attempt / 8);
     double heading = rng.uniform(0, 2 * M_PI), drift = rng.uniform(-0.02, 0.02) * spacing;
@@ -196,12 +230,16 @@ std::vector<Camera> sample_path(Rng& rng, const Room& room, int frames, double s
     Vec3 shift = {-room.x_half + margin - x0 + rng.uniform(0, std::max(0.0, free_x)), 0,
                   -room.z_half + margin - z0 + rng.uniform(0, std::max(0.0, free_z))};
     std::vector<Camera> cams(frames);
+    bool open_view = true;
     for (int i = 0; i < frames; ++i) {
       Vec3 f = {std::sin(yaw[i]) * std::cos(pitch[i]), std::sin(pitch[i]), std::cos(yaw[i]) * std::cos(pitch[i])};
       Vec3 r = normalize(cross({0, 1, 0}, f));  // OpenCV: x = y cross z with y (down) and z (forward)
       Vec3 d = cross(f, r);
       cams[i] = {pos[i] + shift, {r, d, f}};
+      open_view = open_view && view_depth(room, cams[i].position, f) > min_view_depth;
     }
+    // A camera staring at a wall from close by sees one flat colour: retry (like a walkthrough facing the room).
+    if (!open_view && attempt < 200) continue;
     return cams;
   }
 }
@@ -242,7 +280,8 @@ void place_objects(Rng& rng, Room& room, double base_hue) {
         room.spheres.push_back({{x, room.floor_y - size, z}, size, tex});
       } else {
         Vec3 half = {size * rng.uniform(0.6, 1.2), rng.uniform(0.2, 0.7), size * rng.uniform(0.6, 1.2)};
-        room.boxes.push_back({{x, room.floor_y - half.y, z}, half, rng.uniform(0, M_PI), tex});
+        double yaw = rng.uniform(0, M_PI);
+        room.boxes.push_back({{x, room.floor_y - half.y, z}, half, yaw, tex, std::cos(yaw), std::sin(yaw)});
       }
       placed.push_back({{x, 0, z}, reach});
       break;
@@ -267,9 +306,9 @@ Room sample_room(uint64_t seed, const RoomSceneOptions& opt) {
   double wood_hue = rng.uniform(0.04, 0.12);
   room.floor.wood_a = hsv(wood_hue, rng.uniform(0.4, 0.7), rng.uniform(0.45, 0.75));
   room.floor.wood_b = hsv(wood_hue + rng.uniform(-0.03, 0.03), rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.6));
-  room.floor.plank_width = rng.uniform(0.2, 0.4);
+  room.floor.plank_width = rng.uniform(0.3, 0.55);
   room.floor.plank_length = rng.uniform(1.0, 2.2);
-  room.floor.angle = rng.integer(0, 1) * M_PI / 2;
+  room.floor.along_z = rng.integer(0, 1) == 1;
   room.floor.salt = splitmix64(seed ^ 0xF100F100ull);
   room.light_dir = normalize({rng.uniform(-0.6, 0.6), 1.0, rng.uniform(-0.6, 0.6)});
   room.ambient = rng.uniform(0.4, 0.6);
@@ -285,17 +324,10 @@ Room sample_room(uint64_t seed, const RoomSceneOptions& opt) {
 void hit_room(const Room& room, Vec3 o, Vec3 d, Hit& hit) {
   auto try_plane = [&](double t, Vec3 n, int surface) {
     if (t <= 1e-9 || t >= hit.t) return;
-    Vec3 p = o + d * t;
     hit.t = t;
     hit.normal = n;
-    if (surface < 4) {
-      double u = surface < 2 ? p.z : p.x;  // horizontal coordinate along the wall
-      hit.albedo = eval_texture(room.walls[surface], u, p.y);
-    } else if (surface == 4) {
-      hit.albedo = eval_floor(room.floor, p.x, p.z);
-    } else {
-      hit.albedo = eval_texture(room.ceiling, p.x, p.z);
-    }
+    hit.kind = 0;
+    hit.index = surface;
   };
   if (d.x < 0) try_plane((-room.x_half - o.x) / d.x, {1, 0, 0}, 0);
   if (d.x > 0) try_plane((room.x_half - o.x) / d.x, {-1, 0, 0}, 1);
@@ -305,22 +337,21 @@ void hit_room(const Room& room, Vec3 o, Vec3 d, Hit& hit) {
   if (d.y < 0) try_plane((room.ceiling_y - o.y) / d.y, {0, 1, 0}, 5);
 }
 
-void hit_sphere(const Sphere& s, Vec3 o, Vec3 d, Hit& hit) {
+void hit_sphere(const Sphere& s, int index, Vec3 o, Vec3 d, Hit& hit) {
   Vec3 oc = o - s.center;
   double a = dot(d, d), b = dot(oc, d), c = dot(oc, oc) - s.radius * s.radius;
   double disc = b * b - a * c;
   if (disc < 0) return;
   double t = (-b - std::sqrt(disc)) / a;
   if (t <= 1e-9 || t >= hit.t) return;
-  Vec3 n = (oc + d * t) * (1.0 / s.radius);
   hit.t = t;
-  hit.normal = n;
-  // Arc-length coordinates on the sphere, so the pattern period is in metres like everywhere else.
-  hit.albedo = eval_texture(s.tex, std::atan2(n.x, n.z) * s.radius, std::asin(std::clamp(n.y, -1.0, 1.0)) * s.radius);
+  hit.normal = (oc + d * t) * (1.0 / s.radius);
+  hit.kind = 1;
+  hit.index = index;
 }
 
-void hit_box(const Box& b, Vec3 o, Vec3 d, Hit& hit) {
-  double cy = std::cos(b.yaw), sy = std::sin(b.yaw);
+void hit_box(const Box& b, int index, Vec3 o, Vec3 d, Hit& hit) {
+  const double cy = b.cos_yaw, sy = b.sin_yaw;
   auto to_local = [&](Vec3 v) { return Vec3{cy * v.x - sy * v.z, v.y, sy * v.x + cy * v.z}; };
   Vec3 lo = to_local(o - b.center), ld = to_local(d);
   double t0 = -1e30, t1 = 1e30;
@@ -338,12 +369,33 @@ void hit_box(const Box& b, Vec3 o, Vec3 d, Hit& hit) {
     t1 = std::min(t1, exit);
   }
   if (axis < 0 || t0 > t1 || t0 <= 1e-9 || t0 >= hit.t) return;
-  Vec3 lp = lo + ld * t0;
   Vec3 ln = {axis == 0 ? sign : 0, axis == 1 ? sign : 0, axis == 2 ? sign : 0};
   hit.t = t0;
   hit.normal = {cy * ln.x + sy * ln.z, ln.y, -sy * ln.x + cy * ln.z};  // back to world (inverse rotation)
-  double u = axis == 0 ? lp.z : lp.x, v = axis == 1 ? lp.z : lp.y;
-  hit.albedo = eval_texture(b.tex, u + axis * 3.1, v);
+  hit.kind = 2;
+  hit.index = index;
+  hit.local = lo + ld * t0;
+  hit.axis = axis;
+}
+
+// Surface colour at the final hit (world point p).
+Vec3 albedo_at(const Room& room, const Hit& hit, Vec3 p, double footprint) {
+  if (hit.kind == 0) {
+    if (hit.index < 4) return eval_texture(room.walls[hit.index], hit.index < 2 ? p.z : p.x, p.y, footprint);
+    if (hit.index == 4) return eval_floor(room.floor, p.x, p.z, footprint);
+    return eval_texture(room.ceiling, p.x, p.z, footprint);
+  }
+  if (hit.kind == 1) {
+    // Arc-length coordinates on the sphere, so the pattern period is in metres like everywhere else.
+    const Sphere& s = room.spheres[hit.index];
+    Vec3 n = hit.normal;
+    return eval_texture(s.tex, std::atan2(n.x, n.z) * s.radius, std::asin(std::clamp(n.y, -1.0, 1.0)) * s.radius,
+                        footprint);
+  }
+  const Box& b = room.boxes[hit.index];
+  Vec3 lp = hit.local;
+  double u = hit.axis == 0 ? lp.z : lp.x, v = hit.axis == 1 ? lp.z : lp.y;
+  return eval_texture(b.tex, u + hit.axis * 3.1, v, footprint);
 }
 
 // Colour (0..1) and z-depth of the surface through pixel centre (u+0.5, v+0.5).
@@ -353,11 +405,15 @@ Vec3 trace(const Room& room, const Camera& cam, double cx, double cy, int u, int
   Vec3 d = cam.axes[0] * dc.x + cam.axes[1] * dc.y + cam.axes[2] * dc.z;
   Hit hit;
   hit_room(room, cam.position, d, hit);
-  for (const auto& s : room.spheres) hit_sphere(s, cam.position, d, hit);
-  for (const auto& b : room.boxes) hit_box(b, cam.position, d, hit);
+  for (size_t k = 0; k < room.spheres.size(); ++k) hit_sphere(room.spheres[k], static_cast<int>(k), cam.position, d, hit);
+  for (size_t k = 0; k < room.boxes.size(); ++k) hit_box(room.boxes[k], static_cast<int>(k), cam.position, d, hit);
+  // Pixel footprint on the surface: angular pixel size (1/fx rad) times distance, stretched at grazing incidence.
+  double dist = hit.t * std::sqrt(dot(d, d));
+  double cos_incidence = std::max(std::abs(dot(hit.normal, d)) / std::sqrt(dot(d, d)), 0.1);
+  Vec3 albedo = albedo_at(room, hit, cam.position + d * hit.t, dist / room.fx / cos_incidence);
   *depth = static_cast<float>(hit.t);
   double lambert = std::max(0.0, -dot(hit.normal, room.light_dir));
-  return hit.albedo * (room.ambient + (1 - room.ambient) * lambert);
+  return albedo * (room.ambient + (1 - room.ambient) * lambert);
 }
 
 void render_frame(const Room& room, const Camera& cam, int height, int width, uint8_t* rgb, float* depth) {
@@ -423,6 +479,40 @@ std::optional<EvalEntry> eval_entry(const RoomRender& r, uint64_t seed, const Ro
   return e;
 }
 
+// Runs fn(i) for i in [0, n) on at::get_num_threads() std::threads (dynamic assignment; results do not depend on
+// it). Not at::parallel_for: that is inline and only parallel when the caller is compiled with -fopenmp, which this
+// project is not. Nested calls (a scene rendering its frames inside a parallel loop over scenes) run serially.
+thread_local bool t_in_parallel = false;
+
+void parallel_for_each(int64_t n, const std::function<void(int64_t)>& fn) {
+  int workers = static_cast<int>(std::min<int64_t>(n, std::max(1, at::get_num_threads())));
+  if (t_in_parallel || workers <= 1) {
+    for (int64_t i = 0; i < n; ++i) fn(i);
+    return;
+  }
+  std::atomic<int64_t> next{0};
+  std::exception_ptr error;
+  std::mutex error_mutex;
+  auto work = [&] {
+    t_in_parallel = true;
+    for (int64_t i; (i = next++) < n;) {
+      try {
+        fn(i);
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (!error) error = std::current_exception();
+        next = n;  // stop handing out work
+      }
+    }
+    t_in_parallel = false;
+  };
+  std::vector<std::thread> threads;
+  for (int w = 1; w < workers; ++w) threads.emplace_back(work);
+  work();
+  for (auto& t : threads) t.join();
+  if (error) std::rethrow_exception(error);
+}
+
 void check_options(const RoomSceneOptions& opt) {
   if (opt.height < 2 || opt.width < 2 || opt.frames < 1 || !(opt.frame_spacing > 0) || opt.jpeg_quality < 1 ||
       opt.jpeg_quality > 100)
@@ -449,12 +539,10 @@ RoomRender render_room(uint64_t seed, const RoomSceneOptions& opt) {
   r.images = torch::empty({n, h, w, 3}, torch::kUInt8);
   r.depth = torch::empty({n, h, w}, torch::kFloat32);
   r.scene.images.resize(n);
-  at::parallel_for(0, n, 1, [&](int64_t begin, int64_t end) {
-    for (int64_t i = begin; i < end; ++i) {
-      render_frame(room, room.cameras[i], h, w, r.images[i].data_ptr<uint8_t>(), r.depth[i].data_ptr<float>());
-      auto bytes = io::encode_jpeg(r.images[i], opt.jpeg_quality);
-      r.scene.images[i] = torch::from_blob(bytes.data(), {static_cast<int64_t>(bytes.size())}, torch::kUInt8).clone();
-    }
+  parallel_for_each(n, [&](int64_t i) {
+    render_frame(room, room.cameras[i], h, w, r.images[i].data_ptr<uint8_t>(), r.depth[i].data_ptr<float>());
+    auto bytes = io::encode_jpeg(r.images[i], opt.jpeg_quality);
+    r.scene.images[i] = torch::from_blob(bytes.data(), {static_cast<int64_t>(bytes.size())}, torch::kUInt8).clone();
   });
   std::vector<torch::Tensor> c2w(n);
   for (int i = 0; i < n; ++i) c2w[i] = camera_c2w(room.cameras[i]);
@@ -494,10 +582,8 @@ void write_builtin_dataset(const std::string& root, int num_train, int num_test,
     for (int first = 0, chunk = 0; first < count; first += scenes_per_chunk, ++chunk) {
       const int in_chunk = std::min(scenes_per_chunk, count - first);
       std::vector<RoomRender> renders(in_chunk);
-      // Scenes in parallel (each renders its frames serially inside: nested parallel_for runs inline).
-      at::parallel_for(0, in_chunk, 1, [&](int64_t begin, int64_t end) {
-        for (int64_t j = begin; j < end; ++j) renders[j] = render_room(builtin_scene_seed(seed, split, first + j), opt);
-      });
+      // Scenes in parallel (each renders its frames serially inside).
+      parallel_for_each(in_chunk, [&](int64_t j) { renders[j] = render_room(builtin_scene_seed(seed, split, first + j), opt); });
       std::vector<RawScene> scenes;
       const std::string file = fmt::format("{:06d}.torch", chunk);
       for (int j = 0; j < in_chunk; ++j) {

@@ -1,0 +1,69 @@
+// The demo's pipeline through the binary at micro scale: make-dataset -> train -> (kill, resume) -> eval -> render
+// -> report, checking each step's files.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "train/train_test_util.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+int sh(const std::string& args, std::string* out = nullptr) {
+  std::string cmd = std::string(UPLVSM_CLI) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  size_t n;
+  std::string text;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) text.append(buf, n);
+  if (out) *out = text;
+  int status = pclose(pipe);
+  if (status != 0) std::cerr << cmd << "\n" << text;
+  return status;
+}
+}  // namespace
+
+TEST(Pipeline, DatasetTrainEvalRenderReport) {
+  auto dir = uplvsm::test::temp_dir("pipeline");
+  auto config = uplvsm::test::micro_config();
+  config.training.train_steps = 12;
+  config.training.checkpoint_every = 5;
+  config.dataset.num_train_scenes = 4;
+  config.dataset.num_test_scenes = 3;
+  config.dataset.render_height = 36;
+  config.dataset.render_width = 64;
+  config.dataset.frames_per_scene = 12;
+  config.dataset.eval_gap = 6;
+  std::ofstream(dir / "micro.json") << uplvsm::config_to_json(config).dump(2);
+  auto cfg = (dir / "micro.json").string(), data = (dir / "data").string(), run = (dir / "run").string();
+
+  ASSERT_EQ(sh("make-dataset --config " + cfg + " --out " + data), 0);
+  EXPECT_TRUE(fs::exists(dir / "data/train/index.json"));
+  EXPECT_TRUE(fs::exists(dir / "data/evaluation_index.json"));
+
+  ASSERT_EQ(sh("train --config " + cfg + " --data " + data + " --run " + run + " --stop-after 7"), 0);
+  std::string out;
+  ASSERT_EQ(sh("train --config " + cfg + " --data " + data + " --run " + run, &out), 0);
+  EXPECT_NE(out.find("resumed"), std::string::npos) << out;
+  EXPECT_NE(out.find("trained to step 12"), std::string::npos) << out;
+
+  ASSERT_EQ(sh("eval --checkpoint " + run + " --data " + data + " --out " + (dir / "eval").string(), &out), 0);
+  EXPECT_NE(out.find("copy nearest"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(dir / "eval/metrics.json"));
+  EXPECT_TRUE(fs::exists(dir / "eval/per_scene.csv"));
+
+  ASSERT_EQ(sh("render --checkpoint " + run + " --data " + data + " --frames 6 --out " + (dir / "video").string()), 0);
+  EXPECT_TRUE(fs::exists(dir / "video/videos.json"));
+
+  ASSERT_EQ(sh("report --run " + run + " --eval " + (dir / "eval").string() + " --video " + (dir / "video").string() +
+                   " --out " + (dir / "report").string(), &out), 0);
+  EXPECT_TRUE(fs::exists(dir / "report/index.html"));
+  EXPECT_TRUE(fs::exists(dir / "report/training_curve.png"));
+  EXPECT_NE(out.find("held-out PSNR"), std::string::npos) << out;
+
+  // Bring-your-own photos: two frames written as PNG files.
+  ASSERT_EQ(sh("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +
+                   (dir / "byo").string(), &out) != 0, true);
+  EXPECT_NE(out.find("missing.png"), std::string::npos) << out;
+}
