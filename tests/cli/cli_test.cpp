@@ -26,9 +26,9 @@ Run run(const std::string& args, const std::string& env_prefix = "") {
 TEST(Cli, HelpListsEverySubcommand) {
   auto r = run("--help");
   EXPECT_EQ(r.status, 0) << r.output;
-  for (std::string sub : {"info", "make-dataset", "train", "eval", "render", "report"})
+  for (std::string sub : {"info", "make-dataset", "train", "eval", "render", "report", "convert"})
     EXPECT_NE(r.output.find(sub), std::string::npos) << sub;
-  for (std::string sub : {"info", "make-dataset", "train", "eval", "render", "report"}) {
+  for (std::string sub : {"info", "make-dataset", "train", "eval", "render", "report", "convert"}) {
     auto h = run(sub + " --help");
     EXPECT_EQ(h.status, 0) << sub << ": " << h.output;
     EXPECT_NE(h.output.find("--"), std::string::npos) << sub;
@@ -60,4 +60,21 @@ TEST(Cli, BadArgumentsAndFilesGiveClearErrors) {
 
   auto unknown = run("fly");
   EXPECT_NE(unknown.status, 0);
+}
+
+TEST(Cli, ConvertOfficialCheckpointAndVerify) {
+  auto dir = uplvsm::test::temp_dir("cli_convert");
+  auto out = (dir / "official.safetensors").string();
+  auto r = run("convert --input " + uplvsm::test::fixture("official_uplvsm/checkpoint.pt") + " --output " + out +
+               " --verify");
+  EXPECT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("torch zip, under 'model'"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("667047 parameters"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("verify: 93 tensors identical after reload"), std::string::npos) << r.output;
+  auto info = run("info --checkpoint " + out);
+  EXPECT_EQ(info.status, 0) << info.output;
+
+  auto dino = run("convert --input " + uplvsm::test::fixture("dinov2/weights.pth") + " --output " + out);
+  EXPECT_NE(dino.status, 0);
+  EXPECT_NE(dino.output.find("give --config"), std::string::npos) << dino.output;
 }

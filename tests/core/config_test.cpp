@@ -9,7 +9,7 @@
 using namespace uplvsm;
 
 TEST(Config, ShippedConfigsLoadAndRoundTrip) {
-  for (std::string name : {"tiny", "paper_x224"}) {
+  for (std::string name : {"tiny", "paper_x224", "paper_x518"}) {
     auto c = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json");
     EXPECT_EQ(c.name, name);
     auto again = config_from_json(config_to_json(c));

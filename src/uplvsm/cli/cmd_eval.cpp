@@ -19,12 +19,13 @@ void add_eval_command(CLI::App& app) {
               "overlap bucket when the index has overlaps.");
   struct Args {
     CommonOptions common;
-    std::string checkpoint, data, split = "test", index, out;
+    ModelSource model;
+  std::string data, split = "test", index, out;
     int64_t max_scenes = 0, batch = 4, visualise = 8;
   };
   auto a = std::make_shared<Args>();
   add_common_options(cmd, a->common);
-  cmd->add_option("--checkpoint", a->checkpoint, "uplvsm checkpoint (file, checkpoints dir or run dir)")->required();
+  add_model_options(cmd, a->model);
   cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks)")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
   cmd->add_option("--index", a->index, "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
@@ -37,7 +38,7 @@ void add_eval_command(CLI::App& app) {
     apply_common_options(a->common);
     Config config;
     auto device = parse_device(a->common.device);
-    auto net = model::load_model(a->checkpoint, device, &config);
+    auto net = load_model(a->model, device, &config);
     data::ChunkDataset dataset(a->data, a->split);
     data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
                                  config.dataset.square_crop};
@@ -48,7 +49,7 @@ void add_eval_command(CLI::App& app) {
     opt.device = device;
     opt.num_visualised = a->visualise;
     opt.out_dir = a->out;
-    opt.extra = {{"checkpoint", model::resolve_checkpoint(a->checkpoint)}, {"data", a->data}, {"split", a->split},
+    opt.extra = {{"checkpoint", model::resolve_checkpoint(a->model.checkpoint)}, {"data", a->data}, {"split", a->split},
                  {"config", config.name}};
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& t = summary.table;

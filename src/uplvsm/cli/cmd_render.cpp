@@ -26,7 +26,8 @@ namespace {
 
 struct Args {
   CommonOptions common;
-  std::string checkpoint, data, split = "test", index, out;
+  ModelSource model;
+  std::string data, split = "test", index, out;
   std::vector<std::string> images;
   int64_t scenes = 1, frames = 24;
   double fps = 12, fov = 60;
@@ -66,7 +67,7 @@ void add_render_command(CLI::App& app) {
                 "come from --data scenes (their evaluation context views) or from --images A B (your photos).");
   auto a = std::make_shared<Args>();
   add_common_options(cmd, a->common);
-  cmd->add_option("--checkpoint", a->checkpoint, "uplvsm checkpoint (file, checkpoints dir or run dir)")->required();
+  add_model_options(cmd, a->model);
   cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks)");
   cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
   cmd->add_option("--index", a->index, "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
@@ -81,7 +82,7 @@ void add_render_command(CLI::App& app) {
     if (a->images.empty() == a->data.empty())
       throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
     Config config;
-    auto net = model::load_model(a->checkpoint, parse_device(a->common.device), &config);
+    auto net = load_model(a->model, parse_device(a->common.device), &config);
     data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
                                  true};
     nlohmann::json listing = nlohmann::json::array();

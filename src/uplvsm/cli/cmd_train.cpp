@@ -16,7 +16,7 @@ void add_train_command(CLI::App& app) {
                "skip rules; checkpoints <run>/checkpoints/ckpt_*.safetensors; --resume auto continues exactly.");
   struct Args {
     CommonOptions common;
-    std::string config, data, run, resume = "auto";
+    std::string config, data, run, resume = "auto", init;
     int64_t steps = -1, stop_after = -1;
   };
   auto a = std::make_shared<Args>();
@@ -28,6 +28,10 @@ void add_train_command(CLI::App& app) {
   cmd->add_option("--run", a->run, "run directory (config snapshot, metrics.jsonl, checkpoints/)")->required();
   cmd->add_option("--resume", a->resume, "auto (latest checkpoint in --run, if any), none, or a checkpoint path")
       ->capture_default_str();
+  cmd->add_option("--init", a->init,
+                  "start a new run from these weights: UP-LVSM (ours or official, loaded strictly) or DINOv2 "
+                  "(Meta .pth or HuggingFace safetensors, into the image tokenizer, as the official code does)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--steps", a->steps, "override training.train_steps");
   cmd->add_option("--stop-after", a->stop_after, "stop after this many steps of this invocation (checkpointed)");
   cmd->callback([a] {
@@ -38,6 +42,7 @@ void add_train_command(CLI::App& app) {
     opt.data_root = a->data;
     opt.run_dir = a->run;
     opt.resume = a->resume;
+    opt.init_weights = a->init;
     opt.device = parse_device(a->common.device);
     opt.stop_after_steps = a->stop_after;
     auto r = train::train(config, opt);

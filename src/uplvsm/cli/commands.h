@@ -1,8 +1,12 @@
 // The subcommands of the `uplvsm` binary. Each add_* registers one subcommand (options + action) on the app.
 #pragma once
 #include <CLI/CLI.hpp>
+#include <torch/torch.h>
 
 #include <string>
+
+#include "uplvsm/core/config.h"
+#include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::cli {
 
@@ -14,11 +18,20 @@ struct CommonOptions {
 void add_common_options(CLI::App* cmd, CommonOptions& opt);
 void apply_common_options(const CommonOptions& opt);
 
+// --checkpoint (ours or the authors') and --config, which official files need only when their dimensions cannot be
+// inferred as wanted (e.g. to run at 518 px: configs/paper_x518.json).
+struct ModelSource {
+  std::string checkpoint, config;
+};
+void add_model_options(CLI::App* cmd, ModelSource& src);
+model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
+
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
 void add_train_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_report_command(CLI::App& app);
+void add_convert_command(CLI::App& app);
 
 }  // namespace uplvsm::cli

@@ -2,6 +2,7 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
+#include "uplvsm/model/pretrained_weights.h"
 
 namespace uplvsm::cli {
 
@@ -15,6 +16,23 @@ void add_common_options(CLI::App* cmd, CommonOptions& opt) {
 void apply_common_options(const CommonOptions& opt) {
   init_runtime(opt.threads);
   spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
+}
+
+void add_model_options(CLI::App* cmd, ModelSource& src) {
+  cmd->add_option("--checkpoint", src.checkpoint,
+                  "model weights: a uplvsm checkpoint (file, checkpoints dir or run dir) or the authors' UP-LVSM .pt / "
+                  ".safetensors")
+      ->required();
+  cmd->add_option("--config", src.config,
+                  "config JSON for an official checkpoint (image size, dimensions); default: inferred from the "
+                  "weights at 224 px. Ignored for uplvsm checkpoints, which carry their config")
+      ->check(CLI::ExistingFile);
+}
+
+model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out) {
+  if (src.config.empty()) return model::load_model(src.checkpoint, device, config_out);
+  Config hint = load_config(src.config);
+  return model::load_model(src.checkpoint, device, config_out, &hint);
 }
 
 }  // namespace uplvsm::cli

@@ -66,14 +66,4 @@ void write_checkpoint(const std::string& path, const Config& config, const nlohm
                         {{"format", kCheckpointFormat}, {"config", config_to_json(config).dump()}, {"state", state.dump()}});
 }
 
-UPLVSM load_model(const std::string& path, const torch::Device& device, Config* config_out) {
-  auto ckpt = read_checkpoint(path);
-  UPLVSM net(ckpt.config.model);
-  load_state_dict(*net, ckpt.model, ckpt.path);
-  net->to(device);
-  net->eval();
-  if (config_out) *config_out = ckpt.config;
-  return net;
-}
-
 }  // namespace uplvsm::model

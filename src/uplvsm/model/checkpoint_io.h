@@ -9,7 +9,6 @@
 
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/state_dict.h"
-#include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::model {
 
@@ -31,8 +30,5 @@ std::string resolve_checkpoint(const std::string& path);
 CheckpointFile read_checkpoint(const std::string& path);
 void write_checkpoint(const std::string& path, const Config& config, const nlohmann::json& state,
                       const NamedTensors& model, const NamedTensors& optimizer);
-
-// Builds the model from the checkpoint's config and loads its weights strictly; moves it to `device`, eval mode.
-UPLVSM load_model(const std::string& path, const torch::Device& device, Config* config_out = nullptr);
 
 }  // namespace uplvsm::model

@@ -32,6 +32,8 @@ std::string list(const std::vector<std::string>& items, size_t max_items = 20) {
 std::string LoadReport::summary(const std::string& source) const {
   std::string s = fmt::format("{}: loaded {} tensors", source, loaded);
   if (!skipped.empty()) s += fmt::format(", skipped {} known extra tensors (e.g. {})", skipped.size(), skipped.front());
+  if (!defaulted.empty())
+    s += fmt::format("\n  {} keys not in the file, left at their initial values:{}", defaulted.size(), list(defaulted));
   if (!missing.empty()) s += fmt::format("\n  {} missing keys (in the model, not in the file):{}", missing.size(), list(missing));
   if (!unexpected.empty())
     s += fmt::format("\n  {} unexpected keys (in the file, not in the model):{}", unexpected.size(), list(unexpected));
@@ -74,7 +76,8 @@ LoadReport load_state_dict(torch::nn::Module& module, const NamedTensors& tensor
     ++report.loaded;
   }
   for (const auto& [key, value] : targets)
-    if (!tensors.count(key) && !contains_any(key, options.allow_missing_substrings)) report.missing.push_back(key);
+    if (!tensors.count(key))
+      (contains_any(key, options.allow_missing_substrings) ? report.defaulted : report.missing).push_back(key);
   if (options.strict && !report.ok()) throw std::runtime_error(report.summary(source));
   return report;
 }

@@ -13,6 +13,7 @@
 #include "uplvsm/data/loader.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/optimizer.h"
@@ -83,6 +84,15 @@ void check_same_model(const Config& a, const Config& b, const std::string& sourc
                                          source, jb.dump(), ja.dump()));
 }
 
+// A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
+void init_from_weights(model::UPLVSMImpl& net, const std::string& path) {
+  auto w = model::read_pretrained_weights(path);
+  torch::NoGradGuard no_grad;
+  auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path)
+                                                        : model::load_dinov2_into_uplvsm(net, w.tensors, path);
+  spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
+}
+
 }  // namespace
 
 double psnr_from_mse(double mse) { return -10.0 * std::log10(std::max(mse, 1e-10)); }
@@ -121,6 +131,8 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     restore_optimizer_state(*optimizer, *net, ckpt.optimizer, resume_from);
     state = TrainState::from_json(ckpt.state);
     spdlog::info("resumed from {} at step {}", resume_from, state.step);
+  } else if (!opt.init_weights.empty()) {
+    init_from_weights(*net, opt.init_weights);
   }
   truncate_metrics(metrics_path, state.step);
 

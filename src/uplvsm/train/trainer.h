@@ -14,6 +14,8 @@ struct TrainOptions {
   std::string data_root;           // pixelSplat-format root with a train/ split
   std::string run_dir;             // config.json, metrics.jsonl, checkpoints/
   std::string resume = "auto";     // "auto" (latest in run_dir if any), "none", or a checkpoint path
+  // Weights for a new run (ignored when resuming): UP-LVSM loaded strictly, or DINOv2 into the image tokenizer.
+  std::string init_weights;
   torch::Device device = torch::kCPU;
   int64_t stop_after_steps = -1;   // stop (with a checkpoint) after this many steps of this invocation
   bool progress = true;

@@ -1,0 +1,162 @@
+// torch.save files without Python: the official UP-LVSM training checkpoint (zip, OrderedDict + optimizer state),
+// Meta-style DINOv2 .pth (zip), the LPIPS legacy-format .pth files; corrupt and truncated files; a pickle fuzz.
+#include <gtest/gtest.h>
+
+#include <caffe2/serialize/inline_container.h>
+
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "test_util.h"
+#include "uplvsm/io/safetensors.h"
+#include "uplvsm/io/torch_file.h"
+
+using namespace uplvsm;
+using Kind = io::PyObject::Kind;
+
+namespace {
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+void write_bytes(const std::string& path, const std::string& bytes) {
+  std::ofstream(path, std::ios::binary).write(bytes.data(), std::streamsize(bytes.size()));
+}
+}  // namespace
+
+TEST(TorchFile, OfficialCheckpointModelEqualsSafetensors) {
+  io::TorchFile file(test::fixture("official_uplvsm/checkpoint.pt"));
+  EXPECT_EQ(file.format(), "zip");
+  const auto& root = file.root();
+  ASSERT_TRUE(root.is(Kind::Dict));
+  std::vector<std::string> keys;
+  for (const auto& [k, v] : root.dict) keys.push_back(k->text);
+  EXPECT_EQ(keys, (std::vector<std::string>{"model", "optimizer", "lr_scheduler", "fwdbwd_pass_step", "param_update_step"}));
+  EXPECT_EQ(root.get("fwdbwd_pass_step")->integer, 1);
+
+  auto expected = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
+  std::string where;
+  auto model = io::read_torch_state_dict(test::fixture("official_uplvsm/checkpoint.pt"), &where);
+  EXPECT_EQ(where, "model");
+  ASSERT_EQ(model.size(), expected.size());
+  for (const auto& [k, v] : expected) {
+    ASSERT_TRUE(model.count(k)) << k;
+    EXPECT_EQ(model.at(k).dtype(), torch::kFloat32) << k;
+    EXPECT_TRUE(torch::equal(model.at(k), v)) << k;  // bit-for-bit
+  }
+
+  // The optimiser part parses too: BINFLOAT hyper-parameters, 0-dim step tensors, two param groups.
+  const auto* optimizer = root.get("optimizer");
+  ASSERT_NE(optimizer, nullptr);
+  const auto* groups = optimizer->get("param_groups");
+  ASSERT_TRUE(groups && groups->is(Kind::List));
+  ASSERT_EQ(groups->items.size(), 2u);
+  EXPECT_DOUBLE_EQ(groups->items[0]->get("weight_decay")->real, 0.05);
+  EXPECT_DOUBLE_EQ(groups->items[0]->get("betas")->items[1]->real, 0.95);
+  const auto* state = optimizer->get("state");
+  ASSERT_TRUE(state && state->is(Kind::Dict) && !state->dict.empty());
+  auto step = file.tensor(*state->dict.front().second->get("step"));
+  EXPECT_EQ(step.dim(), 0);
+  EXPECT_EQ(step.item<double>(), 1.0);
+}
+
+TEST(TorchFile, Dinov2PthEqualsSafetensors) {
+  auto pth = io::read_torch_state_dict(test::fixture("dinov2/weights.pth"));
+  auto st = io::read_safetensors(test::fixture("dinov2/weights.safetensors")).tensors;
+  ASSERT_EQ(pth.size(), st.size());
+  for (const auto& [k, v] : st) EXPECT_TRUE(torch::equal(pth.at(k), v.to(torch::kFloat32))) << k;
+}
+
+TEST(TorchFile, LegacyLpipsWeights) {
+  for (std::string net : {"alex", "vgg"}) {
+    io::TorchFile file(test::fixture("lpips/" + net + ".pth"));
+    EXPECT_EQ(file.format(), "legacy");
+    auto pth = io::read_torch_state_dict(test::fixture("lpips/" + net + ".pth"));
+    auto st = io::read_safetensors(test::fixture("lpips/lin_" + net + ".safetensors")).tensors;
+    ASSERT_EQ(pth.size(), 5u) << net;
+    for (int k = 0; k < 5; ++k) {
+      auto key = "lin" + std::to_string(k) + ".model.1.weight";
+      ASSERT_TRUE(pth.count(key)) << net << " " << key;
+      EXPECT_TRUE(torch::equal(pth.at(key), st.at("lin" + std::to_string(k)))) << net << " " << key;
+    }
+  }
+}
+
+TEST(TorchFile, NotATorchFileIsNamed) {
+  auto dir = test::temp_dir("torch_file_bad");
+  auto path = (dir / "weights.pt").string();
+  write_bytes(path, "hello, not a checkpoint");
+  EXPECT_FALSE(io::looks_like_torch_file(path));
+  auto msg = test::error_of([&] { io::TorchFile f(path); });
+  EXPECT_NE(msg.find(path), std::string::npos) << msg;
+  EXPECT_NE(msg.find("not a torch.save file"), std::string::npos) << msg;
+  // A dict without tensors anywhere is refused with the keys it has.
+  auto nothing = test::error_of([&] { io::read_torch_state_dict(test::fixture("lpips/alex.pth") + ".missing"); });
+  EXPECT_NE(nothing.find("cannot open"), std::string::npos) << nothing;
+}
+
+TEST(TorchFile, TruncatedFilesGiveClearErrors) {
+  auto dir = test::temp_dir("torch_file_truncated");
+  for (std::string name : {"official_uplvsm/checkpoint.pt", "lpips/vgg.pth"}) {
+    auto bytes = read_bytes(test::fixture(name));
+    for (double fraction : {0.1, 0.5, 0.9, 0.999}) {
+      auto path = (dir / "cut.pt").string();
+      write_bytes(path, bytes.substr(0, size_t(double(bytes.size()) * fraction)));
+      auto msg = test::error_of([&] {
+        auto sd = io::read_torch_state_dict(path);
+        for (auto& [k, v] : sd) v.sum();  // touch every tensor
+      });
+      EXPECT_NE(msg.find(path), std::string::npos) << name << " cut at " << fraction << ": " << msg;
+    }
+  }
+}
+
+// Random byte edits of real pickles must end in a runtime_error or a parse, never a crash or a hang.
+TEST(TorchFile, PickleFuzz) {
+  caffe2::serialize::PyTorchStreamReader zip(test::fixture("official_uplvsm/checkpoint.pt"));
+  auto [ptr, n] = zip.getRecord("data.pkl");
+  const std::string original(static_cast<const char*>(ptr.get()), n);
+  io::PersistentLoad storages = [](const io::PyObject& pid) {
+    auto s = std::make_shared<io::PyObject>();
+    s->kind = Kind::Storage;
+    s->tensor.storage_numel = pid.items.size() > 4 && pid.items[4]->is(Kind::Int) ? pid.items[4]->integer : 0;
+    return s;
+  };
+  std::mt19937 rng(7);
+  int parsed = 0, rejected = 0;
+  for (int trial = 0; trial < 3000; ++trial) {
+    std::string data = original;
+    const int edits = 1 + int(rng() % 4);
+    for (int e = 0; e < edits; ++e) data[rng() % data.size()] = char(rng() % 256);
+    if (trial % 10 == 0) data.resize(rng() % data.size());
+    size_t pos = 0;
+    try {
+      io::unpickle(reinterpret_cast<const uint8_t*>(data.data()), data.size(), &pos, storages, "fuzz");
+      ++parsed;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("fuzz"), std::string::npos) << e.what();
+      ++rejected;
+    }
+  }
+  EXPECT_GT(rejected, 100);
+  EXPECT_EQ(parsed + rejected, 3000);
+}
+
+TEST(TorchFile, LegacyFuzz) {
+  auto dir = test::temp_dir("torch_file_fuzz");
+  const auto original = read_bytes(test::fixture("lpips/alex.pth"));
+  std::mt19937 rng(11);
+  for (int trial = 0; trial < 300; ++trial) {
+    std::string data = original;
+    for (int e = 0; e < 3; ++e) data[rng() % data.size()] = char(rng() % 256);
+    auto path = (dir / "f.pth").string();
+    write_bytes(path, data);
+    try {
+      auto sd = io::read_torch_state_dict(path);
+      for (auto& [k, v] : sd) v.sum();
+    } catch (const std::runtime_error&) {
+    }
+  }
+  SUCCEED();  // reaching here without a crash is the check
+}
