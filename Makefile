@@ -13,7 +13,7 @@ APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
   libavutil-dev libswscale-dev libgtest-dev libbenchmark-dev
 
-.PHONY: all deps build build-cli test test-unit test-slow demo clean
+.PHONY: all deps build build-cli test test-unit test-slow bench demo clean
 
 all: build
 
@@ -43,6 +43,11 @@ test-unit: build
 
 test-slow: build
 	cd $(BUILD) && ctest --output-on-failure -L slow
+
+# Benchmarks, as the environment is and without this machine's OPENBLAS_* overrides (see README, Performance).
+bench: build
+	$(BUILD)/uplvsm_bench $(BENCH_ARGS)
+	env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE $(BUILD)/uplvsm_bench $(BENCH_ARGS)
 
 demo: build-cli
 	$(UPLVSM) info

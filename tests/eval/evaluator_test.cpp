@@ -83,6 +83,9 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   EXPECT_DOUBLE_EQ(s.buckets.at("large").at("copy_nearest").at("ssim"), r.ssim_copy);
   EXPECT_EQ(s.bucket_scenes.at("large"), 1);
   EXPECT_EQ(s.buckets.count("small"), 0u);
+  for (const auto& v : r.views) EXPECT_FALSE(v.extrapolated);  // targets 4, 8, 11 lie between frames 1 and 13
+  EXPECT_EQ(s.span_scenes.at("interpolation"), 1);
+  EXPECT_EQ(s.spans.count("extrapolation"), 0u);
 
   // The baselines, recomputed from the views directly (targets 4, 8, 11 copy context frames 1, 13, 13).
   auto views = dataset.load_views(dataset.find(kKey), {1, 13, 4, 8, 11}, tiny_prep());
@@ -108,6 +111,74 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.psnr, 1e-12);
   EXPECT_TRUE(j["buckets"].contains("large"));
   if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(out);
+}
+
+TEST(Evaluator, LpipsOnlyWithItsWeights) {
+  torch::manual_seed(0);
+  model::UPLVSM net(tiny_config());
+  data::ChunkDataset dataset(root(), "test");
+  const auto out = test::temp_dir("eval_lpips");
+  EvalOptions opt;
+  opt.out_dir = out.string();
+  opt.num_visualised = 0;
+  auto without = evaluate(net, dataset, tiny_prep(), opt);
+  ASSERT_EQ(without.scenes, 1);
+  EXPECT_TRUE(std::isnan(without.per_scene[0].views[0].lpips));
+  EXPECT_TRUE(std::isnan(without.table.at("model").at("lpips")));
+  {
+    std::ifstream f(out / "metrics.json");
+    auto j = nlohmann::json::parse(f);
+    EXPECT_FALSE(j["lpips"]["available"].get<bool>());
+    EXPECT_TRUE(j["table"]["model"]["lpips"].is_null());  // never a number without the network
+    std::ifstream csv(out / "per_view.csv");
+    std::string header, row;
+    std::getline(csv, header);
+    std::getline(csv, row);
+    EXPECT_NE(header.find(",lpips,"), std::string::npos);
+    EXPECT_NE(row.find(",,"), std::string::npos) << row;  // empty LPIPS fields
+  }
+
+  opt.lpips = load_lpips(LpipsNet::Alex, test::fixture("lpips/alexnet_features.safetensors"),
+                         test::fixture("lpips/alex.pth"));
+  opt.lpips_chunk = 2;  // 3 targets: chunks of 2 and 1 must join up in order
+  auto with = evaluate(net, dataset, tiny_prep(), opt);
+  const auto& r = with.per_scene[0];
+  // Recompute LPIPS of the baselines directly (targets 4, 8, 11 copy context frames 1, 13, 13).
+  auto views = dataset.load_views(dataset.find(kKey), {1, 13, 4, 8, 11}, tiny_prep());
+  auto gt = views.images.narrow(0, 2, 3);
+  auto copy = views.images.index_select(0, torch::tensor({0, 1, 1}, torch::kInt64));
+  torch::NoGradGuard no_grad;
+  auto lp_copy = opt.lpips->forward(copy, gt), lp_mean = opt.lpips->forward(mean_colour(gt), gt);
+  double sum = 0;
+  for (int t = 0; t < 3; ++t) {
+    EXPECT_NEAR(r.views[t].lpips_copy, lp_copy[t].item<double>(), 1e-6);
+    EXPECT_NEAR(r.views[t].lpips_mean, lp_mean[t].item<double>(), 1e-6);
+    EXPECT_TRUE(r.views[t].lpips >= 0 && std::isfinite(r.views[t].lpips));
+    sum += r.views[t].lpips;
+  }
+  EXPECT_NEAR(with.table.at("model").at("lpips"), sum / 3, 1e-12);
+  EXPECT_DOUBLE_EQ(with.table.at("model").at("psnr"), without.table.at("model").at("psnr"));
+  std::ifstream f(out / "metrics.json");
+  auto j = nlohmann::json::parse(f);
+  EXPECT_TRUE(j["lpips"]["available"].get<bool>());
+  EXPECT_EQ(j["lpips"]["net"], "alex");
+  EXPECT_NEAR(j["buckets"]["large"]["copy_nearest"]["lpips"].get<double>(), lp_copy.mean().item<double>(), 1e-6);
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(out);
+}
+
+TEST(Evaluator, Bf16ForwardCloseToFp32) {
+  torch::manual_seed(0);
+  model::UPLVSM net(tiny_config());
+  data::ChunkDataset dataset(root(), "test");
+  EvalOptions opt;
+  auto fp32 = evaluate(net, dataset, tiny_prep(), opt);
+  opt.bf16 = true;
+  auto bf16 = evaluate(net, dataset, tiny_prep(), opt);
+  ASSERT_EQ(bf16.scenes, 1);
+  EXPECT_NEAR(bf16.table.at("model").at("psnr"), fp32.table.at("model").at("psnr"), 0.2);
+  EXPECT_NEAR(bf16.table.at("model").at("ssim"), fp32.table.at("model").at("ssim"), 0.01);
+  // The baselines never pass through the model: identical.
+  EXPECT_DOUBLE_EQ(bf16.table.at("copy_nearest").at("ssim"), fp32.table.at("copy_nearest").at("ssim"));
 }
 
 TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
@@ -179,6 +250,21 @@ TEST(Evaluator, AveragesPerSceneThenOverScenes) {
   EXPECT_EQ(empty.scenes, 0);
   EXPECT_TRUE(std::isnan(empty.table.at("model").at("psnr")));
   EXPECT_TRUE(nlohmann::json::parse(summary_to_json(empty).dump())["table"]["model"]["psnr"].is_null());  // NaN
+}
+
+TEST(Evaluator, InterpolationAndExtrapolationSpans) {
+  auto a = fake_scene("a", std::nullopt, {20, 10});  // frame 1 interpolated, frame 0 extrapolated
+  a.views[1].extrapolated = true;
+  auto b = fake_scene("b", std::nullopt, {30, 40});
+  finalise_scene(a);
+  auto s = summarise({a, b});
+  EXPECT_EQ(s.span_scenes.at("interpolation"), 2);
+  EXPECT_EQ(s.span_scenes.at("extrapolation"), 1);
+  EXPECT_DOUBLE_EQ(s.spans.at("interpolation").at("model").at("psnr"), (20.0 + 35.0) / 2);
+  EXPECT_DOUBLE_EQ(s.spans.at("extrapolation").at("model").at("psnr"), 10.0);
+  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), (15.0 + 35.0) / 2);  // the full table is unchanged
+  auto j = summary_to_json(s);
+  EXPECT_EQ(j["span_scenes"]["extrapolation"], 1);
 }
 
 TEST(Evaluator, ErrorHeatmapAndGrid) {

@@ -108,6 +108,26 @@ TEST(Report, VideoAndPlainTable) {
   fs::remove_all(out);
 }
 
+TEST(Report, LpipsColumnOnlyWhenAvailable) {
+  auto m = fake_metrics();
+  EXPECT_EQ(results_table_html(m).find("LPIPS&darr;"), std::string::npos);
+  EXPECT_NE(results_table_html(m).find("LPIPS unavailable"), std::string::npos);
+  m["lpips"] = {{"available", true}, {"net", "vgg"}};
+  m["table"]["model"]["lpips"] = 0.25;
+  m["table"]["copy_nearest"]["lpips"] = 0.125;  // lower is better: this one is bold
+  m["table"]["mean_colour"]["lpips"] = 0.5;
+  const auto html = results_table_html(m);
+  EXPECT_NE(html.find("LPIPS&darr;"), std::string::npos);
+  EXPECT_NE(html.find("<b>0.125</b>"), std::string::npos) << html;
+  EXPECT_NE(html.find("<td>0.500</td>"), std::string::npos);
+  EXPECT_NE(html.find("colspan=\"3\""), std::string::npos);
+  EXPECT_EQ(html.find("LPIPS unavailable"), std::string::npos);
+  EXPECT_EQ(html.find("Extrapolation"), std::string::npos);
+  m["spans"] = {{"interpolation", m["table"]}, {"extrapolation", m["table"]}};
+  m["span_scenes"] = {{"interpolation", 3}, {"extrapolation", 2}};
+  EXPECT_NE(results_table_html(m).find("Extrapolation (2 scenes)"), std::string::npos);
+}
+
 TEST(Report, RejectsMalformedMetrics) {
   const auto src = test::temp_dir("report_bad");
   write(src / "metrics.json", "{\"scenes\": 1");

@@ -41,16 +41,18 @@ void print_summary(const model::UPLVSMImpl& net, const model::PretrainedWeights&
   std::cout << fmt::format("  {:<40} {:>14} parameters\n", "total", net.parameter_count());
 }
 
-// The known extras of official checkpoints: the VGG19 perceptual-loss weights, kept for training.
+// The known extras of official checkpoints: the perceptual loss's VGG19 (MatConvNet ImageNet weights). Its conv
+// layers are saved under torchvision's `features.N` names, the format the perceptual loss reads; the untrained
+// classifier and the aliased `blocks.*` keys are left out.
 void write_vgg19_extras(const model::PretrainedWeights& w, const std::string& output) {
   io::TensorMap vgg;
-  const std::string prefix = "loss_computer.perceptual_loss_module.";
+  const std::string prefix = "loss_computer.perceptual_loss_module.vgg.";
   for (const auto& [k, v] : w.tensors)
-    if (k.rfind(prefix, 0) == 0) vgg[k.substr(prefix.size())] = v.contiguous();
+    if (k.rfind(prefix + "features.", 0) == 0) vgg[k.substr(prefix.size())] = v.contiguous();
   if (vgg.empty()) return;
   auto path = fs::path(output).replace_extension(".vgg19.safetensors").string();
-  io::write_safetensors(path, vgg, {{"source", w.path}, {"content", "official perceptual-loss VGG19 weights"}});
-  std::cout << fmt::format("wrote {} VGG19 perceptual-loss tensors to {}\n", vgg.size(), path);
+  io::write_safetensors(path, vgg, {{"source", w.path}, {"content", "VGG19 features of the perceptual loss"}});
+  std::cout << fmt::format("wrote the {} VGG19 feature tensors of the perceptual loss to {}\n", vgg.size(), path);
 }
 
 // Reloads the written file and checks every tensor and one forward pass.

@@ -1,10 +1,11 @@
 // `uplvsm eval`: scores a checkpoint on an evaluation index with the paper's unposed protocol, beside the two
-// baselines; writes metrics.json, per-scene/per-view CSV and image grids.
+// baselines (LPIPS too when its weight files are given); writes metrics.json, per-scene/per-view CSV and image grids.
 #include <iostream>
 
 #include <fmt/format.h>
 
 #include "uplvsm/cli/commands.h"
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
@@ -20,7 +21,8 @@ void add_eval_command(CLI::App& app) {
   struct Args {
     CommonOptions common;
     ModelSource model;
-  std::string data, split = "test", index, out;
+    std::string data, split = "test", index, out;
+    std::string lpips_net = "vgg", lpips_backbone, lpips_lin, amp = "none";
     int64_t max_scenes = 0, batch = 4, visualise = 8;
   };
   auto a = std::make_shared<Args>();
@@ -34,6 +36,21 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--batch", a->batch, "scenes per forward pass")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--visualise", a->visualise, "PNG grids for this many scenes")->capture_default_str();
   cmd->add_option("--out", a->out, "output directory")->required();
+  cmd->add_option("--amp", a->amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)")
+      ->check(CLI::IsMember({"none", "bf16"}))
+      ->capture_default_str();
+  cmd->add_option("--lpips-net", a->lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
+      ->check(CLI::IsMember({"vgg", "alex"}))
+      ->capture_default_str();
+  auto* backbone = cmd->add_option("--lpips-backbone", a->lpips_backbone,
+                                   "torchvision-format VGG16 / AlexNet weights (features.N.*; .pth, .pt or "
+                                   "safetensors); without it LPIPS is reported as unavailable")
+                       ->check(CLI::ExistingFile);
+  cmd->add_option("--lpips-lin", a->lpips_lin, "the official lpips v0.1 lin weights (lpips/weights/v0.1/<net>.pth) "
+                                               "or a safetensors copy")
+      ->check(CLI::ExistingFile)
+      ->needs(backbone);
+  backbone->needs("--lpips-lin");
   cmd->callback([a] {
     apply_common_options(a->common);
     Config config;
@@ -49,16 +66,26 @@ void add_eval_command(CLI::App& app) {
     opt.device = device;
     opt.num_visualised = a->visualise;
     opt.out_dir = a->out;
+    opt.bf16 = parse_amp(a->amp);
+    if (!a->lpips_backbone.empty()) {
+      opt.lpips = eval::load_lpips(eval::parse_lpips_net(a->lpips_net), a->lpips_backbone, a->lpips_lin);
+      opt.lpips->to(device);
+    }
     opt.extra = {{"checkpoint", model::resolve_checkpoint(a->model.checkpoint)}, {"data", a->data}, {"split", a->split},
                  {"config", config.name}};
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& t = summary.table;
-    std::cout << fmt::format(
-        "evaluated {} scenes in {:.1f} s -> {}/metrics.json\n  UP-LVSM        PSNR {:6.2f}  SSIM {:.4f}\n"
-        "  copy nearest   PSNR {:6.2f}  SSIM {:.4f}\n  mean colour    PSNR {:6.2f}  SSIM {:.4f}\n",
-        summary.scenes, summary.seconds, a->out, t.at("model").at("psnr"), t.at("model").at("ssim"),
-        t.at("copy_nearest").at("psnr"), t.at("copy_nearest").at("ssim"), t.at("mean_colour").at("psnr"),
-        t.at("mean_colour").at("ssim"));
+    auto line = [&](const char* name, const std::string& row) {
+      const auto& r = t.at(row);
+      const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
+      return fmt::format("  {:<14} PSNR {:6.2f}  SSIM {:.4f}  LPIPS {}\n", name, r.at("psnr"), r.at("ssim"), lpips);
+    };
+    std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
+                             summary.seconds, a->out)
+              << line("UP-LVSM", "model") << line("copy nearest", "copy_nearest")
+              << line("mean colour", "mean_colour");
+    if (!opt.lpips)
+      std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
   });
 }
 

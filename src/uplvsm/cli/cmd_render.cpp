@@ -9,6 +9,7 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
@@ -27,7 +28,7 @@ namespace {
 struct Args {
   CommonOptions common;
   ModelSource model;
-  std::string data, split = "test", index, out;
+  std::string data, split = "test", index, out, amp = "none";
   std::vector<std::string> images;
   int64_t scenes = 1, frames = 24;
   double fps = 12, fov = 60;
@@ -49,7 +50,12 @@ data::Views load_user_image(const std::string& path, double fov_deg, const data:
 
 void render_one(model::UPLVSM& net, const data::Views& views, const std::string& dir, const Args& a,
                 nlohmann::json& listing, const std::string& name) {
-  auto video = render::render_interpolation(net, views.images, views.fxfycxcy, a.frames);
+  render::InterpolationVideo video;
+  {
+    AutocastGuard amp(net->n_light_field_latent.device(), parse_amp(a.amp));
+    video = render::render_interpolation(net, views.images, views.fxfycxcy, a.frames);
+  }
+  video.frames = video.frames.to(torch::kFloat32);
   auto files = render::write_video(dir, "video", video.frames, a.fps);
   io::write_png((fs::path(dir) / "input_0.png").string(), io::to_u8_hwc(views.images[0]));
   io::write_png((fs::path(dir) / "input_1.png").string(), io::to_u8_hwc(views.images[1]));
@@ -76,6 +82,9 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--fov", a->fov, "horizontal field of view in degrees for --images")->capture_default_str();
   cmd->add_option("--frames", a->frames, "frames of the video")->check(CLI::Range(2, 100000))->capture_default_str();
   cmd->add_option("--fps", a->fps, "frames per second")->capture_default_str();
+  cmd->add_option("--amp", a->amp, "model precision: none (fp32) or bf16 autocast")
+      ->check(CLI::IsMember({"none", "bf16"}))
+      ->capture_default_str();
   cmd->add_option("--out", a->out, "output directory")->required();
   cmd->callback([a] {
     apply_common_options(a->common);

@@ -60,7 +60,7 @@ struct TrainingConfig {
   int64_t min_frame_dist = 25;
   int64_t max_frame_dist = 192;
   double l2_loss_weight = 1.0;
-  double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (evaluation issue)
+  double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (TrainOptions::perceptual_weights)
   int64_t checkpoint_every = 4000;
   int64_t keep_checkpoints = 3;
   int64_t log_every = 10;

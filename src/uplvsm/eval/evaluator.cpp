@@ -3,13 +3,17 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <array>
 #include <cctype>
+#include <cmath>
 #include <chrono>
 #include <filesystem>
 #include <future>
 #include <stdexcept>
 #include <utility>
 
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/eval/baselines.h"
@@ -22,6 +26,21 @@ namespace uplvsm::eval {
 namespace {
 
 namespace fs = std::filesystem;
+
+// The nine numbers of a view or scene, in the order model, copy-nearest, mean-colour x PSNR, SSIM, LPIPS; shared by
+// ViewMetrics and SceneResult, which name the same fields.
+using Values = std::array<double, 9>;
+template <class M>
+Values values_of(const M& m) {
+  return {m.psnr, m.ssim, m.lpips, m.psnr_copy, m.ssim_copy, m.lpips_copy, m.psnr_mean, m.ssim_mean, m.lpips_mean};
+}
+template <class M>
+void assign_values(M& m, const Values& v) {
+  m.psnr = v[0], m.ssim = v[1], m.lpips = v[2], m.psnr_copy = v[3], m.ssim_copy = v[4], m.lpips_copy = v[5];
+  m.psnr_mean = v[6], m.ssim_mean = v[7], m.lpips_mean = v[8];
+}
+const char* const kTableRows[] = {"model", "copy_nearest", "mean_colour"};
+const char* const kTableMetrics[] = {"psnr", "ssim", "lpips"};
 
 struct Job {
   data::EvalEntry entry;
@@ -40,7 +59,7 @@ struct RunState {
   std::vector<std::optional<SceneResult>> results;  // by Job::position
   std::vector<std::string> grids;
   int64_t bad_frames = 0, done = 0;
-  double psnr_sum = 0, ssim_sum = 0;
+  double psnr_sum = 0, ssim_sum = 0, lpips_sum = 0;
 };
 
 // Eval mode for the run; the previous mode comes back even when an exception escapes.
@@ -120,9 +139,15 @@ SceneResult scene_result(const Job& job, torch::TensorAccessor<double, 2> m) {
   r.target = job.entry.target;
   r.overlap = job.entry.overlap;
   r.bucket = r.overlap ? data::overlap_bucket(*r.overlap) : "none";
+  const auto [lo, hi] = std::minmax_element(r.context.begin(), r.context.end());
   for (size_t t = 0; t < r.target.size(); ++t) {
-    const auto j = static_cast<int64_t>(t);
-    r.views.push_back({r.target[t], m[0][j], m[1][j], m[2][j], m[3][j], m[4][j], m[5][j]});
+    ViewMetrics v;
+    v.frame = r.target[t];
+    v.extrapolated = !r.context.empty() && (v.frame < *lo || v.frame > *hi);
+    Values x;
+    for (size_t i = 0; i < x.size(); ++i) x[i] = m[static_cast<int64_t>(i)][static_cast<int64_t>(t)];
+    assign_values(v, x);
+    r.views.push_back(v);
   }
   finalise_scene(r);
   return r;
@@ -134,6 +159,18 @@ void write_grid(const std::string& out_dir, const SceneResult& r, const torch::T
   fs::create_directories(fs::path(path).parent_path());
   io::write_png(path, scene_grid(r, inputs, pred, gt, copy));
   state.grids.push_back(path);
+}
+
+// LPIPS of [b, vt, 3, H, W] pairs in chunks of `chunk` images (as the official evaluation batches it): [b, vt].
+torch::Tensor lpips_of(Lpips lpips, const torch::Tensor& pred, const torch::Tensor& gt, int64_t chunk) {
+  auto p = pred.flatten(0, 1).to(torch::kFloat32), g = gt.flatten(0, 1).to(torch::kFloat32);
+  std::vector<torch::Tensor> parts;
+  const int64_t step = std::max<int64_t>(1, chunk);
+  for (int64_t i = 0; i < p.size(0); i += step) {
+    const int64_t n = std::min(step, p.size(0) - i);
+    parts.push_back(lpips->forward(p.narrow(0, i, n), g.narrow(0, i, n)));
+  }
+  return torch::cat(parts).view({pred.size(0), pred.size(1)});
 }
 
 // One forward for scenes of equal view counts and image size; scores the model and the baselines per target.
@@ -152,19 +189,29 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
   auto all = torch::stack(images).to(opt.device, torch::kFloat32);  // [b, vi + vt, 3, H, W]
   auto k = torch::stack(intrinsics).to(opt.device, torch::kFloat32);
   auto in_img = all.narrow(1, 0, vi), gt = all.narrow(1, vi, vt);
-  auto pred = net->forward(in_img, k.narrow(1, 0, vi), gt, k.narrow(1, vi, vt)).render;
+  torch::Tensor pred;
+  {
+    AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
+    pred = net->forward(in_img, k.narrow(1, 0, vi), gt, k.narrow(1, vi, vt)).render;
+  }
+  pred = pred.to(torch::kFloat32);
   auto copy = copy_nearest_input(in_img, in_frames, tgt_frames);
   auto mean = mean_colour(gt);
-  auto metrics = torch::stack({psnr(pred, gt), ssim(pred, gt), psnr(copy, gt), ssim(copy, gt), psnr(mean, gt),
-                               ssim(mean, gt)}, 1)
+  auto lp = [&](const torch::Tensor& x) {
+    return opt.lpips ? lpips_of(opt.lpips, x, gt, opt.lpips_chunk).to(torch::kFloat64)
+                     : torch::full({x.size(0), x.size(1)}, kUnavailable, x.options().dtype(torch::kFloat64));
+  };
+  auto metrics = torch::stack({psnr(pred, gt), ssim(pred, gt), lp(pred), psnr(copy, gt), ssim(copy, gt), lp(copy),
+                               psnr(mean, gt), ssim(mean, gt), lp(mean)}, 1)
                      .to(torch::kCPU, torch::kFloat64)
-                     .contiguous();  // [b, 6, vt]
+                     .contiguous();  // [b, 9, vt], rows in Values order
   auto acc = metrics.accessor<double, 3>();
   for (size_t b = 0; b < scenes.size(); ++b) {
     const Job& job = *scenes[b]->job;
     auto r = scene_result(job, acc[static_cast<int64_t>(b)]);
     state.psnr_sum += r.psnr;
     state.ssim_sum += r.ssim;
+    state.lpips_sum += r.lpips;
     const auto i = static_cast<int64_t>(b);
     if (job.visualise && !opt.out_dir.empty()) write_grid(opt.out_dir, r, in_img[i], pred[i], gt[i], copy[i], state);
     state.results[job.position] = std::move(r);
@@ -179,16 +226,29 @@ void run_loaded(model::UPLVSM& net, const std::vector<Loaded>& loaded, const Eva
 }
 
 std::map<std::string, std::map<std::string, double>> mean_table(const std::vector<const SceneResult*>& scenes) {
-  double sums[6] = {0, 0, 0, 0, 0, 0};
+  Values sums{};
   for (const auto* s : scenes) {
-    const double v[6] = {s->psnr, s->ssim, s->psnr_copy, s->ssim_copy, s->psnr_mean, s->ssim_mean};
-    for (int i = 0; i < 6; ++i) sums[i] += v[i];
+    const auto v = values_of(*s);
+    for (size_t i = 0; i < sums.size(); ++i) sums[i] += v[i];
   }
   const double n = static_cast<double>(scenes.size());
-  return {{"model", {{"psnr", sums[0] / n}, {"ssim", sums[1] / n}}},
-          {"copy_nearest", {{"psnr", sums[2] / n}, {"ssim", sums[3] / n}}},
-          {"mean_colour", {{"psnr", sums[4] / n}, {"ssim", sums[5] / n}}}};
+  std::map<std::string, std::map<std::string, double>> table;
+  for (size_t row = 0; row < 3; ++row)
+    for (size_t col = 0; col < 3; ++col) table[kTableRows[row]][kTableMetrics[col]] = sums[3 * row + col] / n;
+  return table;
 }
+
+// A CSV number; unavailable values (LPIPS without weights) are empty fields.
+std::string csv_number(double v) { return std::isnan(v) ? "" : fmt::format("{:.6f}", v); }
+
+std::string csv_values(const Values& v) {
+  std::string out;
+  for (size_t i = 0; i < v.size(); ++i) out += (i ? "," : "") + csv_number(v[i]);
+  return out;
+}
+
+const char* const kValueColumns =
+    "psnr,ssim,lpips,psnr_copy,ssim_copy,lpips_copy,psnr_mean,ssim_mean,lpips_mean";
 
 std::string csv_field(const std::string& s) {
   if (s.find_first_of(",\"\n") == std::string::npos) return s;
@@ -202,20 +262,18 @@ void write_text(const std::string& path, const std::string& text) {
 }
 
 std::string per_scene_csv(const EvalSummary& s) {
-  std::string out = "key,bucket,overlap,num_targets,psnr,ssim,psnr_copy,ssim_copy,psnr_mean,ssim_mean\n";
+  std::string out = "key,bucket,overlap,num_targets," + std::string(kValueColumns) + "\n";
   for (const auto& r : s.per_scene)
-    out += fmt::format("{},{},{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}\n", csv_field(r.key), r.bucket,
-                       r.overlap ? fmt::format("{:.6g}", *r.overlap) : "", r.views.size(), r.psnr, r.ssim,
-                       r.psnr_copy, r.ssim_copy, r.psnr_mean, r.ssim_mean);
+    out += fmt::format("{},{},{},{},{}\n", csv_field(r.key), r.bucket,
+                       r.overlap ? fmt::format("{:.6g}", *r.overlap) : "", r.views.size(), csv_values(values_of(r)));
   return out;
 }
 
 std::string per_view_csv(const EvalSummary& s) {
-  std::string out = "key,frame,psnr,ssim,psnr_copy,ssim_copy,psnr_mean,ssim_mean\n";
+  std::string out = "key,frame,extrapolated," + std::string(kValueColumns) + "\n";
   for (const auto& r : s.per_scene)
     for (const auto& v : r.views)
-      out += fmt::format("{},{},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f},{:.6f}\n", csv_field(r.key), v.frame, v.psnr,
-                         v.ssim, v.psnr_copy, v.ssim_copy, v.psnr_mean, v.ssim_mean);
+      out += fmt::format("{},{},{},{}\n", csv_field(r.key), v.frame, v.extrapolated ? 1 : 0, csv_values(values_of(v)));
   return out;
 }
 
@@ -223,18 +281,13 @@ std::string per_view_csv(const EvalSummary& s) {
 
 void finalise_scene(SceneResult& r) {
   if (r.views.empty()) throw std::runtime_error("eval: scene " + r.key + " has no target views");
-  double sums[6] = {0, 0, 0, 0, 0, 0};
+  Values sums{};
   for (const auto& v : r.views) {
-    const double x[6] = {v.psnr, v.ssim, v.psnr_copy, v.ssim_copy, v.psnr_mean, v.ssim_mean};
-    for (int i = 0; i < 6; ++i) sums[i] += x[i];
+    const auto x = values_of(v);
+    for (size_t i = 0; i < sums.size(); ++i) sums[i] += x[i];
   }
-  const double n = static_cast<double>(r.views.size());
-  r.psnr = sums[0] / n;
-  r.ssim = sums[1] / n;
-  r.psnr_copy = sums[2] / n;
-  r.ssim_copy = sums[3] / n;
-  r.psnr_mean = sums[4] / n;
-  r.ssim_mean = sums[5] / n;
+  for (auto& x : sums) x /= static_cast<double>(r.views.size());
+  assign_values(r, sums);
 }
 
 EvalSummary summarise(std::vector<SceneResult> scenes) {
@@ -252,6 +305,25 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
     s.buckets[bucket] = mean_table(members);
     s.bucket_scenes[bucket] = static_cast<int64_t>(members.size());
   }
+  // Each scene restricted to its interpolated / extrapolated targets.
+  std::map<std::string, std::vector<SceneResult>> parts;
+  for (const auto& r : s.per_scene) {
+    SceneResult inter = r, extra = r;
+    inter.views.clear();
+    extra.views.clear();
+    for (const auto& v : r.views) (v.extrapolated ? extra : inter).views.push_back(v);
+    for (auto* part : {&inter, &extra}) {
+      if (part->views.empty()) continue;
+      finalise_scene(*part);
+      parts[part == &inter ? "interpolation" : "extrapolation"].push_back(std::move(*part));
+    }
+  }
+  for (const auto& [span, members] : parts) {
+    std::vector<const SceneResult*> ptrs;
+    for (const auto& m : members) ptrs.push_back(&m);
+    s.spans[span] = mean_table(ptrs);
+    s.span_scenes[span] = static_cast<int64_t>(members.size());
+  }
   return s;
 }
 
@@ -266,6 +338,9 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
   j["table"] = s.table;
   j["buckets"] = s.buckets;
   j["bucket_scenes"] = s.bucket_scenes;
+  j["spans"] = s.spans;
+  j["span_scenes"] = s.span_scenes;
+  j["lpips"] = s.lpips;
   j["seconds"] = s.seconds;
   j["scenes_per_second"] = s.seconds > 0 ? static_cast<double>(s.scenes) / s.seconds : 0.0;
   j["scene_grids"] = s.scene_grids;
@@ -273,8 +348,12 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
       {"psnr", "clamp to [0,1], MSE over C,H,W per image (float64), mse clamped at 1e-10, -10 log10(mse)"},
       {"ssim", "skimage structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0, "
                "data_range=1.0)"},
+      {"lpips", "lpips.LPIPS(net, version='0.1')(pred, gt, normalize=True), float32, unclamped; null when the "
+                "backbone/lin weights were not given"},
       {"averaging", "mean over each scene's targets, then mean over scenes"},
       {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
+      {"spans", "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
+                "scene mean over its targets of each kind, then mean over the scenes that have such targets"},
       {"copy_nearest", "each target predicted by the input view nearest in frame index"},
       {"mean_colour", "oracle: each target predicted by its own per-channel mean colour"}};
   return j;
@@ -315,8 +394,11 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
       if (!current.scenes.empty()) run_loaded(net, current.scenes, opt, state);
       state.done += static_cast<int64_t>(batches[k].size());
       const auto ok = static_cast<double>(state.done - state.bad_frames);
-      bar.update(state.done, {{"psnr", fmt::format("{:.2f}", ok > 0 ? state.psnr_sum / ok : 0.0)},
-                              {"ssim", fmt::format("{:.4f}", ok > 0 ? state.ssim_sum / ok : 0.0)}});
+      std::vector<std::pair<std::string, std::string>> fields = {
+          {"psnr", fmt::format("{:.2f}", ok > 0 ? state.psnr_sum / ok : 0.0)},
+          {"ssim", fmt::format("{:.4f}", ok > 0 ? state.ssim_sum / ok : 0.0)}};
+      if (opt.lpips) fields.emplace_back("lpips", fmt::format("{:.4f}", ok > 0 ? state.lpips_sum / ok : 0.0));
+      bar.update(state.done, fields);
     }
     bar.finish();
   }
@@ -328,13 +410,18 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
   s.skipped_missing = counts.skipped_missing;
   s.skipped_bad_frames = state.bad_frames;
   s.scene_grids = std::move(state.grids);
+  if (opt.lpips)
+    s.lpips = {{"available", true}, {"net", opt.lpips->net == LpipsNet::Vgg ? "vgg" : "alex"}};
+  else
+    s.lpips = {{"available", false}, {"reason", "no LPIPS weights given (--lpips-backbone, --lpips-lin)"}};
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (s.scenes == 0) {
     spdlog::warn("eval: no scene was evaluated ({})", index_path);
   } else {
-    spdlog::info("eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} | copy nearest {:.3f} / {:.4f} | mean colour "
-                 "{:.3f} / {:.4f}",
+    spdlog::info("eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} LPIPS {} | copy nearest {:.3f} / {:.4f} | mean "
+                 "colour {:.3f} / {:.4f}",
                  s.scenes, format_duration(s.seconds), s.table["model"]["psnr"], s.table["model"]["ssim"],
+                 opt.lpips ? fmt::format("{:.4f}", s.table["model"]["lpips"]) : "unavailable",
                  s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
                  s.table["mean_colour"]["ssim"]);
   }

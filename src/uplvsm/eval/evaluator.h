@@ -1,14 +1,15 @@
 // Test-set evaluation of a UP-LVSM model with the community protocol: read an evaluation index (pixelSplat /
 // NoPoSplat format), render every scene's target views from its two context views, score each target with PSNR
-// and SSIM (eval/metrics.h) next to two trivial baselines (eval/baselines.h), average per scene then over scenes
-// (full set and NoPoSplat overlap buckets), and write metrics.json, per_scene.csv, per_view.csv and labelled
-// PNG grids of a few scenes.
+// and SSIM (eval/metrics.h), and LPIPS (eval/lpips.h) when its weights are given, next to two trivial baselines
+// (eval/baselines.h), average per scene then over scenes (full set and NoPoSplat overlap buckets), and write
+// metrics.json, per_scene.csv, per_view.csv and labelled PNG grids of a few scenes.
 #pragma once
 #include <torch/torch.h>
 
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -16,9 +17,12 @@
 
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/preprocess.h"
+#include "uplvsm/eval/lpips.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::eval {
+
+constexpr double kUnavailable = std::numeric_limits<double>::quiet_NaN();  // LPIPS without its weights
 
 struct EvalOptions {
   std::string index_path;  // empty: <dataset root>/evaluation_index.json
@@ -27,12 +31,17 @@ struct EvalOptions {
   torch::Device device = torch::kCPU;  // where inputs go; the caller puts the model there
   int64_t num_visualised = 8;          // PNG grids for the first scenes (index order)
   std::string out_dir;                 // empty: write nothing, only return the summary
+  Lpips lpips{nullptr};                // null: LPIPS is unavailable (NaN, null in JSON), never a made-up number
+  int64_t lpips_chunk = 10;            // images per LPIPS forward (the official evaluation uses 10)
+  bool bf16 = false;                   // the model forward under bf16 autocast (metrics always in fp32/fp64)
   nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
 };
 
 struct ViewMetrics {
   int64_t frame = 0;
   double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
+  double lpips = kUnavailable, lpips_copy = kUnavailable, lpips_mean = kUnavailable;
+  bool extrapolated = false;  // the frame lies outside [min(context), max(context)] (else interpolation)
 };
 
 struct SceneResult {
@@ -41,23 +50,30 @@ struct SceneResult {
   std::optional<double> overlap;
   std::string bucket = "none";  // data::overlap_bucket(overlap): small/medium/large/ignore; "none" without overlap
   std::vector<ViewMetrics> views;
-  double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;  // means over the targets
+  // Means over the targets.
+  double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
+  double lpips = kUnavailable, lpips_copy = kUnavailable, lpips_mean = kUnavailable;
 };
 
 struct EvalSummary {
   int64_t scenes = 0;
-  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim" (mean over scenes of per-scene means;
-  // NaN when no scene was evaluated).
+  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim", "lpips" (mean over scenes of per-scene
+  // means; NaN when no scene was evaluated, and LPIPS NaN when it was unavailable).
   std::map<std::string, std::map<std::string, double>> table;
   // bucket ("small", "medium", "large", "ignore"; scenes without overlap are in no bucket) -> row -> metric.
   std::map<std::string, std::map<std::string, std::map<std::string, double>>> buckets;
   std::map<std::string, int64_t> bucket_scenes;  // scenes per bucket
+  // "interpolation" / "extrapolation" -> row -> metric: per scene, the mean over its targets of that kind, then
+  // the mean over the scenes that have such targets (the paper's appendix table; latentSplat's split).
+  std::map<std::string, std::map<std::string, std::map<std::string, double>>> spans;
+  std::map<std::string, int64_t> span_scenes;
   std::vector<SceneResult> per_scene;            // index (key) order
   double seconds = 0;
   int64_t skipped_null = 0;        // null entries of the index
   int64_t skipped_missing = 0;     // keys of the index absent from the dataset
   int64_t skipped_bad_frames = 0;  // scenes with a frame of another size than frame 0 (pixelSplat skips them)
   std::vector<std::string> scene_grids;  // paths of the PNG grids written
+  nlohmann::json lpips = {{"available", false}};  // {"available", "net"}; set by evaluate()
 };
 
 // Runs the evaluation (see the top comment). The model runs in eval mode under NoGradGuard with the paper's unposed
@@ -72,7 +88,8 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
 void finalise_scene(SceneResult& scene);
 EvalSummary summarise(std::vector<SceneResult> scenes);
 
-// metrics.json content: scenes, views, skipped counts, table, buckets, bucket_scenes, seconds, conventions.
+// metrics.json content: scenes, views, skipped counts, table, buckets, bucket_scenes, spans, span_scenes, lpips,
+// seconds, conventions.
 nlohmann::json summary_to_json(const EvalSummary& summary);
 // Writes metrics.json (summary_to_json merged with `extra`, e.g. checkpoint/config info), per_scene.csv and
 // per_view.csv into out_dir (created if needed), atomically.

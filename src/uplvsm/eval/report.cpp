@@ -100,6 +100,17 @@ std::vector<Group> table_groups(const nlohmann::json& m) {
   const auto total = m.contains("scenes") && m["scenes"].is_number() ? m["scenes"].get<int64_t>() : 0;
   groups.push_back({m.contains("table") ? m["table"] : nlohmann::json::object(),
                     fmt::format("{} ({} scenes)", any ? "Full" : "Test set", total)});
+  // Interpolation / extrapolation columns only when some targets lie outside their inputs' frame span.
+  const auto& spans = m.contains("spans") && m["spans"].is_object() ? m["spans"] : nlohmann::json::object();
+  const auto& span_counts = m.contains("span_scenes") ? m["span_scenes"] : nlohmann::json::object();
+  if (spans.contains("extrapolation")) {
+    for (const auto& [key, name] : std::vector<std::pair<std::string, std::string>>{
+             {"interpolation", "Interpolation"}, {"extrapolation", "Extrapolation"}}) {
+      const auto n = span_counts.contains(key) && span_counts[key].is_number() ? span_counts[key].get<int64_t>() : 0;
+      groups.push_back({spans.contains(key) ? spans[key] : nlohmann::json::object(),
+                        fmt::format("{} ({} scenes)", name, n)});
+    }
+  }
   return groups;
 }
 
@@ -142,8 +153,8 @@ std::string metrics_section(const ReportInputs& in, const fs::path& out, std::ve
     copy_asset((dir / csv).string(), out, csv, missing);
     links += fmt::format(", <a href=\"{0}\">{0}</a>", csv);
   }
-  std::string caption = "PSNR (dB, higher is better) and SSIM per target view, averaged per scene then over "
-                        "scenes. Copy nearest input: each target predicted by the input view nearest in frame "
+  std::string caption = "PSNR (dB, higher is better), SSIM and LPIPS (lower is better) per target view, averaged "
+                        "per scene then over scenes. Copy nearest input: each target predicted by the input view nearest in frame "
                         "index. Mean colour: each target predicted by its own mean colour (an oracle constant).";
   const auto& counts = m.contains("bucket_scenes") ? m["bucket_scenes"] : nlohmann::json::object();
   if (counts.contains("ignore") && counts["ignore"].is_number())
@@ -212,28 +223,41 @@ std::string html_escape(const std::string& text) {
 }
 
 std::string results_table_html(const nlohmann::json& m) {
+  struct Metric {
+    std::string key, header;
+    int decimals;
+    bool higher_is_better;
+  };
+  std::vector<Metric> metrics = {{"psnr", "PSNR&uarr;", 2, true}, {"ssim", "SSIM&uarr;", 3, true}};
+  const bool has_lpips = m.contains("lpips") && m["lpips"].is_object() && m["lpips"].value("available", false);
+  if (has_lpips) metrics.push_back({"lpips", "LPIPS&darr;", 3, false});
   const auto groups = table_groups(m);
   std::string head1 = "<tr><th rowspan=\"2\">Method</th>", head2 = "<tr>";
   for (const auto& g : groups) {
-    head1 += "<th colspan=\"2\">" + html_escape(g.header) + "</th>";
-    head2 += "<th>PSNR&uarr;</th><th>SSIM&uarr;</th>";
+    head1 += fmt::format("<th colspan=\"{}\">{}</th>", metrics.size(), html_escape(g.header));
+    for (const auto& metric : metrics) head2 += "<th>" + metric.header + "</th>";
   }
   std::string html = "<table>\n" + head1 + "</tr>\n" + head2 + "</tr>\n";
   for (const auto& [row, name] : kRows) {
     html += "<tr><td>" + html_escape(name) + "</td>";
     for (const auto& g : groups) {
-      for (const auto& [metric, decimals] : std::vector<std::pair<std::string, int>>{{"psnr", 2}, {"ssim", 3}}) {
+      for (const auto& metric : metrics) {
+        const double sign = metric.higher_is_better ? 1.0 : -1.0;
         double best = -std::numeric_limits<double>::infinity();
         for (const auto& [r, n] : kRows) {
-          const double v = cell(g.table, r, metric);
-          if (std::isfinite(v)) best = std::max(best, v);
+          const double v = cell(g.table, r, metric.key);
+          if (std::isfinite(v)) best = std::max(best, sign * v);
         }
-        html += format_cell(cell(g.table, row, metric), best, decimals);
+        html += format_cell(cell(g.table, row, metric.key), sign * best, metric.decimals);
       }
     }
     html += "</tr>\n";
   }
-  return html + "</table>\n";
+  html += "</table>\n";
+  if (!has_lpips)
+    html += "<p class=\"caption\">LPIPS unavailable: the evaluation was run without LPIPS weights "
+            "(<code>uplvsm eval --lpips-backbone ... --lpips-lin ...</code>).</p>\n";
+  return html;
 }
 
 std::vector<TrainPoint> read_train_log(const std::string& path) {

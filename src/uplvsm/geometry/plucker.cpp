@@ -22,9 +22,9 @@ std::pair<torch::Tensor, torch::Tensor> compute_rays(const torch::Tensor& c2w, c
   auto y = ((ys.view({1, height, 1}) - cy) / fy).expand({-1, height, width});
   auto dirs_cam = torch::stack({x, y, torch::ones_like(x)}, 1).reshape({-1, 3, height * width});
   auto R = cam.index({Slice(), Slice(0, 3), Slice(0, 3)});
-  auto d = torch::bmm(R, dirs_cam);
-  auto d32 = d.to(torch::kFloat32);
-  d = (d32 / d32.norm(2, 1, true).clamp_min(1e-3)).to(d.scalar_type());
+  // Under bf16 autocast bmm returns bf16; rays go back to the cameras' dtype so o x d mixes no precisions.
+  auto d32 = torch::bmm(R, dirs_cam).to(torch::kFloat32);
+  auto d = (d32 / d32.norm(2, 1, true).clamp_min(1e-3)).to(c2w.scalar_type());
   auto o = cam.index({Slice(), Slice(0, 3), Slice(3, 4)}).expand({-1, 3, height * width});
   auto shape = batch;
   shape.insert(shape.end(), {3, height, width});

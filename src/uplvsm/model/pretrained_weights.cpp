@@ -107,27 +107,34 @@ NamedTensors dinov2_from_huggingface(const NamedTensors& hf_in, const std::strin
   return out;
 }
 
-PretrainedWeights read_pretrained_weights(const std::string& path) {
+NamedTensors read_weight_file(const std::string& path, std::string* container, std::string* found_at) {
   if (!std::filesystem::is_regular_file(path))
     throw std::runtime_error(fmt::format("weights {}: no such file", path));
-  PretrainedWeights w;
-  w.path = path;
+  std::string kind, where;
   NamedTensors raw;
   if (io::looks_like_torch_file(path)) {
-    io::TorchFile probe(path);  // only for the container name; read_torch_state_dict reopens lazily
-    w.container = "torch " + probe.format();
-    raw = io::read_torch_state_dict(path, &w.found_at);
+    raw = io::read_torch_state_dict(path, &where);
+    kind = io::TorchFile(path).format() == "zip" ? "torch zip" : "torch legacy";
   } else {
     std::map<std::string, std::string> meta;
     io::read_safetensors_header(path, &meta);
     if (meta.count("format") && meta.at("format") == kCheckpointFormat) {
-      w.container = "uplvsm checkpoint";
+      kind = "uplvsm checkpoint";
       raw = read_checkpoint(path).model;
     } else {
-      w.container = "safetensors";
+      kind = "safetensors";
       raw = io::read_safetensors(path).tensors;
     }
   }
+  if (container) *container = kind;
+  if (found_at) *found_at = where;
+  return raw;
+}
+
+PretrainedWeights read_pretrained_weights(const std::string& path) {
+  PretrainedWeights w;
+  w.path = path;
+  NamedTensors raw = read_weight_file(path, &w.container, &w.found_at);
   raw = strip_prefix(raw, "module.");  // DistributedDataParallel wrapping
   if (has_key(raw, "n_light_field_latent")) {
     w.source = WeightSource::Uplvsm;

@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/io/atomic_file.h"
@@ -17,6 +18,7 @@
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/optimizer.h"
+#include "uplvsm/train/perceptual_loss.h"
 
 namespace uplvsm::train {
 
@@ -42,7 +44,7 @@ struct SignalScope {
   void (*old_term)(int);
 };
 
-data::LoaderOptions loader_options(const Config& c) {
+data::LoaderOptions loader_options(const Config& c, const Communicator* comm) {
   const auto& t = c.training;
   data::LoaderOptions o;
   o.batch_size = t.batch_size;
@@ -56,6 +58,10 @@ data::LoaderOptions loader_options(const Config& c) {
   o.preprocess.square_crop = c.dataset.square_crop;
   o.seed = static_cast<uint64_t>(t.seed);
   o.threads = static_cast<int>(t.loader_threads);
+  if (comm) {
+    o.rank = comm->rank();
+    o.world_size = comm->world_size();
+  }
   return o;
 }
 
@@ -93,6 +99,25 @@ void init_from_weights(model::UPLVSMImpl& net, const std::string& path) {
   spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
 }
 
+// The perceptual loss the config asks for, when its VGG19 weights were given (null otherwise, with a warning).
+PerceptualLoss make_perceptual_loss(const TrainingConfig& tc, const TrainOptions& opt) {
+  if (tc.perceptual_loss_weight <= 0) {
+    if (!opt.perceptual_weights.empty())
+      spdlog::warn("{} not used: training.perceptual_loss_weight is 0", opt.perceptual_weights);
+    return nullptr;
+  }
+  if (opt.perceptual_weights.empty()) {
+    spdlog::warn("training.perceptual_loss_weight is {} but no VGG19 weights were given (--vgg19 FILE): training "
+                 "with MSE only",
+                 tc.perceptual_loss_weight);
+    return nullptr;
+  }
+  auto loss = load_perceptual_loss(opt.perceptual_weights);
+  loss->to(opt.device);
+  spdlog::info("perceptual loss: VGG19 from {}, weight {}", opt.perceptual_weights, tc.perceptual_loss_weight);
+  return loss;
+}
+
 }  // namespace
 
 double psnr_from_mse(double mse) { return -10.0 * std::log10(std::max(mse, 1e-10)); }
@@ -100,11 +125,13 @@ double psnr_from_mse(double mse) { return -10.0 * std::log10(std::max(mse, 1e-10
 TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto& tc = config.training;
   const auto t_start = std::chrono::steady_clock::now();
+  Communicator* comm = opt.comm.get();
+  const bool lead = !comm || comm->rank() == 0;  // the rank that writes files and shows progress
   fs::create_directories(opt.run_dir);
   const std::string ckpt_dir = (fs::path(opt.run_dir) / "checkpoints").string();
   const std::string metrics_path = (fs::path(opt.run_dir) / "metrics.jsonl").string();
   auto cfg_text = config_to_json(config).dump(2) + "\n";
-  io::write_file_atomic((fs::path(opt.run_dir) / "config.json").string(), cfg_text.data(), cfg_text.size());
+  if (lead) io::write_file_atomic((fs::path(opt.run_dir) / "config.json").string(), cfg_text.data(), cfg_text.size());
 
   torch::manual_seed(static_cast<uint64_t>(tc.seed));
   model::UPLVSM net(config.model);
@@ -134,7 +161,15 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   } else if (!opt.init_weights.empty()) {
     init_from_weights(*net, opt.init_weights);
   }
-  truncate_metrics(metrics_path, state.step);
+  if (lead) truncate_metrics(metrics_path, state.step);
+  std::vector<torch::Tensor> params;
+  for (const auto& p : net->parameters())
+    if (p.requires_grad()) params.push_back(p);
+  if (comm) {
+    comm->broadcast(net->parameters());  // every rank starts from rank 0's weights
+    spdlog::info("data parallel: rank {} of {} ({}), {} scenes per rank and step", comm->rank(), comm->world_size(),
+                 comm->backend(), tc.batch_size);
+  }
 
   TrainResult result;
   result.step = state.step;
@@ -145,32 +180,49 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   data::ChunkDataset dataset(opt.data_root, "train");
   spdlog::info("training {} ({} parameters) on {} scenes of {}, steps {} -> {}", config.name, net->parameter_count(),
                dataset.size(), opt.data_root, state.step, tc.train_steps);
-  data::TrainingLoader loader(dataset, loader_options(config), state.step);
-  if (tc.perceptual_loss_weight > 0)
-    spdlog::warn("perceptual_loss_weight {} ignored: no VGG19 weights are loaded yet; training with MSE only",
-                 tc.perceptual_loss_weight);
+  data::TrainingLoader loader(dataset, loader_options(config, comm), state.step);
+  PerceptualLoss perceptual = make_perceptual_loss(tc, opt);
+  const bool use_bf16 = parse_amp(tc.amp);
+  if (use_bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
 
   SignalScope signals;
-  std::ofstream metrics(metrics_path, std::ios::app);
+  std::ofstream metrics;
+  if (lead) metrics.open(metrics_path, std::ios::app);
+  const bool show_progress = opt.progress && lead;
   ProgressBar bar("train", tc.train_steps, "step", state.step);
-  std::vector<torch::Tensor> params;
-  for (const auto& p : net->parameters())
-    if (p.requires_grad()) params.push_back(p);
-  double loss_ema = -1;
+  double loss_ema = -1, mse_ema = -1;
   const int64_t first_step = state.step;
   while (state.step < tc.train_steps) {
     auto t0 = std::chrono::steady_clock::now();
     optimizer->zero_grad();
-    double loss_value = 0;
+    double loss_value = 0, mse_value = 0;
     for (int64_t micro = 0; micro < tc.grad_accum_steps; ++micro) {
       auto batch = loader.next();
       auto dev = [&](const torch::Tensor& t) { return t.to(opt.device); };
       auto target = dev(batch.target_images());
-      auto out = net->forward(dev(batch.input_images(tc.num_input_views)), dev(batch.input_fxfycxcy(tc.num_input_views)),
-                              target, dev(batch.target_fxfycxcy()));
-      auto loss = tc.l2_loss_weight * torch::mse_loss(out.render, target);
+      torch::Tensor mse, loss;
+      {
+        // Forward and losses under autocast as the official step; MSE on fp32 (autocast's policy for losses).
+        AutocastGuard amp(opt.device, use_bf16);
+        auto out = net->forward(dev(batch.input_images(tc.num_input_views)),
+                                dev(batch.input_fxfycxcy(tc.num_input_views)), target, dev(batch.target_fxfycxcy()));
+        mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
+        loss = tc.l2_loss_weight * mse;
+        if (perceptual) loss = loss + tc.perceptual_loss_weight * perceptual->forward(out.render, target);
+      }
       (loss / static_cast<double>(tc.grad_accum_steps)).backward();
       loss_value += loss.item<double>() / static_cast<double>(tc.grad_accum_steps);
+      mse_value += mse.item<double>() / static_cast<double>(tc.grad_accum_steps);
+    }
+    bool stop_signal = g_signal != 0;
+    if (comm) {
+      // Same decisions on every rank: averaged gradients and losses, and a stop when any rank got a signal.
+      average_gradients(*comm, params);
+      auto shared = torch::tensor({loss_value, mse_value, stop_signal ? 1.0 : 0.0}, torch::kFloat64);
+      comm->allreduce_sum({shared});
+      loss_value = shared[0].item<double>() / comm->world_size();
+      mse_value = shared[1].item<double>() / comm->world_size();
+      stop_signal = shared[2].item<double>() > 0;
     }
     const double lr = tc.lr * lr_lambda(state.scheduler_step, tc.warmup, tc.train_steps);
     double grad_norm = 0;
@@ -195,33 +247,41 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     ++state.step;
     const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     state.train_seconds += step_seconds;
-    const double psnr = psnr_from_mse(loss_value / tc.l2_loss_weight);
-    if (std::isfinite(loss_value)) loss_ema = loss_ema < 0 ? loss_value : 0.95 * loss_ema + 0.05 * loss_value;
+    const double psnr = psnr_from_mse(mse_value);
+    if (std::isfinite(loss_value)) {
+      loss_ema = loss_ema < 0 ? loss_value : 0.95 * loss_ema + 0.05 * loss_value;
+      mse_ema = mse_ema < 0 ? mse_value : 0.95 * mse_ema + 0.05 * mse_value;
+    }
     result.last_loss = loss_value;
     result.last_psnr = psnr;
-    if (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1) {
-      metrics << json{{"step", state.step}, {"loss", loss_value}, {"psnr", psnr}, {"lr", lr}, {"grad_norm", grad_norm},
+    if (lead && (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1)) {
+      metrics << json{{"step", state.step}, {"loss", loss_value}, {"mse", mse_value}, {"psnr", psnr}, {"lr", lr}, {"grad_norm", grad_norm},
                       {"skipped", skipped}, {"step_seconds", step_seconds}, {"data_wait_seconds", loader.wait_seconds()},
                       {"train_seconds", state.train_seconds}}
                      .dump()
               << "\n";
       metrics.flush();
     }
-    if (opt.progress)
+    if (show_progress)
       bar.update(state.step, {{"loss", fmt::format("{:.4f}", loss_ema)},
-                              {"psnr", fmt::format("{:.2f}", psnr_from_mse(loss_ema / tc.l2_loss_weight))},
+                              {"psnr", fmt::format("{:.2f}", psnr_from_mse(mse_ema))},
                               {"lr", fmt::format("{:.2e}", lr)}});
-    const bool stop_now = g_signal != 0 || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
-    if (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now) {
+    const bool stop_now = stop_signal || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
+    if (lead && (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now)) {
       result.last_checkpoint = save_training_checkpoint(ckpt_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
     }
     if (stop_now) {
-      result.interrupted = g_signal != 0;
+      result.interrupted = stop_signal;
       if (result.interrupted) spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);
       break;
     }
   }
-  if (opt.progress) bar.finish();
+  if (show_progress) bar.finish();
+  if (comm) {
+    check_parameters_in_sync(*comm, net->parameters());
+    comm->barrier();  // rank 0's last checkpoint is on disk before any rank returns
+    spdlog::info("rank {}: parameters identical on all {} ranks", comm->rank(), comm->world_size());
+  }
   result.step = state.step;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
   if (state.skipped_nonfinite + state.skipped_gradnorm > 0)

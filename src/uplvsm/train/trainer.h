@@ -4,9 +4,11 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <memory>
 #include <string>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/train/distributed.h"
 
 namespace uplvsm::train {
 
@@ -16,9 +18,14 @@ struct TrainOptions {
   std::string resume = "auto";     // "auto" (latest in run_dir if any), "none", or a checkpoint path
   // Weights for a new run (ignored when resuming): UP-LVSM loaded strictly, or DINOv2 into the image tokenizer.
   std::string init_weights;
+  // VGG19 weights (torchvision `features.N.*`) for the perceptual loss; without them a config asking for the
+  // perceptual loss trains with MSE only, with a warning.
+  std::string perceptual_weights;
   torch::Device device = torch::kCPU;
   int64_t stop_after_steps = -1;   // stop (with a checkpoint) after this many steps of this invocation
   bool progress = true;
+  // Data-parallel group (train/distributed.h); null: one process. Rank 0 writes the logs and checkpoints.
+  std::shared_ptr<Communicator> comm;
 };
 
 struct TrainResult {

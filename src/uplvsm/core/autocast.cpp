@@ -1,0 +1,54 @@
+#include "uplvsm/core/autocast.h"
+
+#include <ATen/autocast_mode.h>
+
+#include <stdexcept>
+
+namespace uplvsm {
+namespace {
+
+// LibTorch 2.4 replaced the per-device setters with device-type arguments (the old ones are deprecated there).
+#if TORCH_VERSION_MAJOR > 2 || (TORCH_VERSION_MAJOR == 2 && TORCH_VERSION_MINOR >= 4)
+bool is_enabled_on(bool cuda) { return at::autocast::is_autocast_enabled(cuda ? at::kCUDA : at::kCPU); }
+void set_enabled_on(bool cuda, bool on) { at::autocast::set_autocast_enabled(cuda ? at::kCUDA : at::kCPU, on); }
+at::ScalarType dtype_on(bool cuda) { return at::autocast::get_autocast_dtype(cuda ? at::kCUDA : at::kCPU); }
+void set_dtype_on(bool cuda, at::ScalarType t) { at::autocast::set_autocast_dtype(cuda ? at::kCUDA : at::kCPU, t); }
+#else
+bool is_enabled_on(bool cuda) { return cuda ? at::autocast::is_enabled() : at::autocast::is_cpu_enabled(); }
+void set_enabled_on(bool cuda, bool on) { cuda ? at::autocast::set_enabled(on) : at::autocast::set_cpu_enabled(on); }
+at::ScalarType dtype_on(bool cuda) {
+  return cuda ? at::autocast::get_autocast_gpu_dtype() : at::autocast::get_autocast_cpu_dtype();
+}
+void set_dtype_on(bool cuda, at::ScalarType t) {
+  cuda ? at::autocast::set_autocast_gpu_dtype(t) : at::autocast::set_autocast_cpu_dtype(t);
+}
+#endif
+
+}  // namespace
+
+bool parse_amp(const std::string& amp) {
+  if (amp == "bf16") return true;
+  if (amp == "none") return false;
+  throw std::runtime_error("amp '" + amp + "': expected 'none' or 'bf16'");
+}
+
+AutocastGuard::AutocastGuard(torch::Device device, bool enabled) {
+  if (!enabled) return;
+  active_ = true;
+  cuda_ = device.is_cuda();
+  previous_enabled_ = is_enabled_on(cuda_);
+  previous_dtype_ = dtype_on(cuda_);
+  set_enabled_on(cuda_, true);
+  set_dtype_on(cuda_, at::kBFloat16);
+  at::autocast::increment_nesting();
+}
+
+AutocastGuard::~AutocastGuard() {
+  if (!active_) return;
+  // The cache of bf16 weight copies lives as long as the outermost autocast region, as in Python.
+  if (at::autocast::decrement_nesting() == 0) at::autocast::clear_cache();
+  set_enabled_on(cuda_, previous_enabled_);
+  set_dtype_on(cuda_, previous_dtype_);
+}
+
+}  // namespace uplvsm

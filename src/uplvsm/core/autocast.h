@@ -1,0 +1,27 @@
+// Mixed precision as `torch.autocast(device_type, dtype=torch.bfloat16)` for a C++ scope: matmuls, linear layers and
+// convolutions run in bf16 while weights stay fp32 (master weights) and autocast's fp32 ops (softmax, norms, losses)
+// stay fp32. Works on CPU (where AVX-512 BF16 makes bf16 matmuls ~2x faster) and CUDA.
+#pragma once
+#include <torch/torch.h>
+
+#include <string>
+
+namespace uplvsm {
+
+// "none" or "bf16" (config field training.amp, CLI --amp); anything else is an error naming the value.
+bool parse_amp(const std::string& amp);
+
+class AutocastGuard {
+ public:
+  // Inactive (a no-op) when `enabled` is false.
+  AutocastGuard(torch::Device device, bool enabled);
+  ~AutocastGuard();
+  AutocastGuard(const AutocastGuard&) = delete;
+  AutocastGuard& operator=(const AutocastGuard&) = delete;
+
+ private:
+  bool active_ = false, cuda_ = false, previous_enabled_ = false;
+  at::ScalarType previous_dtype_ = at::kFloat;
+};
+
+}  // namespace uplvsm

@@ -1,0 +1,105 @@
+// The LVSM perceptual loss: a hand-computed case (identity first conv, everything after it zero), the ImageNet
+// preprocessing, a finite-difference gradient check, and loading VGG19 weights (and refusing a VGG16 file).
+#include "uplvsm/train/perceptual_loss.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "test_util.h"
+#include "uplvsm/io/safetensors.h"
+#include "uplvsm/model/state_dict.h"
+
+using namespace uplvsm;
+
+namespace {
+
+// All conv weights and biases zero, then conv 0 copies the 3 input channels to its first 3 outputs (centre tap) and
+// conv 2 copies its 64 inputs: relu1_2 = relu(preprocessed input) on 3 of 64 channels; deeper features are 0.
+train::PerceptualLoss identity_first_block() {
+  train::PerceptualLoss loss;
+  torch::NoGradGuard no_grad;
+  for (auto& p : loss->parameters()) p.zero_();
+  auto conv = [&](int64_t i) { return loss->vgg->features[size_t(i)]->as<torch::nn::Conv2dImpl>(); };
+  for (int64_t c = 0; c < 3; ++c) conv(0)->weight[c][c][1][1] = 1.0;
+  for (int64_t c = 0; c < 64; ++c) conv(2)->weight[c][c][1][1] = 1.0;
+  return loss;
+}
+
+}  // namespace
+
+TEST(PerceptualLoss, HandComputedCase) {
+  auto loss = identity_first_block();
+  auto pred = torch::full({1, 3, 16, 16}, 0.5), target = torch::full({1, 3, 16, 16}, 0.25);
+  // Pixel term: |255 * 0.5 - 255 * 0.25| = 63.75 everywhere (the mean cancels).
+  // relu1_2: pred 127.5 - (123.68, 116.779, 103.939) = (3.82, 10.721, 23.561); target values are negative -> 0.
+  const double f1 = (3.82 + 10.721 + 23.561) / 64.0;
+  const double expected = (63.75 + f1 / 2.6) / 255.0;
+  auto terms = loss->terms(pred, target);
+  EXPECT_NEAR(terms[0].item<double>(), 63.75 / 255.0, 1e-6);
+  EXPECT_NEAR(terms[1].item<double>(), f1 / 2.6 / 255.0, 1e-6);
+  for (int64_t k = 2; k < 6; ++k) EXPECT_EQ(terms[k].item<double>(), 0.0) << k;
+  EXPECT_NEAR(loss->forward(pred, target).item<double>(), expected, 1e-6);
+  // Leading dims are flattened: [b, v, 3, H, W] gives the same mean.
+  EXPECT_NEAR(loss->forward(pred.expand({2, 2, 3, 16, 16}), target.expand({2, 2, 3, 16, 16})).item<double>(), expected,
+              1e-6);
+  EXPECT_EQ(loss->forward(pred, pred).item<double>(), 0.0);
+}
+
+TEST(PerceptualLoss, SlicesAndWeightsAreLvsms) {
+  EXPECT_EQ(train::perceptual_slice_ends(), (std::vector<int64_t>{4, 9, 14, 23, 32}));
+  const auto& d = train::perceptual_term_divisors();
+  ASSERT_EQ(d.size(), 6u);
+  EXPECT_DOUBLE_EQ(d[5], 0.15);  // 10 * L1 / 1.5
+  train::PerceptualLoss loss;
+  // relu5_2 of a 32x32 input: four 2x2 average pools before it -> 2x2, 512 channels.
+  auto f = loss->features(torch::zeros({1, 3, 32, 32}));
+  ASSERT_EQ(f.size(), 5u);
+  EXPECT_EQ(f[4].sizes(), (std::vector<int64_t>{1, 512, 2, 2}));
+  EXPECT_EQ(f[2].sizes(), (std::vector<int64_t>{1, 256, 8, 8}));
+  for (const auto& p : loss->parameters()) EXPECT_FALSE(p.requires_grad());
+}
+
+TEST(PerceptualLoss, GradientMatchesFiniteDifferences) {
+  torch::manual_seed(3);
+  train::PerceptualLoss loss;
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& p : loss->parameters()) p.mul_(0.5);  // keep activations moderate
+  }
+  loss->to(torch::kFloat64);
+  auto pred = torch::rand({2, 3, 16, 16}, torch::kFloat64).requires_grad_(true);
+  auto target = torch::rand({2, 3, 16, 16}, torch::kFloat64);
+  auto value = loss->forward(pred, target);
+  value.backward();
+  auto grad = pred.grad().flatten();
+  ASSERT_GT(grad.abs().max().item<double>(), 0.0);
+  const double eps = 1e-6;
+  auto flat = pred.detach().flatten();
+  for (int64_t i : {0L, 77L, 300L, 511L, 1000L, 1535L}) {
+    auto plus = flat.clone(), minus = flat.clone();
+    plus[i] += eps;
+    minus[i] -= eps;
+    torch::NoGradGuard no_grad;
+    const double numeric = (loss->forward(plus.view_as(pred), target) - loss->forward(minus.view_as(pred), target))
+                               .item<double>() / (2 * eps);
+    EXPECT_NEAR(grad[i].item<double>(), numeric, 1e-6 + 1e-4 * std::abs(numeric)) << "element " << i;
+  }
+}
+
+TEST(PerceptualLoss, LoadsVgg19WeightsAndRefusesOthers) {
+  torch::manual_seed(5);
+  train::PerceptualLoss source;
+  const auto dir = test::temp_dir("perceptual_weights");
+  const auto path = (dir / "vgg19.safetensors").string();
+  io::TensorMap tensors;
+  for (const auto& [k, v] : model::state_dict(*source->vgg)) tensors[k] = v;
+  tensors["classifier.0.weight"] = torch::zeros({4, 4});  // torchvision files carry the classifier too
+  io::write_safetensors(path, tensors);
+  auto loaded = train::load_perceptual_loss(path);
+  for (const auto& [k, v] : model::state_dict(*loaded->vgg)) EXPECT_TRUE(torch::equal(v, tensors.at(k))) << k;
+  EXPECT_FALSE(loaded->is_training());
+  auto err = test::error_of([] { train::load_perceptual_loss(test::fixture("lpips/vgg16_features.safetensors")); });
+  EXPECT_NE(err.find("vgg16_features.safetensors"), std::string::npos) << err;
+  std::filesystem::remove_all(dir);
+}
