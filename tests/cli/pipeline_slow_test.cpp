@@ -62,6 +62,23 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   EXPECT_TRUE(fs::exists(dir / "report/training_curve.png"));
   EXPECT_NE(out.find("held-out PSNR"), std::string::npos) << out;
 
+  // Camera control: the mapper stage from the trained run, evaluation from dataset cameras through the mapper, and
+  // an orbit video through it.
+  auto mapper_run = (dir / "mapper_run").string();
+  ASSERT_EQ(sh("train --stage mapper --init " + run + " --config " + cfg + " --data " + data + " --run " + mapper_run +
+                   " --steps 4", &out), 0);
+  EXPECT_NE(out.find("pose mapper: least-squares fit"), std::string::npos) << out;
+  ASSERT_EQ(sh("eval --checkpoint " + mapper_run + " --target-poses mapper --data " + data + " --out " +
+                   (dir / "eval_mapper").string(), &out), 0);
+  EXPECT_NE(out.find("uplvsm (mapper)"), std::string::npos) << out;
+  ASSERT_EQ(sh("render --checkpoint " + mapper_run + " --data " + data + " --trajectory orbit --frames 4 --side-by-side "
+                   "--out " + (dir / "orbit").string()), 0);
+  EXPECT_TRUE(fs::exists(dir / "orbit/videos.json"));
+  // The plain model has no mapper: a camera path is refused with the way to get one.
+  ASSERT_NE(sh("render --checkpoint " + run + " --data " + data + " --trajectory dolly --out " +
+                   (dir / "dolly").string(), &out), 0);
+  EXPECT_NE(out.find("--stage mapper"), std::string::npos) << out;
+
   // Bring-your-own photos: two frames written as PNG files.
   ASSERT_EQ(sh("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +
                    (dir / "byo").string(), &out) != 0, true);

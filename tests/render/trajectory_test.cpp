@@ -1,8 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <fstream>
 
 #include "test_util.h"
+#include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/render/renderer.h"
 #include "uplvsm/render/trajectory.h"
 
 using namespace uplvsm;
@@ -35,4 +39,107 @@ TEST(Trajectory, SegmentsRepeatTheirBoundaries) {
 TEST(Trajectory, RejectsBadShapes) {
   EXPECT_THROW(render::interpolate_poses(torch::zeros({1, 7}), 4), c10::Error);
   EXPECT_THROW(render::interpolate_poses(torch::zeros({2, 6}), 4), c10::Error);
+}
+
+TEST(Trajectory, LookAtFromTheOriginAlongZIsTheIdentity) {
+  auto pose = render::look_at_pose(torch::zeros({3}, torch::kFloat64), torch::tensor({0.0, 0.0, 3.0}, torch::kFloat64));
+  EXPECT_LE(test::max_abs_diff(pose, torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0})), 1e-12);
+}
+
+TEST(Trajectory, PresetsStartAtTheFirstViewAndLoop) {
+  render::PresetOptions o;
+  for (const std::string name : {"orbit", "spiral", "dolly"}) {
+    auto path = render::camera_path_preset(name, 16, o);
+    ASSERT_EQ(path.sizes(), (std::vector<int64_t>{16, 7})) << name;
+    EXPECT_LE(test::max_abs_diff(path[0], torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0})), 1e-9) << name;
+    EXPECT_GT(path.slice(1, 0, 3).norm(2, 1).max().item<double>(), 0.1) << name;  // it moves
+    EXPECT_LE((path.slice(1, 3, 7).norm(2, 1) - 1).abs().max().item<double>(), 1e-9) << name;
+  }
+  // The orbit always looks at the focus point: the viewing axis through the camera hits (0, 0, focus).
+  auto orbit = render::camera_path_preset("orbit", 8, o);
+  auto c2w = geometry::pose_encoding_to_c2w(orbit);
+  for (int64_t i = 0; i < 8; ++i) {
+    auto to_focus = torch::tensor({0.0, 0.0, o.focus_distance}, torch::kFloat64) - c2w[i].slice(0, 0, 3).select(1, 3);
+    auto z = c2w[i].slice(0, 0, 3).select(1, 2);
+    EXPECT_NEAR(torch::dot(to_focus / to_focus.norm(), z).item<double>(), 1.0, 1e-9);
+  }
+  EXPECT_THROW(render::camera_path_preset("zoom", 8, o), std::invalid_argument);
+}
+
+TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
+  auto dir = test::temp_dir("camera_path");
+  auto write = [&](const std::string& name, const std::string& text) {
+    auto p = (dir / name).string();
+    std::ofstream(p) << text;
+    return p;
+  };
+  auto path = render::read_camera_path(write(
+      "ok.json", R"({"frames": [{"pose": [0, 0, 1, 0, 0, 0, 2], "fxfycxcy": [0.9, 1.6, 0.5, 0.5]},
+                                {"c2w": [[1, 0, 0, 0.5], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
+                                 "fxfycxcy": [0.9, 1.6, 0.5, 0.5]}]})"));
+  ASSERT_EQ(path.poses.sizes(), (std::vector<int64_t>{2, 7}));
+  EXPECT_NEAR(path.poses[0][6].item<double>(), 1.0, 1e-12);  // quaternion normalised
+  EXPECT_NEAR(path.poses[1][0].item<double>(), 0.5, 1e-12);
+  ASSERT_TRUE(path.fxfycxcy_normalised.defined());
+  auto error = [&](const std::string& text) {
+    return test::error_of([&] { render::read_camera_path(write("bad.json", text)); });
+  };
+  EXPECT_NE(error(R"({"frames": [{"pose": [0, 0, 1]}]})").find("frames[0].pose"), std::string::npos);
+  EXPECT_NE(error(R"({"frames": [{"c2w": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]}]})").find("orthonormal"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}, {"pose": [0, 0, 1, 0, 0, 0, 1], "fxfycxcy": [1, 1, 0.5, 0.5]}]})")
+                .find("every frame"),
+            std::string::npos);
+  EXPECT_NE(error(R"({"frames": []})").find("frames"), std::string::npos);
+  EXPECT_NE(error("{").find("invalid JSON"), std::string::npos);
+}
+
+namespace {
+ModelConfig micro_model(const std::string& variant, bool mapper) {
+  ModelConfig m;
+  m.variant = variant;
+  m.pose_mapper = mapper;
+  m.image_size = 32;
+  m.patch_size = 8;
+  m.transformer.d = 32;
+  m.transformer.d_head = 16;
+  m.transformer.encoder_n_layer = m.transformer.estimator_n_layer = m.transformer.decoder_n_layer = 1;
+  m.transformer.n_layer = 1;
+  m.transformer.n_latent_vectors = 8;
+  m.dinov2.embed_dim = 32;
+  m.dinov2.depth = 1;
+  m.dinov2.num_heads = 2;
+  m.dinov2.pos_grid = 4;
+  return m;
+}
+}  // namespace
+
+TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
+  torch::manual_seed(0);
+  auto images = torch::rand({2, 3, 32, 32});
+  auto k = torch::tensor({30.0, 30.0, 16.0, 16.0}).expand({2, 4}).contiguous();
+  auto c2w = torch::eye(4).expand({2, 4, 4}).clone();
+  c2w[1][0][3] = 2.0;  // baseline 2
+  auto poses = render::camera_path_preset("orbit", 5);
+  auto kk = k[0].expand({5, 4});
+  model::UPLVSM up(micro_model("uplvsm", true));
+  auto frames = render::render_camera_path(up, {images, k, {}}, poses, kk, 2);
+  EXPECT_EQ(frames.sizes(), (std::vector<int64_t>{5, 3, 32, 32}));
+  // Chunking does not change frames.
+  EXPECT_LE(test::max_abs_diff(frames, render::render_camera_path(up, {images, k, {}}, poses, kk, 5)), 1e-5);
+  model::UPLVSM no_mapper(micro_model("uplvsm", false));
+  EXPECT_NE(test::error_of([&] { render::render_camera_path(no_mapper, {images, k, {}}, poses, kk); })
+                .find("--stage mapper"),
+            std::string::npos);
+  // A posed variant places the path in the inputs' world: its first frame is input view 0's camera.
+  model::UPLVSM pt(micro_model("ptlvsm", false));
+  auto posed = render::render_camera_path(pt, {images, k, c2w}, poses, kk, 2);
+  model::Views in{images.unsqueeze(0), k.unsqueeze(0), c2w.unsqueeze(0)};
+  model::Views first{torch::zeros({1, 1, 3, 32, 32}), k.slice(0, 0, 1).unsqueeze(0), c2w.slice(0, 0, 1).unsqueeze(0)};
+  torch::NoGradGuard no_grad;
+  EXPECT_LE(test::max_abs_diff(posed[0], pt->render_posed(in, first, nullptr, false)[0][0]), 1e-5);
+  EXPECT_LE(test::max_abs_diff(posed, render::render_camera_path(pt, {images, k, c2w}, poses, kk, 5)), 1e-5);
+  EXPECT_NE(test::error_of([&] { render::render_camera_path(pt, {images, k, {}}, poses, kk); }).find("c2w"),
+            std::string::npos);
+  EXPECT_EQ(render::side_by_side(images, frames).sizes(), (std::vector<int64_t>{5, 3, 32, 96}));
 }

@@ -130,3 +130,64 @@ TEST(Trainer, Bf16AutocastKeepsFp32MasterWeights) {
   auto ckpt = model::read_checkpoint(run);
   for (const auto& [k, v] : ckpt.model) EXPECT_EQ(v.scalar_type(), torch::kFloat32) << k;
 }
+
+TEST(Trainer, PeriodicEvaluationIsLoggedBesideTheLoss) {
+  auto config = test::micro_config();
+  config.training.train_steps = 6;
+  config.training.eval_every = 4;
+  auto run = test::temp_dir("train_periodic_eval").string();
+  auto opt = options(run);
+  std::vector<int64_t> steps;
+  opt.periodic_eval = [&](model::UPLVSM& net, int64_t step) {
+    EXPECT_FALSE(net->is_training());
+    steps.push_back(step);
+    return nlohmann::json{{"psnr", 10.0 + static_cast<double>(step)}};
+  };
+  train::train(config, opt);
+  EXPECT_EQ(steps, (std::vector<int64_t>{4, 6}));  // every 4 steps and at the end
+  std::ifstream in(fs::path(run) / "metrics.jsonl");
+  std::string line;
+  std::vector<double> eval_psnr;
+  while (std::getline(in, line)) {
+    auto j = nlohmann::json::parse(line);
+    if (j.contains("eval")) eval_psnr.push_back(j["eval"]["psnr"].get<double>());
+  }
+  EXPECT_EQ(eval_psnr, (std::vector<double>{14.0, 16.0}));
+}
+
+TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
+  auto config = test::micro_config();
+  config.training.train_steps = 8;
+  auto base = test::temp_dir("train_mapper_base").string();
+  train::train(config, options(base));
+
+  config.model.pose_mapper = true;
+  config.training.target_poses = "mapper";
+  config.training.train_steps = 3;
+  auto run = test::temp_dir("train_mapper").string();
+  auto opt = options(run);
+  opt.init_weights = model::resolve_checkpoint(base);
+  train::train(config, opt);
+  auto ckpt = model::read_checkpoint(run);
+  ASSERT_TRUE(ckpt.model.count("pose_mapper.A"));
+  // The least-squares start moved A away from the identity, and the fine-tune trained it further.
+  EXPECT_GT((ckpt.model.at("pose_mapper.A") - torch::eye(7)).abs().max().item<double>(), 1e-3);
+  EXPECT_TRUE(ckpt.optimizer.size() > 0);
+  for (double loss : logged(run)) EXPECT_TRUE(std::isfinite(loss)) << loss;
+}
+
+TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {
+  auto config = test::micro_config();
+  config.model.variant = "ptlvsm";
+  config.model.transformer.n_layer = 2;
+  config.training.train_steps = 20;
+  auto run = test::temp_dir("train_ptlvsm").string();
+  train::train(config, options(run));
+  auto losses = logged(run);
+  ASSERT_EQ(losses.size(), 20u);
+  EXPECT_LT(losses[19] + losses[18], losses[0] + losses[1]);
+  Config loaded;
+  auto net = model::load_model(run, torch::kCPU, &loaded);
+  EXPECT_EQ(loaded.model.variant, "ptlvsm");
+  EXPECT_FALSE(net->estimator);
+}

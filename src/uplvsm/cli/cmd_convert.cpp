@@ -68,11 +68,17 @@ void verify(const std::string& output, const model::UPLVSMImpl& converted, const
   auto images = torch::rand({1, 3, 3, s, s}, torch::TensorOptions().device(device));
   auto K = torch::tensor({0.9 * s, 0.9 * s, 0.5 * s, 0.5 * s}, torch::TensorOptions().device(device)).expand({1, 3, 4});
   auto t0 = std::chrono::steady_clock::now();
-  auto out = net->forward(images.narrow(1, 0, 2), K.narrow(1, 0, 2), images.narrow(1, 2, 1), K.narrow(1, 2, 1));
+  // Posed variants need cameras: a camera 1 unit to the right per view.
+  auto c2w = torch::eye(4, images.options()).repeat({1, 3, 1, 1});
+  c2w.select(1, 1)[0][0][3] = 1.0;
+  c2w.select(1, 2)[0][0][3] = 0.5;
+  model::Views inputs{images.narrow(1, 0, 2), K.narrow(1, 0, 2), c2w.narrow(1, 0, 2)};
+  model::Views targets{images.narrow(1, 2, 1), K.narrow(1, 2, 1), c2w.narrow(1, 2, 1)};
+  auto out = net->forward(inputs, targets, model::parse_target_poses("auto", config.model));
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!torch::isfinite(out.render).all().item<bool>() || !torch::isfinite(out.pose_enc).all().item<bool>())
+  auto pose = out.pose_enc.defined() ? out.pose_enc.cpu().contiguous() : torch::zeros({7});
+  if (!torch::isfinite(out.render).all().item<bool>() || !torch::isfinite(pose).all().item<bool>())
     throw std::runtime_error("verify: the forward pass produced NaN/Inf");
-  auto pose = out.pose_enc.cpu().contiguous();
   std::vector<float> pose7(pose.data_ptr<float>(), pose.data_ptr<float>() + 7);
   std::cout << fmt::format("verify: {} tensors identical after reload; forward 2 inputs + 1 target at {}x{} px in "
                            "{:.2f} s, render mean {:.4f}, pose {:.4f}\n",

@@ -22,7 +22,7 @@ void add_eval_command(CLI::App& app) {
     CommonOptions common;
     ModelSource model;
     std::string data, split = "test", index, out;
-    std::string lpips_net = "vgg", lpips_backbone, lpips_lin, amp = "none";
+    std::string lpips_net = "vgg", lpips_backbone, lpips_lin, amp = "none", target_poses = "auto";
     int64_t max_scenes = 0, batch = 4, visualise = 8;
   };
   auto a = std::make_shared<Args>();
@@ -38,6 +38,12 @@ void add_eval_command(CLI::App& app) {
   cmd->add_option("--out", a->out, "output directory")->required();
   cmd->add_option("--amp", a->amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)")
       ->check(CLI::IsMember({"none", "bf16"}))
+      ->capture_default_str();
+  cmd->add_option("--target-poses", a->target_poses,
+                  "where target cameras come from: auto (the model's own protocol: estimator for UP-LVSM, dataset "
+                  "cameras for ptlvsm/lvsm), estimator, mapper (dataset cameras through the camera-control mapper) or "
+                  "dataset")
+      ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
       ->capture_default_str();
   cmd->add_option("--lpips-net", a->lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
@@ -67,22 +73,24 @@ void add_eval_command(CLI::App& app) {
     opt.num_visualised = a->visualise;
     opt.out_dir = a->out;
     opt.bf16 = parse_amp(a->amp);
+    opt.target_poses = model::parse_target_poses(a->target_poses, config.model);
     if (!a->lpips_backbone.empty()) {
       opt.lpips = eval::load_lpips(eval::parse_lpips_net(a->lpips_net), a->lpips_backbone, a->lpips_lin);
       opt.lpips->to(device);
     }
     opt.extra = {{"checkpoint", model::resolve_checkpoint(a->model.checkpoint)}, {"data", a->data}, {"split", a->split},
-                 {"config", config.name}};
+                 {"config", config.name},
+                 {"variant", config.model.variant}, {"target_poses", model::to_string(opt.target_poses)}};
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& t = summary.table;
-    auto line = [&](const char* name, const std::string& row) {
+    auto line = [&](const std::string& name, const std::string& row) {
       const auto& r = t.at(row);
       const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
-      return fmt::format("  {:<14} PSNR {:6.2f}  SSIM {:.4f}  LPIPS {}\n", name, r.at("psnr"), r.at("ssim"), lpips);
+      return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  LPIPS {}\n", name, r.at("psnr"), r.at("ssim"), lpips);
     };
     std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
                              summary.seconds, a->out)
-              << line("UP-LVSM", "model") << line("copy nearest", "copy_nearest")
+              << line(config.model.variant + " (" + model::to_string(opt.target_poses) + ")", "model") << line("copy nearest", "copy_nearest")
               << line("mean colour", "mean_colour");
     if (!opt.lpips)
       std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";

@@ -17,7 +17,9 @@
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/geometry/camera.h"
 #include "uplvsm/render/renderer.h"
+#include "uplvsm/render/trajectory.h"
 
 namespace uplvsm::cli {
 
@@ -28,7 +30,9 @@ namespace {
 struct Args {
   CommonOptions common;
   ModelSource model;
-  std::string data, split = "test", index, out, amp = "none";
+  std::string data, split = "test", index, out, amp = "none", trajectory = "interpolate";
+  double focus = 2.0, radius = 0.5, arc = 30.0;
+  bool side_by_side = false;
   std::vector<std::string> images;
   int64_t scenes = 1, frames = 24;
   double fps = 12, fov = 60;
@@ -48,29 +52,71 @@ data::Views load_user_image(const std::string& path, double fov_deg, const data:
   return data::preprocess({img}, cam, prep, path);
 }
 
-void render_one(model::UPLVSM& net, const data::Views& views, const std::string& dir, const Args& a,
-                nlohmann::json& listing, const std::string& name) {
-  render::InterpolationVideo video;
-  {
-    AutocastGuard amp(net->n_light_field_latent.device(), parse_amp(a.amp));
-    video = render::render_interpolation(net, views.images, views.fxfycxcy, a.frames);
+// The camera path of the video in camera-control units and its pixel intrinsics, or undefined poses for the latent
+// interpolation (unposed inputs and no way to place real cameras).
+std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const data::Views& views, bool posed,
+                                                    const Args& a) {
+  const int64_t H = views.images.size(2), W = views.images.size(3);
+  auto k0 = views.fxfycxcy[0].to(torch::kFloat64);
+  auto repeat_k = [&](int64_t n) { return k0.unsqueeze(0).expand({n, 4}).contiguous(); };
+  if (a.trajectory == "interpolate") {
+    if (!posed || (!net->posed_variant() && !net->pose_mapper)) return {};
+    // SE(3) interpolation from the first input view (identity) to the second, in camera-control units.
+    auto real = model::camera_control_poses(views.c2w.unsqueeze(0), views.c2w.unsqueeze(0))[0].to(torch::kFloat64);
+    return {render::interpolate_poses(real.slice(0, 0, 2), a.frames),
+            render::interpolate_intrinsics(views.fxfycxcy.to(torch::kFloat64).slice(0, 0, 2), a.frames)};
   }
-  video.frames = video.frames.to(torch::kFloat32);
-  auto files = render::write_video(dir, "video", video.frames, a.fps);
+  if (a.trajectory == "orbit" || a.trajectory == "spiral" || a.trajectory == "dolly") {
+    render::PresetOptions o;
+    o.focus_distance = a.focus;
+    o.radius = a.radius;
+    o.arc_degrees = a.arc;
+    return {render::camera_path_preset(a.trajectory, a.frames, o), repeat_k(a.frames)};
+  }
+  auto path = render::read_camera_path(a.trajectory);
+  const int64_t n = path.poses.size(0);
+  if (!path.fxfycxcy_normalised.defined()) return {path.poses, repeat_k(n)};
+  return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W)};
+}
+
+void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const std::string& dir, const Args& a,
+                nlohmann::json& listing, const std::string& name) {
+  auto [poses, intrinsics] = camera_path(net, views, posed, a);
+  torch::Tensor frames, key_poses;
+  {
+    AutocastGuard amp(render::model_device(*net), parse_amp(a.amp));
+    if (poses.defined()) {
+      model::Views inputs{views.images, views.fxfycxcy, posed ? views.c2w : torch::Tensor()};
+      frames = render::render_camera_path(net, inputs, poses, intrinsics);
+    } else {
+      auto video = render::render_interpolation(net, views.images, views.fxfycxcy, a.frames);
+      frames = video.frames;
+      key_poses = video.key_poses.to(torch::kFloat32).contiguous();
+    }
+  }
+  frames = frames.to(torch::kFloat32);
+  if (a.side_by_side) frames = render::side_by_side(views.images, frames);
+  auto files = render::write_video(dir, "video", frames, a.fps);
   io::write_png((fs::path(dir) / "input_0.png").string(), io::to_u8_hwc(views.images[0]));
   io::write_png((fs::path(dir) / "input_1.png").string(), io::to_u8_hwc(views.images[1]));
-  auto poses = video.key_poses.to(torch::kFloat32).contiguous();
-  listing.push_back({{"name", name}, {"dir", dir}, {"mp4", files.mp4}, {"gif", files.gif}, {"frames", video.frames.size(0)},
-                     {"key_poses", std::vector<float>(poses.data_ptr<float>(), poses.data_ptr<float>() + poses.numel())}});
+  nlohmann::json entry = {{"name", name},          {"dir", dir},
+                          {"mp4", files.mp4},      {"gif", files.gif},
+                          {"frames", frames.size(0)}, {"trajectory", poses.defined() ? a.trajectory : "latent interpolation"}};
+  if (key_poses.defined())
+    entry["key_poses"] = std::vector<float>(key_poses.data_ptr<float>(), key_poses.data_ptr<float>() + key_poses.numel());
+  listing.push_back(entry);
 }
 
 }  // namespace
 
 void add_render_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "render", "Render a novel-view video between two input views: the Latent Plücker Learner estimates the inputs' "
-                "latent poses, which are interpolated (linear translation, quaternion slerp) and decoded. Inputs "
-                "come from --data scenes (their evaluation context views) or from --images A B (your photos).");
+      "render", "Render a novel-view video from two input views, from --data scenes (their evaluation context views) "
+                "or --images A B (your photos). --trajectory interpolate: between the inputs - in latent pose space "
+                "(the Latent Plücker Learner's poses of the inputs) for unposed photos, in SE(3) through the camera "
+                "mapper or a posed variant when the inputs have cameras; orbit/spiral/dolly presets or a camera-path "
+                "JSON: real cameras relative to the first input view (units: the input baseline), which need a "
+                "camera mapper (`train --stage mapper`) or a posed variant.");
   auto a = std::make_shared<Args>();
   add_common_options(cmd, a->common);
   add_model_options(cmd, a->model);
@@ -82,6 +128,16 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--fov", a->fov, "horizontal field of view in degrees for --images")->capture_default_str();
   cmd->add_option("--frames", a->frames, "frames of the video")->check(CLI::Range(2, 100000))->capture_default_str();
   cmd->add_option("--fps", a->fps, "frames per second")->capture_default_str();
+  cmd->add_option("--trajectory", a->trajectory,
+                  "interpolate, orbit, spiral, dolly, or a camera-path JSON file ({\"frames\": [{\"pose\": [tx, ty, "
+                  "tz, qx, qy, qz, qw]} or {\"c2w\": 4x4}, optional \"fxfycxcy\" normalised], first input view "
+                  "canonical, OpenCV axes, translations in input baselines)")
+      ->capture_default_str();
+  cmd->add_option("--focus", a->focus, "presets: distance of the looked-at point in front of the first view (baselines)")
+      ->capture_default_str();
+  cmd->add_option("--radius", a->radius, "presets: spiral radius / dolly travel (baselines)")->capture_default_str();
+  cmd->add_option("--arc", a->arc, "orbit: total swing in degrees")->capture_default_str();
+  cmd->add_flag("--side-by-side", a->side_by_side, "video frames show [input 0 | input 1 | render]");
   cmd->add_option("--amp", a->amp, "model precision: none (fp32) or bf16 autocast")
       ->check(CLI::IsMember({"none", "bf16"}))
       ->capture_default_str();
@@ -99,7 +155,7 @@ void add_render_command(CLI::App& app) {
       auto v0 = load_user_image(a->images[0], a->fov, prep), v1 = load_user_image(a->images[1], a->fov, prep);
       data::Views views{torch::cat({v0.images, v1.images}), torch::cat({v0.fxfycxcy, v1.fxfycxcy}),
                         torch::cat({v0.c2w, v1.c2w}), {0, 1}};
-      render_one(net, views, a->out, *a, listing, "images");
+      render_one(net, views, false, a->out, *a, listing, "images");
     } else {
       data::ChunkDataset dataset(a->data, a->split);
       auto index = a->index.empty() ? (fs::path(a->data) / "evaluation_index.json").string() : a->index;
@@ -110,8 +166,8 @@ void add_render_command(CLI::App& app) {
         if (done >= a->scenes) break;
         const int64_t scene = dataset.find(e.key);
         if (scene < 0) continue;
-        render_one(net, dataset.load_views(scene, e.context, prep), (fs::path(a->out) / e.key).string(), *a, listing,
-                   e.key);
+        render_one(net, dataset.load_views(scene, e.context, prep), true, (fs::path(a->out) / e.key).string(), *a,
+                   listing, e.key);
         bar.update(++done);
       }
       bar.finish();

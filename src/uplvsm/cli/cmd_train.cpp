@@ -1,14 +1,60 @@
 // `uplvsm train`: trains UP-LVSM from images alone on a pixelSplat-format dataset; resumable.
+#include <filesystem>
 #include <iostream>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/config.h"
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/runtime.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/eval/evaluator.h"
+#include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {
+
+namespace {
+
+// Held-out evaluation during training (training.eval_every): the test split's evaluation index, at most
+// eval.max_scenes scenes (default 16), with the run's target-pose protocol; results in <run>/eval/step_NNNNNNN/.
+std::function<nlohmann::json(model::UPLVSM&, int64_t)> periodic_evaluation(const Config& config,
+                                                                           const std::string& data,
+                                                                           const std::string& run,
+                                                                           torch::Device device) {
+  const auto index = std::filesystem::path(data) / "evaluation_index.json";
+  if (!std::filesystem::exists(index)) {
+    spdlog::warn("training.eval_every is set but {} does not exist: no periodic evaluation", index.string());
+    return {};
+  }
+  return [=](model::UPLVSM& net, int64_t step) {
+    data::ChunkDataset dataset(data, "test");
+    data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+                                 config.dataset.square_crop};
+    eval::EvalOptions opt;
+    opt.index_path = index.string();
+    opt.max_scenes = config.eval.max_scenes > 0 ? config.eval.max_scenes : 16;
+    opt.device = device;
+    opt.num_visualised = 2;
+    opt.bf16 = parse_amp(config.training.amp);
+    opt.target_poses = model::parse_target_poses(config.training.target_poses, config.model);
+    opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
+    auto summary = eval::evaluate(net, dataset, prep, opt);
+    const auto& model_row = summary.table.at("model");
+    spdlog::info("step {}: held-out PSNR {:.2f} dB, SSIM {:.4f} on {} scenes (copy-nearest {:.2f} dB)", step,
+                 model_row.at("psnr"), model_row.at("ssim"), summary.scenes,
+                 summary.table.at("copy_nearest").at("psnr"));
+    return nlohmann::json{{"psnr", model_row.at("psnr")},
+                          {"ssim", model_row.at("ssim")},
+                          {"scenes", summary.scenes},
+                          {"copy_nearest_psnr", summary.table.at("copy_nearest").at("psnr")},
+                          {"dir", opt.out_dir}};
+  };
+}
+
+}  // namespace
 
 void add_train_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
@@ -18,7 +64,7 @@ void add_train_command(CLI::App& app) {
                "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process.");
   struct Args {
     CommonOptions common;
-    std::string config, data, run, resume = "auto", init, vgg19, amp;
+    std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main";
     int64_t steps = -1, stop_after = -1;
   };
   auto a = std::make_shared<Args>();
@@ -32,8 +78,9 @@ void add_train_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--init", a->init,
                   "start a new run from these weights: UP-LVSM (ours or official, loaded strictly) or DINOv2 "
-                  "(Meta .pth or HuggingFace safetensors, into the image tokenizer, as the official code does)")
-      ->check(CLI::ExistingFile);
+                  "(Meta .pth or HuggingFace safetensors, into the image tokenizer, as the official code does); a "
+                  "run or checkpoints directory means its latest checkpoint")
+      ->check(CLI::ExistingPath);
   cmd->add_option("--vgg19", a->vgg19,
                   "VGG19 weights for the perceptual loss (torchvision features.N.*: torchvision vgg19 .pth, or the "
                   "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); without it "
@@ -41,6 +88,14 @@ void add_train_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--amp", a->amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
       ->check(CLI::IsMember({"none", "bf16"}));
+  cmd->add_option("--stage", a->stage,
+                  "main: the config as given; mapper: camera-control fine-tuning (paper appendix) - adds the linear "
+                  "pose mapper (model.pose_mapper), fitted by least squares to the --init model's estimator, and "
+                  "trains the whole model with target poses from dataset cameras through the mapper "
+                  "(training.target_poses = mapper); use a mapper config for the paper's lr 1e-4 / 8K steps "
+                  "(configs/*_mapper.json)")
+      ->check(CLI::IsMember({"main", "mapper"}))
+      ->capture_default_str();
   cmd->add_option("--steps", a->steps, "override training.train_steps");
   cmd->add_option("--stop-after", a->stop_after, "stop after this many steps of this invocation (checkpointed)");
   cmd->callback([a] {
@@ -48,17 +103,25 @@ void add_train_command(CLI::App& app) {
     auto config = load_config(a->config);
     if (a->steps > 0) config.training.train_steps = a->steps;
     if (!a->amp.empty()) config.training.amp = a->amp;
+    if (a->stage == "mapper") {
+      if (a->init.empty() && a->resume == "none")
+        throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");
+      config.model.pose_mapper = true;
+      config.training.target_poses = "mapper";
+      validate_config(config, a->config + " (--stage mapper)");
+    }
     train::TrainOptions opt;
     opt.data_root = a->data;
     opt.run_dir = a->run;
     opt.resume = a->resume;
-    opt.init_weights = a->init;
+    opt.init_weights = std::filesystem::is_directory(a->init) ? model::resolve_checkpoint(a->init) : a->init;
     opt.perceptual_weights = a->vgg19;
     // torchrun / SLURM launch variables make this process one rank of a data-parallel run.
     const auto env = train::distributed_env_from_environment();
     opt.device = train::rank_device(parse_device(a->common.device), env);
     if (env.distributed()) opt.comm = std::make_shared<train::Communicator>(env, opt.device);
     opt.stop_after_steps = a->stop_after;
+    if (config.training.eval_every > 0) opt.periodic_eval = periodic_evaluation(config, a->data, a->run, opt.device);
     auto r = train::train(config, opt);
     std::cout << fmt::format("trained to step {} in {:.1f} s: loss {:.5f}, PSNR {:.2f} dB; checkpoint {}\n", r.step,
                              r.seconds, r.last_loss, r.last_psnr, r.last_checkpoint.empty() ? "-" : r.last_checkpoint);

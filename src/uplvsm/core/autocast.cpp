@@ -32,6 +32,8 @@ bool parse_amp(const std::string& amp) {
   throw std::runtime_error("amp '" + amp + "': expected 'none' or 'bf16'");
 }
 
+bool autocast_active(torch::Device device) { return is_enabled_on(device.is_cuda()); }
+
 AutocastGuard::AutocastGuard(torch::Device device, bool enabled) {
   if (!enabled) return;
   active_ = true;

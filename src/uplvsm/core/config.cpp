@@ -51,6 +51,7 @@ void transformer_fields(C& c, F&& f) {
   f("encoder_n_layer", c.encoder_n_layer);
   f("estimator_n_layer", c.estimator_n_layer);
   f("decoder_n_layer", c.decoder_n_layer);
+  f("n_layer", c.n_layer);
   f("n_latent_vectors", c.n_latent_vectors);
   f("qk_norm_eps", c.qk_norm_eps);
   f("special_init", c.special_init);
@@ -76,6 +77,7 @@ void dinov2_fields(C& c, F&& f) {
 template <typename C, typename F>
 void model_fields(C& c, F&& f) {
   f("variant", c.variant);
+  f("pose_mapper", c.pose_mapper);
   f("image_size", c.image_size);
   f("patch_size", c.patch_size);
 }
@@ -93,6 +95,7 @@ void training_fields(C& c, F&& f) {
   f("allowed_gradnorm_factor", c.allowed_gradnorm_factor);
   f("batch_size", c.batch_size);
   f("grad_accum_steps", c.grad_accum_steps);
+  f("grad_checkpoint_every", c.grad_checkpoint_every);
   f("num_views", c.num_views);
   f("num_input_views", c.num_input_views);
   f("num_target_views", c.num_target_views);
@@ -107,6 +110,7 @@ void training_fields(C& c, F&& f) {
   f("seed", c.seed);
   f("loader_threads", c.loader_threads);
   f("amp", c.amp);
+  f("target_poses", c.target_poses);
 }
 
 template <typename C, typename F>
@@ -191,13 +195,16 @@ Config load_config(const std::string& path) {
 void validate_config(const Config& c, const std::string& s) {
   const auto& m = c.model;
   const auto& t = m.transformer;
-  require(m.variant == "uplvsm", s, "model.variant: only 'uplvsm' is implemented, got '" + m.variant + "'");
+  require(m.variant == "uplvsm" || m.variant == "ptlvsm" || m.variant == "lvsm", s,
+          "model.variant must be 'uplvsm', 'ptlvsm' or 'lvsm', got '" + m.variant + "'");
+  require(!m.pose_mapper || m.variant == "uplvsm", s,
+          "model.pose_mapper: only the uplvsm variant has latent poses to map to");
   require(m.patch_size > 0 && m.image_size > 0 && m.image_size % m.patch_size == 0, s,
           fmt::format("model.image_size ({}) must be a positive multiple of model.patch_size ({})", m.image_size,
                       m.patch_size));
   require(t.d > 0 && t.d_head > 0 && t.d % t.d_head == 0, s,
           fmt::format("model.transformer.d ({}) must be a multiple of d_head ({})", t.d, t.d_head));
-  require(t.encoder_n_layer >= 1 && t.estimator_n_layer >= 1 && t.decoder_n_layer >= 1, s,
+  require(t.encoder_n_layer >= 1 && t.estimator_n_layer >= 1 && t.decoder_n_layer >= 1 && t.n_layer >= 1, s,
           "model.transformer: every stack needs at least one layer");
   require(t.n_latent_vectors >= 1, s, "model.transformer.n_latent_vectors must be >= 1");
   require(m.dinov2.embed_dim == t.d, s,
@@ -210,9 +217,16 @@ void validate_config(const Config& c, const std::string& s) {
   require(tr.num_input_views >= 1 && tr.num_target_views >= 1, s, "training: need >= 1 input and target view");
   require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s, "training.num_views must be >= num_input_views and >= 2");
   require(tr.batch_size >= 1 && tr.grad_accum_steps >= 1, s, "training.batch_size and grad_accum_steps must be >= 1");
+  require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
           "training: need 1 <= min_frame_dist <= max_frame_dist");
   require(tr.amp == "none" || tr.amp == "bf16", s, "training.amp must be 'none' or 'bf16'");
+  const auto& tp = tr.target_poses;
+  require(tp == "auto" || tp == "estimator" || tp == "mapper" || tp == "dataset", s,
+          "training.target_poses must be 'auto', 'estimator', 'mapper' or 'dataset', got '" + tp + "'");
+  require(m.variant == "uplvsm" || tp == "auto" || tp == "dataset", s,
+          "training.target_poses: the " + m.variant + " variant renders from dataset cameras ('auto' or 'dataset')");
+  require(tp != "mapper" || m.pose_mapper, s, "training.target_poses 'mapper' needs model.pose_mapper: true");
   require(tr.train_steps >= 1 && tr.warmup >= 0, s, "training.train_steps must be >= 1 and warmup >= 0");
   require(c.dataset.frames_per_scene >= tr.num_views, s, "dataset.frames_per_scene must be >= training.num_views");
 }

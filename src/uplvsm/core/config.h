@@ -15,6 +15,7 @@ struct TransformerConfig {
   int64_t encoder_n_layer = 6;
   int64_t estimator_n_layer = 4;
   int64_t decoder_n_layer = 14;
+  int64_t n_layer = 24;  // the decoder-only posed variants (ptlvsm, lvsm): official `transformer.n_layer`
   int64_t n_latent_vectors = 1024;
   double qk_norm_eps = 1e-3;  // official UP-LVSM; LVSM uses 1e-5
   bool special_init = true;
@@ -37,7 +38,8 @@ struct Dinov2Config {
 };
 
 struct ModelConfig {
-  std::string variant = "uplvsm";
+  std::string variant = "uplvsm";  // "uplvsm", "ptlvsm" (posed targets), "lvsm" (posed inputs and targets)
+  bool pose_mapper = false;        // camera control: the linear pose mapper (model/pose_mapper.h), uplvsm only
   int64_t image_size = 224;
   int64_t patch_size = 14;
   TransformerConfig transformer;
@@ -54,6 +56,7 @@ struct TrainingConfig {
   double allowed_gradnorm_factor = 4.0;
   int64_t batch_size = 16;
   int64_t grad_accum_steps = 1;
+  int64_t grad_checkpoint_every = 0;  // checkpoint transformer blocks in groups of this many (official: 1); 0 off
   int64_t num_views = 8;
   int64_t num_input_views = 2;
   int64_t num_target_views = 6;
@@ -68,6 +71,9 @@ struct TrainingConfig {
   int64_t seed = 777;
   int64_t loader_threads = 2;
   std::string amp = "none";  // "none" or "bf16"
+  // Where targets' cameras come from (model::TargetPoses): "auto" (estimator for uplvsm, dataset for the posed
+  // variants), "estimator", "mapper" (camera-control fine-tuning) or "dataset" (the SfM-target-pose ablation).
+  std::string target_poses = "auto";
 };
 
 struct DatasetConfig {

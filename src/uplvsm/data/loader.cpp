@@ -99,6 +99,12 @@ torch::Tensor TrainingBatch::target_fxfycxcy() const {
   return fxfycxcy.gather(1, target_index.unsqueeze(-1).expand({-1, -1, 4}));
 }
 
+torch::Tensor TrainingBatch::input_c2w(int64_t n) const { return c2w.narrow(1, 0, n); }
+
+torch::Tensor TrainingBatch::target_c2w() const {
+  return c2w.gather(1, target_index.view({target_index.size(0), target_index.size(1), 1, 1}).expand({-1, -1, 4, 4}));
+}
+
 TrainingLoader::TrainingLoader(const ChunkDataset& dataset, LoaderOptions opt, int64_t first_step)
     : dataset_(dataset), opt_(std::move(opt)), next_to_hand_out_(first_step), next_to_build_(first_step) {
   for (int i = 0; i < std::max(1, opt_.threads); ++i) workers_.emplace_back([this] { work(); });

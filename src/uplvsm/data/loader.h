@@ -48,6 +48,8 @@ struct TrainingBatch {
   torch::Tensor input_fxfycxcy(int64_t n) const;
   torch::Tensor target_images() const;
   torch::Tensor target_fxfycxcy() const;
+  torch::Tensor input_c2w(int64_t n) const;
+  torch::Tensor target_c2w() const;
 };
 
 // The batch of `step` for this rank (no threads; the loader below calls it).

@@ -178,21 +178,25 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
                RunState& state) {
   const int64_t vi = static_cast<int64_t>(scenes[0]->job->entry.context.size());
   const int64_t vt = static_cast<int64_t>(scenes[0]->job->entry.target.size());
-  std::vector<torch::Tensor> images, intrinsics;
+  std::vector<torch::Tensor> images, intrinsics, cameras;
   std::vector<std::vector<int64_t>> in_frames, tgt_frames;
   for (const auto* s : scenes) {
     images.push_back(s->views.images);
     intrinsics.push_back(s->views.fxfycxcy);
+    cameras.push_back(s->views.c2w);
     in_frames.push_back(s->job->entry.context);
     tgt_frames.push_back(s->job->entry.target);
   }
   auto all = torch::stack(images).to(opt.device, torch::kFloat32);  // [b, vi + vt, 3, H, W]
   auto k = torch::stack(intrinsics).to(opt.device, torch::kFloat32);
+  auto c2w = torch::stack(cameras).to(opt.device, torch::kFloat32);
   auto in_img = all.narrow(1, 0, vi), gt = all.narrow(1, vi, vt);
   torch::Tensor pred;
   {
     AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
-    pred = net->forward(in_img, k.narrow(1, 0, vi), gt, k.narrow(1, vi, vt)).render;
+    model::Views inputs{in_img, k.narrow(1, 0, vi), c2w.narrow(1, 0, vi)};
+    model::Views targets{gt, k.narrow(1, vi, vt), c2w.narrow(1, vi, vt)};
+    pred = net->forward(inputs, targets, opt.target_poses).render;
   }
   pred = pred.to(torch::kFloat32);
   auto copy = copy_nearest_input(in_img, in_frames, tgt_frames);

@@ -34,6 +34,9 @@ struct EvalOptions {
   Lpips lpips{nullptr};                // null: LPIPS is unavailable (NaN, null in JSON), never a made-up number
   int64_t lpips_chunk = 10;            // images per LPIPS forward (the official evaluation uses 10)
   bool bf16 = false;                   // the model forward under bf16 autocast (metrics always in fp32/fp64)
+  // Where target cameras come from: the estimator reading the target image (UP-LVSM's protocol), the dataset
+  // cameras through the pose mapper (camera control), or the dataset cameras directly (posed variants).
+  model::TargetPoses target_poses = model::TargetPoses::Estimator;
   nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
 };
 
@@ -76,8 +79,9 @@ struct EvalSummary {
   nlohmann::json lpips = {{"available", false}};  // {"available", "net"}; set by evaluate()
 };
 
-// Runs the evaluation (see the top comment). The model runs in eval mode under NoGradGuard with the paper's unposed
-// protocol (the pose estimator sees the target images: net->forward), in float32; its training mode is restored
+// Runs the evaluation (see the top comment). The model runs in eval mode under NoGradGuard with the protocol of
+// opt.target_poses (default: the paper's unposed one, the estimator sees the target images), in float32 unless
+// opt.bf16; its training mode is restored
 // afterwards. Scenes are batched by equal (context, target) counts and image size. Throws std::runtime_error for an
 // unreadable index, frames out of range and undecodable images (naming the scene).
 EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,

@@ -273,6 +273,10 @@ std::vector<TrainPoint> read_train_log(const std::string& path) {
       ++bad;
       continue;
     }
+    if (j.contains("eval")) {
+      points.push_back({j["step"].get<double>(), kNaN, kNaN, kNaN, number_or_nan(j["eval"], "psnr")});
+      continue;
+    }
     points.push_back({j["step"].get<double>(), number_or_nan(j, "loss"), number_or_nan(j, "psnr"),
                       number_or_nan(j, "lr")});
   }
@@ -281,9 +285,14 @@ std::vector<TrainPoint> read_train_log(const std::string& path) {
 }
 
 torch::Tensor training_curve(const std::vector<TrainPoint>& points) {
-  io::Series loss{"loss", {}, {}}, psnr{"PSNR", {}, {}};
+  io::Series loss{"loss", {}, {}}, psnr{"PSNR", {}, {}}, held_out{"held-out PSNR", {}, {}};
   bool positive = true;
   for (const auto& p : points) {
+    if (std::isfinite(p.eval_psnr)) {
+      held_out.x.push_back(p.step);
+      held_out.y.push_back(p.eval_psnr);
+      continue;
+    }
     loss.x.push_back(p.step);
     loss.y.push_back(p.loss);
     psnr.x.push_back(p.step);
@@ -292,7 +301,7 @@ torch::Tensor training_curve(const std::vector<TrainPoint>& points) {
   }
   io::PlotOptions top{"Training loss", "step", "loss", false, positive, 800, 360};
   io::PlotOptions bottom{"Training PSNR", "step", "PSNR (dB)", false, false, 800, 360};
-  return torch::cat({io::plot_lines({loss}, top), io::plot_lines({psnr}, bottom)}, 0).contiguous();
+  return torch::cat({io::plot_lines({loss}, top), io::plot_lines(held_out.x.empty() ? std::vector<io::Series>{psnr} : std::vector<io::Series>{psnr, held_out}, bottom)}, 0).contiguous();
 }
 
 std::string write_report(const std::string& out_dir, const ReportInputs& in) {

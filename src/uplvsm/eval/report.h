@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -33,11 +34,12 @@ std::string write_report(const std::string& out_dir, const ReportInputs& in);
 // One line of the training log; missing numbers are NaN.
 struct TrainPoint {
   double step = 0, loss = 0, psnr = 0, lr = 0;
+  double eval_psnr = std::numeric_limits<double>::quiet_NaN();  // periodic held-out evaluation lines ({"eval": ..})
 };
 // Reads a JSONL training log; lines that are blank, not JSON (e.g. cut off by a crash) or without "step" are
 // skipped (a warning counts them). Throws when the file cannot be read.
 std::vector<TrainPoint> read_train_log(const std::string& path);
-// Loss (log scale when all positive) above PSNR, vs step: uint8 [H, W, 3].
+// Loss (log scale when all positive) above PSNR (training, and held-out when logged), vs step: uint8 [H, W, 3].
 torch::Tensor training_curve(const std::vector<TrainPoint>& points);
 
 // The headline table of a metrics.json object as an HTML <table>: rows UP-LVSM (ours), copy nearest input, mean

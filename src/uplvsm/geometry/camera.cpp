@@ -47,22 +47,29 @@ torch::Tensor normalize_to_first_view(const torch::Tensor& c2w) {
 }
 
 torch::Tensor official_scene_normalize(const torch::Tensor& c2w_in, double scale_factor) {
-  TORCH_CHECK(c2w_in.dim() == 3 && c2w_in.size(1) == 4 && c2w_in.size(2) == 4,
-              "official_scene_normalize: expected [V, 4, 4], got ", c2w_in.sizes());
-  auto c2w = c2w_in.to(torch::kFloat64);
-  auto centre = c2w.index({Slice(), Slice(0, 3), 3}).mean(0);
-  auto f = torch::nn::functional::normalize(c2w.index({Slice(), Slice(0, 3), 2}).mean(0),
+  return official_scene_normalize(c2w_in, c2w_in, scale_factor);
+}
+
+torch::Tensor official_scene_normalize(const torch::Tensor& c2w_in, const torch::Tensor& reference_in,
+                                       double scale_factor) {
+  TORCH_CHECK(c2w_in.dim() == 3 && c2w_in.size(1) == 4 && c2w_in.size(2) == 4 && reference_in.dim() == 3 &&
+                  reference_in.size(1) == 4 && reference_in.size(2) == 4,
+              "official_scene_normalize: expected [V, 4, 4] cameras, got ", c2w_in.sizes(), " and reference ",
+              reference_in.sizes());
+  auto ref = reference_in.to(torch::kFloat64);
+  auto centre = ref.index({Slice(), Slice(0, 3), 3}).mean(0);
+  auto f = torch::nn::functional::normalize(ref.index({Slice(), Slice(0, 3), 2}).mean(0),
                                             torch::nn::functional::NormalizeFuncOptions().dim(0));
-  auto dn = c2w.index({Slice(), Slice(0, 3), 1}).mean(0);
+  auto dn = ref.index({Slice(), Slice(0, 3), 1}).mean(0);
   auto r = torch::nn::functional::normalize(torch::linalg_cross(dn, f, 0),
                                             torch::nn::functional::NormalizeFuncOptions().dim(0));
   dn = torch::nn::functional::normalize(torch::linalg_cross(f, r, 0),
                                         torch::nn::functional::NormalizeFuncOptions().dim(0));
-  auto frame = pad_to_4x4(torch::stack({r, dn, f, centre}, 1));
-  auto out = torch::matmul(torch::linalg_inv(frame).unsqueeze(0), c2w);
-  auto t = out.index({Slice(), Slice(0, 3), 3});
-  auto scale = t.abs().max().clamp_min(1e-12) * scale_factor;
-  out.index_put_({Slice(), Slice(0, 3), 3}, t / scale);
+  auto inv_frame = torch::linalg_inv(pad_to_4x4(torch::stack({r, dn, f, centre}, 1))).unsqueeze(0);
+  auto ref_t = torch::matmul(inv_frame, ref).index({Slice(), Slice(0, 3), 3});
+  auto scale = ref_t.abs().max().clamp_min(1e-12) * scale_factor;
+  auto out = torch::matmul(inv_frame, c2w_in.to(torch::kFloat64));
+  out.index_put_({Slice(), Slice(0, 3), 3}, out.index({Slice(), Slice(0, 3), 3}) / scale);
   return out.to(c2w_in.scalar_type());
 }
 

@@ -25,6 +25,10 @@ torch::Tensor normalize_to_first_view(const torch::Tensor& c2w);
 // Official `preprocess_poses` (per sample over its views [V, 4, 4]): re-centre on the mean camera centre with the
 // mean viewing direction as z, then scale translations so max |t| = 1 / scale_factor (1.35 in the official config).
 torch::Tensor official_scene_normalize(const torch::Tensor& c2w, double scale_factor = 1.35);
+// The same similarity transform, computed from `reference` [R, 4, 4] and applied to c2w [V, 4, 4] (so cameras added
+// later, e.g. a video path, do not move the frame).
+torch::Tensor official_scene_normalize(const torch::Tensor& c2w, const torch::Tensor& reference,
+                                       double scale_factor = 1.35);
 
 // (fx, fy, cx, cy) normalised by (W, H) <-> pixels; [..., 4].
 torch::Tensor intrinsics_to_pixels(const torch::Tensor& normalised, int64_t height, int64_t width);

@@ -21,6 +21,7 @@ struct LatentPluckerLearnerImpl : torch::nn::Module {
 
   torch::nn::ModuleList transformer_estimator{nullptr};
   DinoMlp absT_head{nullptr}, quaR_head{nullptr};
+  int64_t grad_checkpoint_every = 0;  // see run_stack
 };
 TORCH_MODULE(LatentPluckerLearner);
 

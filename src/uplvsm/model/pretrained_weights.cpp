@@ -136,7 +136,8 @@ PretrainedWeights read_pretrained_weights(const std::string& path) {
   w.path = path;
   NamedTensors raw = read_weight_file(path, &w.container, &w.found_at);
   raw = strip_prefix(raw, "module.");  // DistributedDataParallel wrapping
-  if (has_key(raw, "n_light_field_latent")) {
+  // UP-LVSM, or the official posedTargetLVSM layout of the posed variants (same model family, same loader).
+  if (has_key(raw, "n_light_field_latent") || has_key(raw, "transformer_input_layernorm.weight")) {
     w.source = WeightSource::Uplvsm;
     w.tensors = std::move(raw);
   } else if (has_key(raw, "cls_token") && any_prefix(raw, "blocks.")) {
@@ -154,14 +155,26 @@ PretrainedWeights read_pretrained_weights(const std::string& path) {
 }
 
 ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
-  const auto& latents = require(w, "n_light_field_latent");
   auto& t = c.transformer;
-  t.n_latent_vectors = latents.size(0);
-  t.d = latents.size(1);
-  t.d_head = require(w, "transformer_encoder.0.attn.q_norm.weight").size(0);
-  t.encoder_n_layer = count_indexed(w, "transformer_encoder.");
-  t.decoder_n_layer = count_indexed(w, "transformer_decoder.");
-  t.estimator_n_layer = count_indexed(w, "estimator.transformer_estimator.");
+  if (!has_key(w, "n_light_field_latent") && has_key(w, "transformer_input_layernorm.weight")) {
+    // The official posedTargetLVSM layout (decoder-only). Its keys do not tell PT-LVSM from our LVSM variant (which
+    // poses every input view); the official release is PT-LVSM, so that is the default.
+    if (c.variant == "uplvsm") c.variant = "ptlvsm";
+    c.pose_mapper = false;
+    t.d = require(w, "transformer_input_layernorm.weight").size(0);
+    t.d_head = require(w, "transformer_blocks.0.attn.q_norm.weight").size(0);
+    t.n_layer = count_indexed(w, "transformer_blocks.");
+  } else {
+    const auto& latents = require(w, "n_light_field_latent");
+    c.variant = "uplvsm";
+    c.pose_mapper = has_key(w, "pose_mapper.A");
+    t.n_latent_vectors = latents.size(0);
+    t.d = latents.size(1);
+    t.d_head = require(w, "transformer_encoder.0.attn.q_norm.weight").size(0);
+    t.encoder_n_layer = count_indexed(w, "transformer_encoder.");
+    t.decoder_n_layer = count_indexed(w, "transformer_decoder.");
+    t.estimator_n_layer = count_indexed(w, "estimator.transformer_estimator.");
+  }
   const auto& pose = require(w, "target_pose_tokenizer.1.weight");  // [d, 6 p^2]
   c.patch_size = int64_t(std::lround(std::sqrt(double(pose.size(1)) / 6.0)));
   if (6 * c.patch_size * c.patch_size != pose.size(1))

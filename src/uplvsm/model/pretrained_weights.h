@@ -36,7 +36,8 @@ PretrainedWeights read_pretrained_weights(const std::string& path);
 // HuggingFace Dinov2Model names -> Meta names. Unknown keys are an error listing them.
 NamedTensors dinov2_from_huggingface(const NamedTensors& hf, const std::string& source);
 
-// The UP-LVSM model dimensions implied by an official/our state_dict (d, layer counts, latents, patch size, DINOv2
+// The UP-LVSM model dimensions implied by an official/our state_dict (variant: uplvsm, or ptlvsm for the official
+// posedTargetLVSM layout unless `base` says lvsm; pose mapper; d, layer counts, latents, patch size, DINOv2
 // width/depth/heads/registers/QK-norm/pos grid). Fields the shapes cannot tell (image_size, eps, interpolation
 // mode) come from `base`. Throws naming the key when a required tensor is missing.
 ModelConfig infer_model_config(const NamedTensors& weights, ModelConfig base);

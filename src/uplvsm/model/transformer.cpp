@@ -1,5 +1,7 @@
 #include "uplvsm/model/transformer.h"
 
+#include "uplvsm/model/gradient_checkpoint.h"
+
 #include <cmath>
 
 namespace uplvsm::model {
@@ -101,8 +103,26 @@ torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t
   return stack;
 }
 
-torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x) {
-  for (const auto& block : *stack) x = block->as<TransformerBlock>()->forward(x);
+namespace {
+torch::Tensor run_blocks(const torch::nn::ModuleList& stack, size_t begin, size_t end, torch::Tensor x) {
+  for (size_t i = begin; i < end; ++i) x = stack->ptr<TransformerBlockImpl>(i)->forward(x);
+  return x;
+}
+}  // namespace
+
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every) {
+  const size_t n = stack->size();
+  if (checkpoint_every <= 0) return run_blocks(stack, 0, n, x);
+  for (size_t begin = 0; begin < n; begin += static_cast<size_t>(checkpoint_every)) {
+    const size_t end = std::min(n, begin + static_cast<size_t>(checkpoint_every));
+    std::vector<torch::Tensor> params;
+    for (size_t i = begin; i < end; ++i) {
+      auto p = stack->ptr(i)->parameters();
+      params.insert(params.end(), p.begin(), p.end());
+    }
+    x = checkpointed([stack, begin, end](const torch::Tensor& t) { return run_blocks(stack, begin, end, t); }, x,
+                     params);
+  }
   return x;
 }
 

@@ -63,7 +63,9 @@ TORCH_MODULE(TransformerBlock);
 // std_i = 0.02 / sqrt(2 (i + 1)) when depth_init, else 0.02 (official init_weights).
 torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double qk_norm_eps,
                                              bool depth_init);
-torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x);
+// Runs the blocks in order. checkpoint_every > 0: each group of that many blocks is gradient-checkpointed (the
+// official `grad_checkpoint_every`); 0 keeps every activation.
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every = 0);
 
 // N(0, std) for every Linear weight under `module` (biases zero); norms keep their ones/zeros.
 void init_linear_weights(torch::nn::Module& module, double std);

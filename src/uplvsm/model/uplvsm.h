@@ -5,14 +5,20 @@
 //   e  = Estimator(DINOv2(target), S)                            7-D latent pose per target
 //   Q  = target_pose_tokenizer(Plücker(pose(e), intrinsics))
 //   img = sigmoid(head(Decoder(LN([Q ; S]))[:n]))
-// Where a target's pose comes from (estimator, a camera mapper, dataset cameras) is one seam: `render_views`
-// takes the 7-D poses, whoever supplies them.
+// Where a target's pose comes from (estimator, a camera mapper, dataset cameras) is one seam, TargetPoses:
+// `render_views` takes the 7-D poses, whoever supplies them.
+// The same module holds the paper's posed baselines (model.variant), sharing the tokenizers and the RGB head:
+//   ptlvsm (official `posedTargetLVSM`): T = DINOv2(inputs); T[view 0] += canonical_pose_tokenizer(Plücker of its
+//          dataset camera); per target: img = head(Blocks(LN([T ; target_pose_tokenizer(Plücker)]))[last n])
+//   lvsm:  the same with every input view's rays added to its tokens (inputs and targets posed).
+// Their cameras are the official scene-normalised ones (official_scene_normalize over inputs and targets).
 #pragma once
 #include <torch/torch.h>
 
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/dinov2.h"
 #include "uplvsm/model/latent_plucker_learner.h"
+#include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/pose_tokenizer.h"
 #include "uplvsm/model/transformer.h"
 
@@ -30,8 +36,25 @@ struct ForwardTrace {
 
 struct UPLVSMOutput {
   torch::Tensor render;    // [b, v_t, 3, H, W] in [0, 1]
-  torch::Tensor pose_enc;  // [b, v_t, 7] latent poses (t, q_xyzw)
+  torch::Tensor pose_enc;  // [b, v_t, 7] latent poses (t, q_xyzw); undefined for the posed variants
 };
+
+// A set of views. c2w is needed only where a camera comes from the dataset; unposed photos leave it undefined.
+struct Views {
+  torch::Tensor images;    // [b, v, 3, H, W] in [0, 1]
+  torch::Tensor fxfycxcy;  // [b, v, 4] pixels
+  torch::Tensor c2w;       // [b, v, 4, 4] or undefined
+};
+
+// Where the target views' cameras come from.
+enum class TargetPoses {
+  Estimator,  // UP-LVSM: the Latent Plücker Learner reads the target image (the paper's protocol)
+  Mapper,     // camera control: dataset cameras (camera_control_poses) through the linear pose mapper
+  Dataset,    // dataset cameras directly: PT-LVSM and LVSM, and for UP-LVSM the "SfM target poses" ablation
+};
+// "estimator", "mapper", "dataset", or "auto" (the variant's own: estimator for uplvsm, dataset for the others).
+TargetPoses parse_target_poses(const std::string& name, const ModelConfig& config);
+std::string to_string(TargetPoses source);
 
 struct UPLVSMImpl : torch::nn::Module {
   explicit UPLVSMImpl(const ModelConfig& config);
@@ -48,12 +71,26 @@ struct UPLVSMImpl : torch::nn::Module {
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
                              const torch::Tensor& target_fxfycxcy, int64_t height, int64_t width,
                              ForwardTrace* trace = nullptr);
-  // The training/evaluation forward: the estimator sees the target images (the paper's protocol).
+  // Latent poses [b, v_t, 7] of the targets from `source` (Estimator: needs the target images; Mapper, Dataset:
+  // needs c2w of inputs and targets).
+  torch::Tensor target_latent_poses(const Views& inputs, const Views& targets, const torch::Tensor& scene_latents,
+                                    TargetPoses source, ForwardTrace* trace = nullptr);
+  // PT-LVSM / LVSM: renders the targets from posed inputs (both need c2w). The official scene normalisation runs
+  // over inputs and targets; a video passes normalise_with_targets = false so every frame shares the inputs' frame.
+  torch::Tensor render_posed(const Views& inputs, const Views& targets, ForwardTrace* trace = nullptr,
+                             bool normalise_with_targets = true);
+  // The training/evaluation forward of any variant; targets' images give the output size (and, for the estimator,
+  // the image it reads).
+  UPLVSMOutput forward(const Views& inputs, const Views& targets, TargetPoses source, ForwardTrace* trace = nullptr);
+  // UP-LVSM's own protocol: the estimator sees the target images.
   UPLVSMOutput forward(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                        const torch::Tensor& target_images, const torch::Tensor& target_fxfycxcy,
                        ForwardTrace* trace = nullptr);
+  bool posed_variant() const { return config.variant != "uplvsm"; }
 
   int64_t parameter_count() const;
+  // Gradient checkpointing of the encoder, estimator and decoder stacks in groups of k blocks (0: off).
+  void set_grad_checkpoint_every(int64_t k);
 
   ModelConfig config;
   torch::Tensor n_light_field_latent;  // [L, d] learnable scene-latent queries
@@ -62,10 +99,16 @@ struct UPLVSMImpl : torch::nn::Module {
   torch::nn::ModuleList transformer_encoder{nullptr}, transformer_decoder{nullptr};
   LayerNorm transformer_input_layernorm_decoder{nullptr};
   LatentPluckerLearner estimator{nullptr};
+  PoseMapper pose_mapper{nullptr};                  // registered when config.pose_mapper
+  torch::nn::ModuleList transformer_blocks{nullptr};  // ptlvsm / lvsm only (official key names)
+  LayerNorm transformer_input_layernorm{nullptr};
   torch::nn::Sequential image_token_decoder{nullptr};  // 0: LayerNorm (no bias), 1: Linear(d -> p^2 3)
+  int64_t grad_checkpoint_every = 0;
 
  private:
   torch::Tensor repeat_per_view(const torch::Tensor& scene_latents, int64_t views);
+  // Decoder outputs of the target tokens [b v, n, d] -> images [b, v, 3, H, W].
+  torch::Tensor decode_rgb(const torch::Tensor& target_tokens, int64_t b, int64_t v, int64_t H, int64_t W);
 };
 TORCH_MODULE(UPLVSM);
 

@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/geometry/camera.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/video.h"
 #include "uplvsm/render/trajectory.h"
@@ -20,7 +21,9 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   TORCH_CHECK(num_frames >= 2, "render_interpolation: need at least 2 frames");
   torch::NoGradGuard no_grad;
   net->eval();
-  auto device = net->n_light_field_latent.device();
+  TORCH_CHECK(!net->posed_variant(), "render_interpolation: the ", net->config.variant,
+              " variant needs cameras: use render_camera_path");
+  auto device = model_device(*net);
   auto inputs = images.unsqueeze(0).to(device);
   auto k = fxfycxcy.unsqueeze(0).to(device);
   const int64_t H = images.size(2), W = images.size(3);
@@ -36,6 +39,64 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
                       .cpu());
   }
   return {torch::cat(out), poses.cpu(), key_poses.cpu()};
+}
+
+torch::Device model_device(const torch::nn::Module& net) {
+  auto params = net.parameters();
+  return params.empty() ? torch::Device(torch::kCPU) : params.front().device();
+}
+
+torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs, const torch::Tensor& poses,
+                                 const torch::Tensor& fxfycxcy, int64_t chunk) {
+  TORCH_CHECK(inputs.images.dim() == 4 && inputs.images.size(1) == 3,
+              "render_camera_path: expected input images [v, 3, H, W], got ", inputs.images.sizes());
+  TORCH_CHECK(poses.dim() == 2 && poses.size(1) == 7 && fxfycxcy.dim() == 2 && fxfycxcy.size(0) == poses.size(0),
+              "render_camera_path: expected poses [F, 7] and intrinsics [F, 4], got ", poses.sizes(), " and ",
+              fxfycxcy.sizes());
+  torch::NoGradGuard no_grad;
+  net->eval();
+  const auto device = model_device(*net);
+  const int64_t H = inputs.images.size(2), W = inputs.images.size(3);
+  model::Views in{inputs.images.unsqueeze(0).to(device), inputs.fxfycxcy.unsqueeze(0).to(device),
+                  inputs.c2w.defined() ? inputs.c2w.unsqueeze(0).to(device) : torch::Tensor()};
+  torch::Tensor latents, world_c2w;
+  if (net->posed_variant()) {
+    TORCH_CHECK(in.c2w.defined(), "the ", net->config.variant,
+                " variant renders from cameras: it needs the input views' c2w (dataset scenes)");
+    // Camera-control units back to the world: first input view's frame, translations times the baseline.
+    auto c2w = in.c2w[0].to(torch::kFloat64);
+    auto baseline = (c2w[1].slice(0, 0, 3).select(1, 3) - c2w[0].slice(0, 0, 3).select(1, 3)).norm();
+    auto p = poses.to(device, torch::kFloat64).clone();
+    p.slice(1, 0, 3).mul_(torch::where(baseline > 1e-9, baseline, torch::ones_like(baseline)));
+    world_c2w = torch::matmul(c2w[0], geometry::pose_encoding_to_c2w(p)).to(torch::kFloat32);
+  } else {
+    TORCH_CHECK(net->pose_mapper, "rendering a camera path needs a camera mapper: fine-tune one with `uplvsm train "
+                                  "--stage mapper` (or render the latent interpolation between the inputs)");
+    latents = net->encode_scene(in.images, in.fxfycxcy);
+  }
+  std::vector<torch::Tensor> out;
+  for (int64_t s = 0; s < poses.size(0); s += chunk) {
+    const int64_t n = std::min(chunk, poses.size(0) - s);
+    auto k = fxfycxcy.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32);
+    torch::Tensor frames;
+    if (net->posed_variant()) {
+      model::Views targets{torch::zeros({1, 1, 1, 1, 1}, k.options()).expand({1, n, 3, H, W}), k,
+                           world_c2w.slice(0, s, s + n).unsqueeze(0)};
+      frames = net->render_posed(in, targets, nullptr, /*normalise_with_targets=*/false);
+    } else {
+      auto latent = net->pose_mapper(poses.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32));
+      frames = net->render_views(latents, latent, k, H, W);
+    }
+    out.push_back(frames[0].to(torch::kFloat32).cpu());
+  }
+  return torch::cat(out);
+}
+
+torch::Tensor side_by_side(const torch::Tensor& inputs, const torch::Tensor& frames) {
+  TORCH_CHECK(inputs.dim() == 4 && inputs.size(0) == 2 && frames.dim() == 4 && inputs.size(2) == frames.size(2),
+              "side_by_side: expected inputs [2, 3, H, W] and frames [F, 3, H, W] of one height");
+  auto left = torch::cat({inputs[0], inputs[1]}, 2).to(frames.device(), frames.scalar_type());  // [3, H, 2W]
+  return torch::cat({left.unsqueeze(0).expand({frames.size(0), -1, -1, -1}), frames}, 3);
 }
 
 VideoFiles write_video(const std::string& dir, const std::string& name, const torch::Tensor& frames, double fps) {

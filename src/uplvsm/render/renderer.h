@@ -1,6 +1,8 @@
-// Novel-view video from two unposed input images: encode the scene, ask the Latent Plücker Learner for the latent
-// poses of the input views themselves, interpolate between them, decode every frame (in chunks of views), and write
-// PNG frames, an MP4 and a GIF.
+// Novel-view videos from two input images, decoded in chunks of views, written as PNG frames, an MP4 and a GIF.
+// - render_interpolation: unposed; the Latent Plücker Learner estimates the inputs' latent poses, which are
+//   interpolated (no camera control needed).
+// - render_camera_path: real cameras in camera-control units (render/trajectory.h) through the pose mapper
+//   (UP-LVSM) or as dataset-style cameras (the posed variants, which need the inputs' c2w).
 #pragma once
 #include <torch/torch.h>
 
@@ -20,6 +22,18 @@ struct InterpolationVideo {
 // images [2, 3, H, W] in [0, 1], fxfycxcy [2, 4] pixels. Runs without gradients on the model's device.
 InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t num_frames, int64_t chunk = 4);
+
+// poses [F, 7] camera-control units, fxfycxcy [F, 4] pixels of the inputs' size; inputs: images [2, 3, H, W],
+// fxfycxcy [2, 4], c2w [2, 4, 4] (needed by the posed variants; may be undefined for UP-LVSM with a mapper).
+// Returns frames [F, 3, H, W] on the CPU.
+torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs, const torch::Tensor& poses,
+                                 const torch::Tensor& fxfycxcy, int64_t chunk = 4);
+
+// The device a model's parameters live on.
+torch::Device model_device(const torch::nn::Module& net);
+
+// Frames [F, 3, H, W] beside the inputs [2, 3, H, W]: [input 0 | input 1 | frame] per frame.
+torch::Tensor side_by_side(const torch::Tensor& inputs, const torch::Tensor& frames);
 
 struct VideoFiles {
   std::string frames_dir, mp4, gif;  // mp4 empty when no encoder is available

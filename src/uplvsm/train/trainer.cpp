@@ -91,12 +91,43 @@ void check_same_model(const Config& a, const Config& b, const std::string& sourc
 }
 
 // A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
-void init_from_weights(model::UPLVSMImpl& net, const std::string& path) {
+// Returns whether the pose mapper still needs its initial fit (it has one and the file did not carry it).
+bool init_from_weights(model::UPLVSMImpl& net, const std::string& path) {
   auto w = model::read_pretrained_weights(path);
   torch::NoGradGuard no_grad;
-  auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path)
+  model::LoadOptions load;
+  if (net.pose_mapper) load.allow_missing_substrings.push_back("pose_mapper.");
+  auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path, load)
                                                         : model::load_dinov2_into_uplvsm(net, w.tensors, path);
   spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
+  return net.pose_mapper && !w.tensors.count("pose_mapper.A");
+}
+
+// The camera-control stage starts from the least-squares map between real target poses and the latent poses the
+// estimator gives them, on calibration batches drawn apart from the training stream (another seed).
+void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const TrainOptions& opt) {
+  data::ChunkDataset dataset(opt.data_root, "train");
+  auto lo = loader_options(config, nullptr);
+  lo.seed += 1000003;
+  const int64_t batches = std::max<int64_t>(1, (64 + lo.batch_size - 1) / lo.batch_size);
+  torch::NoGradGuard no_grad;
+  const bool was_training = net.is_training();
+  net.eval();
+  std::vector<torch::Tensor> real, latent;
+  const int64_t vi = config.training.num_input_views;
+  for (int64_t i = 0; i < batches; ++i) {
+    auto batch = data::make_training_batch(dataset, lo, i);
+    auto dev = [&](const torch::Tensor& t) { return t.to(opt.device); };
+    model::Views inputs{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))};
+    model::Views targets{dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
+    auto latents = net.encode_scene(inputs.images, inputs.fxfycxcy);
+    latent.push_back(net.estimate_poses(targets.images, latents).reshape({-1, 7}).cpu());
+    real.push_back(model::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
+  }
+  net.train(was_training);
+  const double rms = model::fit_pose_mapper(*net.pose_mapper, torch::cat(real), torch::cat(latent));
+  spdlog::info("pose mapper: least-squares fit on {} target views (RMS residual {:.4f})", torch::cat(real).size(0),
+               rms);
 }
 
 // The perceptual loss the config asks for, when its VGG19 weights were given (null otherwise, with a warning).
@@ -116,6 +147,17 @@ PerceptualLoss make_perceptual_loss(const TrainingConfig& tc, const TrainOptions
   loss->to(opt.device);
   spdlog::info("perceptual loss: VGG19 from {}, weight {}", opt.perceptual_weights, tc.perceptual_loss_weight);
   return loss;
+}
+
+void run_periodic_eval(const TrainOptions& opt, model::UPLVSM& net, int64_t step, bool lead, std::ofstream& metrics) {
+  if (lead) {
+    net->eval();
+    auto result = opt.periodic_eval(net, step);
+    net->train();
+    metrics << json{{"step", step}, {"eval", result}}.dump() << "\n";
+    metrics.flush();
+  }
+  if (opt.comm) opt.comm->barrier();
 }
 
 }  // namespace
@@ -159,7 +201,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     state = TrainState::from_json(ckpt.state);
     spdlog::info("resumed from {} at step {}", resume_from, state.step);
   } else if (!opt.init_weights.empty()) {
-    init_from_weights(*net, opt.init_weights);
+    if (init_from_weights(*net, opt.init_weights)) calibrate_pose_mapper(*net, config, opt);
   }
   if (lead) truncate_metrics(metrics_path, state.step);
   std::vector<torch::Tensor> params;
@@ -184,6 +226,11 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   PerceptualLoss perceptual = make_perceptual_loss(tc, opt);
   const bool use_bf16 = parse_amp(tc.amp);
   if (use_bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
+  const auto target_poses = model::parse_target_poses(tc.target_poses, config.model);
+  spdlog::info("{} variant, target poses from {}", config.model.variant, model::to_string(target_poses));
+  net->set_grad_checkpoint_every(tc.grad_checkpoint_every);
+  if (tc.grad_checkpoint_every > 0)
+    spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
 
   SignalScope signals;
   std::ofstream metrics;
@@ -204,8 +251,10 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
       {
         // Forward and losses under autocast as the official step; MSE on fp32 (autocast's policy for losses).
         AutocastGuard amp(opt.device, use_bf16);
-        auto out = net->forward(dev(batch.input_images(tc.num_input_views)),
-                                dev(batch.input_fxfycxcy(tc.num_input_views)), target, dev(batch.target_fxfycxcy()));
+        const int64_t vi = tc.num_input_views;
+        model::Views inputs{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))};
+        model::Views targets{target, dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
+        auto out = net->forward(inputs, targets, target_poses);
         mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
         loss = tc.l2_loss_weight * mse;
         if (perceptual) loss = loss + tc.perceptual_loss_weight * perceptual->forward(out.render, target);
@@ -270,6 +319,9 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     if (lead && (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now)) {
       result.last_checkpoint = save_training_checkpoint(ckpt_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
     }
+    const bool eval_now = opt.periodic_eval && tc.eval_every > 0 &&
+                          (state.step % tc.eval_every == 0 || state.step == tc.train_steps);
+    if (eval_now) run_periodic_eval(opt, net, state.step, lead, metrics);
     if (stop_now) {
       result.interrupted = stop_signal;
       if (result.interrupted) spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);

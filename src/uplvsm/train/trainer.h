@@ -4,10 +4,14 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <functional>
 #include <memory>
 #include <string>
 
+#include <nlohmann/json.hpp>
+
 #include "uplvsm/core/config.h"
+#include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/distributed.h"
 
 namespace uplvsm::train {
@@ -26,6 +30,10 @@ struct TrainOptions {
   bool progress = true;
   // Data-parallel group (train/distributed.h); null: one process. Rank 0 writes the logs and checkpoints.
   std::shared_ptr<Communicator> comm;
+  // Periodic evaluation, every training.eval_every steps and at the end, on rank 0 with the model in eval mode
+  // (other ranks wait). Its result is logged to metrics.jsonl as {"step", "eval": result}. The CLI supplies it
+  // (eval/ sits beside train/, not below it).
+  std::function<nlohmann::json(model::UPLVSM& net, int64_t step)> periodic_eval;
 };
 
 struct TrainResult {

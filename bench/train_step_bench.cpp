@@ -1,0 +1,124 @@
+// Training throughput: one optimiser step (forward, MSE loss, backward, AdamW) of the `tiny` and `paper_x224`
+// configs at batch 1 with 2 input + 6 target views, in fp32 and bf16 autocast, with and without gradient
+// checkpointing. Counters: steps/s (items_per_second), model TFLOP/s (3x the forward's matmul FLOPs, recomputation
+// not counted) and MFU against the matmul peak this machine measured for the same dtype (BM_MatmulPeak).
+// Peak memory is per process (getrusage), so measure one configuration per run, from the repository root:
+//   build/uplvsm_bench --benchmark_filter='TrainStep/paper_x224/fp32/ckpt:1$'
+#include <benchmark/benchmark.h>
+
+#include <sys/resource.h>
+
+#include <torch/torch.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <map>
+#include <string>
+
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/core/config.h"
+#include "uplvsm/model/flops.h"
+#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/optimizer.h"
+
+namespace {
+
+using namespace uplvsm;
+constexpr int64_t kInputViews = 2, kTargetViews = 6;
+
+// Configs are read from $UPLVSM_CONFIG_DIR (default: configs/ under the working directory).
+Config bench_config(const std::string& name) {
+  const char* dir = std::getenv("UPLVSM_CONFIG_DIR");
+  return load_config(std::string(dir ? dir : "configs") + "/" + name + ".json");
+}
+
+// A matmul of the transformer's shape (tokens x d) @ (d x 4d); FLOP/s of the best of a few timed runs.
+double matmul_flops_per_second(bool bf16) {
+  static std::map<bool, double> cache;
+  if (cache.count(bf16)) return cache[bf16];
+  const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
+  auto a = torch::randn({2048, 768}).to(dtype), b = torch::randn({768, 3072}).to(dtype);
+  const double flops = 2.0 * 2048 * 768 * 3072;
+  double best = 0;
+  for (int i = 0; i < 8; ++i) {
+    auto t0 = std::chrono::steady_clock::now();
+    auto c = torch::matmul(a, b);
+    benchmark::DoNotOptimize(c.data_ptr());
+    best = std::max(best, flops / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  return cache[bf16] = best;
+}
+
+void BM_MatmulPeak(benchmark::State& state) {
+  const bool bf16 = state.range(0) != 0;
+  const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
+  auto a = torch::randn({2048, 768}).to(dtype), b = torch::randn({768, 3072}).to(dtype);
+  for (auto _ : state) benchmark::DoNotOptimize(torch::matmul(a, b).data_ptr());
+  state.counters["TFLOP/s"] = benchmark::Counter(2.0 * 2048 * 768 * 3072 * 1e-12 * static_cast<double>(state.iterations()),
+                                                 benchmark::Counter::kIsRate);
+  state.SetLabel(bf16 ? "bf16" : "fp32");
+}
+BENCHMARK(BM_MatmulPeak)->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
+
+double peak_rss_gib() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_maxrss) / (1024.0 * 1024.0);  // ru_maxrss is in KiB on Linux
+}
+
+void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
+  const bool bf16 = state.range(0) != 0;
+  const int64_t checkpoint_every = state.range(1);
+  auto config = bench_config(config_name);
+  config.training.batch_size = 1;
+  torch::manual_seed(0);
+  model::UPLVSM net(config.model);
+  net->train();
+  net->set_grad_checkpoint_every(checkpoint_every);
+  auto optimizer = train::make_optimizer(*net, config.training);
+  const int64_t S = config.model.image_size, v = kInputViews + kTargetViews;
+  auto images = torch::rand({1, v, 3, S, S});
+  auto fxfycxcy = torch::tensor({0.9 * S, 0.9 * S, 0.5 * S, 0.5 * S}).expand({1, v, 4}).contiguous();
+  using torch::indexing::Slice;
+  auto inputs = images.index({Slice(), Slice(0, kInputViews)}), targets = images.index({Slice(), Slice(kInputViews)});
+  auto in_k = fxfycxcy.index({Slice(), Slice(0, kInputViews)}), tgt_k = fxfycxcy.index({Slice(), Slice(kInputViews)});
+  auto step = [&] {
+    optimizer->zero_grad();
+    torch::Tensor loss;
+    {
+      AutocastGuard amp(torch::kCPU, bf16);
+      auto out = net->forward(inputs, in_k, targets, tgt_k);
+      loss = torch::mse_loss(out.render.to(torch::kFloat32), targets);
+    }
+    loss.backward();
+    optimizer->step();
+    return loss.item<double>();
+  };
+  step();  // warm-up: allocator, optimiser state
+  const auto t0 = std::chrono::steady_clock::now();
+  for (auto _ : state) benchmark::DoNotOptimize(step());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double step_flops = 3.0 * model::forward_flops(config.model, 1, kInputViews, kTargetViews).total();
+  state.SetItemsProcessed(state.iterations());
+  state.counters["TFLOP/s"] =
+      benchmark::Counter(step_flops * 1e-12 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
+  const double peak = matmul_flops_per_second(bf16);
+  state.counters["peak_TFLOP/s"] = peak * 1e-12;
+  state.counters["MFU"] = step_flops * static_cast<double>(state.iterations()) / seconds / peak;
+  state.counters["model_TFLOP/step"] = step_flops * 1e-12;
+  state.counters["peak_RSS_GiB"] = peak_rss_gib();
+  state.SetLabel(std::string(bf16 ? "bf16" : "fp32") + (checkpoint_every ? " checkpointed" : ""));
+}
+BENCHMARK_CAPTURE(BM_TrainStep, tiny, std::string("tiny"))
+    ->ArgNames({"bf16", "ckpt"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(BM_TrainStep, paper_x224, std::string("paper_x224"))
+    ->ArgNames({"bf16", "ckpt"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(2);
+
+}  // namespace

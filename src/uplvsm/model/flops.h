@@ -1,0 +1,22 @@
+// Model FLOPs of one forward pass, the numerator of model FLOP utilisation (MFU). Only matmuls count (linears,
+// attention scores and weighted values, patch embeddings), 2 FLOPs per multiply-add. Training costs 3x the forward
+// (the backward is two forwards' worth); recomputation by gradient checkpointing is not model work and not counted.
+#pragma once
+#include <cstdint>
+
+#include "uplvsm/core/config.h"
+
+namespace uplvsm::model {
+
+struct FlopCount {
+  double dinov2 = 0, encoder = 0, estimator = 0, decoder = 0, other = 0;  // tokenizers, heads
+  double total() const { return dinov2 + encoder + estimator + decoder + other; }
+};
+
+// One pre-norm transformer block over one sequence: QKV + output projections, the MLP, and attention.
+double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden);
+
+// The forward of `config`'s model for `batch` scenes with the given view counts at config.image_size.
+FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
+
+}  // namespace uplvsm::model

@@ -1,0 +1,72 @@
+#include <gtest/gtest.h>
+
+#include "test_util.h"
+#include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/pose_mapper.h"
+
+using namespace uplvsm;
+
+namespace {
+// Random rigid cameras [b, v, 4, 4].
+torch::Tensor random_cameras(int64_t b, int64_t v) {
+  auto q = torch::randn({b, v, 4}, torch::kFloat64);
+  q = q / q.norm(2, -1, true);
+  auto t = torch::randn({b, v, 3}, torch::kFloat64) * 2;
+  return geometry::pose_encoding_to_c2w(torch::cat({t, q}, -1));
+}
+}  // namespace
+
+TEST(CameraControlPoses, FirstInputIsTheIdentityAndInputOneAtUnitDistance) {
+  torch::manual_seed(0);
+  auto inputs = random_cameras(3, 2);
+  auto poses = model::camera_control_poses(inputs, inputs);
+  ASSERT_EQ(poses.sizes(), (std::vector<int64_t>{3, 2, 7}));
+  auto identity = torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat32);
+  EXPECT_LT(test::max_abs_diff(poses.select(1, 0), identity.expand({3, 7})), 1e-5);
+  auto baseline = poses.select(1, 1).narrow(-1, 0, 3).norm(2, -1);
+  EXPECT_LT(test::max_abs_diff(baseline, torch::ones({3})), 1e-5);
+}
+
+TEST(CameraControlPoses, InvariantToAGlobalRigidTransformAndScale) {
+  torch::manual_seed(1);
+  auto inputs = random_cameras(2, 2), targets = random_cameras(2, 4);
+  auto world = random_cameras(1, 1).view({1, 1, 4, 4});  // a new world frame...
+  auto moved = [&](torch::Tensor c2w) {
+    c2w = torch::matmul(world, c2w).clone();
+    c2w.index({"...", torch::indexing::Slice(0, 3), 3}).mul_(3.7);  // ... in other units
+    return c2w;
+  };
+  auto a = model::camera_control_poses(inputs, targets);
+  auto b = model::camera_control_poses(moved(inputs), moved(targets));
+  EXPECT_LT(test::max_abs_diff(a, b), 1e-4);
+}
+
+TEST(CameraControlPoses, RejectsNonFiniteCameras) {
+  auto c = random_cameras(1, 2);
+  c[0][1][0][3] = std::nan("");
+  EXPECT_NE(test::error_of([&] { model::camera_control_poses(c, c); }).find("NaN"), std::string::npos);
+}
+
+TEST(PoseMapper, StartsAsTheIdentityAndNormalisesTheQuaternion) {
+  model::PoseMapper mapper;
+  auto pose = torch::tensor({{0.5, -1.0, 2.0, 0.0, 0.0, 0.0, 2.0}});
+  auto out = mapper(pose);
+  EXPECT_LT(test::max_abs_diff(out, torch::tensor({{0.5, -1.0, 2.0, 0.0, 0.0, 0.0, 1.0}})), 1e-6);
+  auto named = mapper->named_parameters();
+  EXPECT_TRUE(named.contains("A") && named.contains("b"));
+  EXPECT_EQ(named.size(), 2u);
+}
+
+TEST(PoseMapper, LeastSquaresFitRecoversAKnownLinearMap) {
+  torch::manual_seed(2);
+  auto A = torch::randn({7, 7}, torch::kFloat64), b = torch::randn({7}, torch::kFloat64);
+  auto real = torch::randn({200, 7}, torch::kFloat64);
+  auto latent = torch::matmul(real, A.t()) + b;
+  model::PoseMapper mapper;
+  const double rms = model::fit_pose_mapper(*mapper, real, latent, 1e-10);
+  EXPECT_LT(rms, 1e-6);
+  EXPECT_LT(test::max_abs_diff(mapper->A, A), 1e-5);
+  EXPECT_LT(test::max_abs_diff(mapper->b, b), 1e-5);
+  EXPECT_NE(test::error_of([&] { model::fit_pose_mapper(*mapper, real, latent.narrow(1, 0, 6)); }).find("[N, 7]"),
+            std::string::npos);
+}

@@ -1,0 +1,158 @@
+// The model family: the posed baselines (ptlvsm, lvsm) and UP-LVSM's target-pose sources share one module.
+#include <gtest/gtest.h>
+
+#include "test_util.h"
+#include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/flops.h"
+#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/state_dict.h"
+#include "uplvsm/model/uplvsm.h"
+
+using namespace uplvsm;
+using torch::indexing::Slice;
+
+namespace {
+ModelConfig small_config(const std::string& variant) {
+  ModelConfig m;
+  m.variant = variant;
+  m.image_size = 32;
+  m.patch_size = 8;
+  m.transformer.d = 32;
+  m.transformer.d_head = 16;
+  m.transformer.encoder_n_layer = 1;
+  m.transformer.estimator_n_layer = 1;
+  m.transformer.decoder_n_layer = 1;
+  m.transformer.n_layer = 2;
+  m.transformer.n_latent_vectors = 8;
+  m.dinov2.embed_dim = 32;
+  m.dinov2.depth = 1;
+  m.dinov2.num_heads = 2;
+  m.dinov2.pos_grid = 4;
+  return m;
+}
+
+struct Scene {
+  model::Views inputs, targets;
+};
+
+Scene random_scene(int64_t b, int64_t vi, int64_t vt) {
+  auto cameras = [](int64_t b, int64_t v) {
+    auto q = torch::randn({b, v, 4});
+    q = q / q.norm(2, -1, true);
+    return geometry::pose_encoding_to_c2w(torch::cat({torch::randn({b, v, 3}), q}, -1));
+  };
+  auto k = [](int64_t b, int64_t v) { return torch::tensor({30.0, 30.0, 16.0, 16.0}).expand({b, v, 4}).contiguous(); };
+  return {{torch::rand({b, vi, 3, 32, 32}), k(b, vi), cameras(b, vi)},
+          {torch::rand({b, vt, 3, 32, 32}), k(b, vt), cameras(b, vt)}};
+}
+
+model::Views transformed(model::Views v, const torch::Tensor& world, double scale) {
+  v.c2w = torch::matmul(world, v.c2w).clone();
+  v.c2w.index({"...", Slice(0, 3), 3}).mul_(scale);
+  return v;
+}
+}  // namespace
+
+TEST(Variants, PosedVariantsHaveTheOfficialPosedTargetLvsmKeys) {
+  model::UPLVSM net(small_config("ptlvsm"));
+  auto sd = model::state_dict(*net);
+  EXPECT_TRUE(sd.count("transformer_blocks.1.attn.q_norm.weight"));
+  EXPECT_TRUE(sd.count("transformer_input_layernorm.weight"));
+  EXPECT_TRUE(sd.count("canonical_pose_tokenizer.1.weight"));
+  EXPECT_TRUE(sd.count("image_token_decoder.1.weight"));
+  for (const auto& [key, value] : sd) {
+    EXPECT_EQ(key.find("estimator."), std::string::npos) << key;
+    EXPECT_EQ(key.find("transformer_encoder."), std::string::npos) << key;
+    EXPECT_NE(key, "n_light_field_latent");
+  }
+  // The loader recognises the layout and infers the variant and depth.
+  auto inferred = model::infer_model_config(sd, ModelConfig{});
+  EXPECT_EQ(inferred.variant, "ptlvsm");
+  EXPECT_EQ(inferred.transformer.n_layer, 2);
+  EXPECT_EQ(inferred.transformer.d, 32);
+}
+
+TEST(Variants, PosedVariantsRenderEveryTargetAndIgnoreTheWorldFrameAndScale) {
+  for (const std::string variant : {"ptlvsm", "lvsm"}) {
+    torch::manual_seed(3);
+    model::UPLVSM net(small_config(variant));
+    net->eval();
+    auto s = random_scene(2, 2, 3);
+    model::ForwardTrace trace;
+    auto out = net->forward(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
+    ASSERT_EQ(out.render.sizes(), (std::vector<int64_t>{2, 3, 3, 32, 32})) << variant;
+    EXPECT_FALSE(out.pose_enc.defined());
+    // PT-LVSM poses input view 0 only; LVSM every input view.
+    EXPECT_EQ(trace.canonical_plucker.size(1), variant == "lvsm" ? 2 : 1) << variant;
+    // The official scene normalisation removes the world frame and the scene scale.
+    auto world = geometry::pose_encoding_to_c2w(torch::tensor({{0.3, -2.0, 1.0, 0.2, -0.4, 0.1, 0.9}}));
+    auto moved = net->forward(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5),
+                              model::TargetPoses::Dataset);
+    EXPECT_LT(test::max_abs_diff(out.render, moved.render), 1e-4) << variant;
+    // Posed variants have no estimator.
+    EXPECT_THROW(net->forward(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
+  }
+}
+
+TEST(Variants, PtlvsmMarksInputViewZeroAndLvsmEveryInputView) {
+  torch::manual_seed(4);
+  auto s = random_scene(1, 3, 1);
+  for (const std::string variant : {"ptlvsm", "lvsm"}) {
+    model::UPLVSM net(small_config(variant));
+    net->eval();
+    torch::NoGradGuard no_grad;
+    model::ForwardTrace trace;
+    net->forward(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
+    auto raw = net->tokenize(s.inputs.images);  // DINOv2 tokens before any camera is added
+    for (int64_t v = 0; v < 3; ++v) {
+      const bool posed = v == 0 || variant == "lvsm";
+      const double diff = test::max_abs_diff(trace.input_dino_tokens.select(1, v), raw.select(1, v));
+      if (posed) EXPECT_GT(diff, 1e-4) << variant << " view " << v;
+      else EXPECT_EQ(diff, 0.0) << variant << " view " << v;
+    }
+  }
+}
+
+TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
+  torch::manual_seed(5);
+  auto config = small_config("uplvsm");
+  config.pose_mapper = true;
+  model::UPLVSM net(config);
+  net->eval();
+  auto s = random_scene(2, 2, 2);
+  auto by_estimator = net->forward(s.inputs, s.targets, model::TargetPoses::Estimator);
+  auto legacy = net->forward(s.inputs.images, s.inputs.fxfycxcy, s.targets.images, s.targets.fxfycxcy);
+  EXPECT_TRUE(torch::allclose(by_estimator.render, legacy.render));
+  // The mapper starts as the identity: mapper poses equal dataset poses.
+  auto by_dataset = net->forward(s.inputs, s.targets, model::TargetPoses::Dataset);
+  auto by_mapper = net->forward(s.inputs, s.targets, model::TargetPoses::Mapper);
+  EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, by_mapper.pose_enc), 1e-5);
+  EXPECT_LT(test::max_abs_diff(by_dataset.render, by_mapper.render), 1e-5);
+  EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, model::camera_control_poses(s.inputs.c2w, s.targets.c2w)), 1e-6);
+  // Dataset poses need cameras; a model without a mapper says how to get one.
+  auto unposed = s.targets;
+  unposed.c2w = torch::Tensor();
+  EXPECT_NE(test::error_of([&] { net->forward(s.inputs, unposed, model::TargetPoses::Dataset); }).find("c2w"),
+            std::string::npos);
+  model::UPLVSM plain(small_config("uplvsm"));
+  EXPECT_NE(test::error_of([&] { plain->forward(s.inputs, s.targets, model::TargetPoses::Mapper); })
+                .find("--stage mapper"),
+            std::string::npos);
+  // Gradients reach the mapper through the renderer.
+  net->train();
+  net->forward(s.inputs, s.targets, model::TargetPoses::Mapper).render.mean().backward();
+  ASSERT_TRUE(net->pose_mapper->A.grad().defined());
+  EXPECT_GT(net->pose_mapper->A.grad().abs().sum().item<double>(), 0);
+}
+
+TEST(Variants, FlopCountsFollowTheArchitecture) {
+  // One block: projections 2 s 4 d^2, MLP 2 s 2 d h, attention 4 s^2 d.
+  EXPECT_DOUBLE_EQ(model::transformer_block_flops(10, 4, 16), 2.0 * 10 * 4 * 16 + 2.0 * 10 * 2 * 4 * 16 + 4.0 * 100 * 4);
+  auto up = model::forward_flops(small_config("uplvsm"), 1, 2, 3);
+  auto pt = model::forward_flops(small_config("ptlvsm"), 1, 2, 3);
+  EXPECT_GT(up.estimator, 0);
+  EXPECT_EQ(pt.estimator, 0);
+  EXPECT_EQ(pt.encoder, 0);
+  EXPECT_LT(pt.dinov2, up.dinov2);  // no target images through DINOv2 without the estimator
+  EXPECT_DOUBLE_EQ(model::forward_flops(small_config("uplvsm"), 2, 2, 3).total(), 2 * up.total());
+}
