@@ -33,5 +33,6 @@ void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
+void add_study_command(CLI::App& app);
 
 }  // namespace uplvsm::cli

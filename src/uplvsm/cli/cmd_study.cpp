@@ -1,0 +1,132 @@
+// `uplvsm study ...`: the paper's analyses as tools. pose-pairs exports (latent pose, real pose) pairs of a split;
+// pose-probe fits the paper's 2-layer MLP probe (and a linear one) latent -> SE(3) on one split and scores it on
+// another (Table 7's accuracies).
+#include <filesystem>
+#include <iostream>
+#include <set>
+
+#include <fmt/format.h>
+
+#include "uplvsm/cli/commands.h"
+#include "uplvsm/core/runtime.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/study/pose_probe.h"
+
+namespace uplvsm::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct PoseArgs {
+  CommonOptions common;
+  ModelSource model;
+  std::string data, split = "test", train_split = "train", out;
+  int64_t max_scenes = 0, gap = 12, iterations = 3000;
+};
+
+void add_pose_options(CLI::App* cmd, PoseArgs& a) {
+  add_common_options(cmd, a.common);
+  add_model_options(cmd, a.model);
+  cmd->add_option("--data", a.data, "dataset root with cameras (pixelSplat chunks)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--max-scenes", a.max_scenes, "scenes per split (0: all)")->capture_default_str();
+  cmd->add_option("--gap", a.gap, "context frames {0, gap} per scene; every frame between them is a target")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+}
+
+study::PosePairs pairs_of(model::UPLVSM& net, const Config& config, const PoseArgs& a, const std::string& split,
+                          torch::Device device) {
+  data::ChunkDataset dataset(a.data, split);
+  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+                               config.dataset.square_crop};
+  study::PosePairOptions opt;
+  opt.max_scenes = a.max_scenes;
+  opt.gap = a.gap;
+  opt.device = device;
+  return study::collect_pose_pairs(net, dataset, prep, opt);
+}
+
+void add_pose_pairs(CLI::App& study) {
+  auto* cmd = study.add_subcommand("pose-pairs", "Export (latent pose, real pose) pairs of a split to CSV (the "
+                                                 "input of probes and t-SNE)");
+  auto a = std::make_shared<PoseArgs>();
+  add_pose_options(cmd, *a);
+  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
+  cmd->add_option("--out", a->out, "CSV file")->required();
+  cmd->callback([a] {
+    apply_common_options(a->common);
+    Config config;
+    const auto device = parse_device(a->common.device);
+    auto net = load_model(a->model, device, &config);
+    auto pairs = pairs_of(net, config, *a, a->split, device);
+    study::write_pose_pairs_csv(a->out, pairs);
+    const auto scenes = std::set<std::string>(pairs.scenes.begin(), pairs.scenes.end()).size();
+    std::cout << fmt::format("wrote {} pose pairs of {} scenes to {}\n", pairs.frames.size(), scenes, a->out);
+  });
+}
+
+void add_pose_probe(CLI::App& study) {
+  auto* cmd = study.add_subcommand(
+      "pose-probe", "Probe the latent poses (paper Table 7): fit a 2-layer MLP (and a linear map) latent -> real pose "
+                    "on --train-split, report translation accuracy @0.1/0.2/0.3 baselines and rotation accuracy "
+                    "@10/20/30 degrees on --split; writes probe.json and the pair CSVs");
+  auto a = std::make_shared<PoseArgs>();
+  add_pose_options(cmd, *a);
+  cmd->add_option("--train-split", a->train_split, "split the probes are fitted on")->capture_default_str();
+  cmd->add_option("--split", a->split, "split the probes are scored on")->capture_default_str();
+  cmd->add_option("--iterations", a->iterations, "MLP probe: full-batch Adam steps")->capture_default_str();
+  cmd->add_option("--out", a->out, "output directory")->required();
+  cmd->callback([a] {
+    apply_common_options(a->common);
+    Config config;
+    const auto device = parse_device(a->common.device);
+    auto net = load_model(a->model, device, &config);
+    auto train_pairs = pairs_of(net, config, *a, a->train_split, device);
+    auto test_pairs = pairs_of(net, config, *a, a->split, device);
+    fs::create_directories(a->out);
+    study::write_pose_pairs_csv((fs::path(a->out) / ("pairs_" + a->train_split + ".csv")).string(), train_pairs);
+    study::write_pose_pairs_csv((fs::path(a->out) / ("pairs_" + a->split + ".csv")).string(), test_pairs);
+    auto train = study::without_canonical_views(train_pairs), test = study::without_canonical_views(test_pairs);
+    study::ProbeOptions po;
+    po.iterations = a->iterations;
+    auto mlp = study::pose_accuracy(study::fit_and_apply_mlp_probe(train, test.latent, po), test.real);
+    auto linear = study::pose_accuracy(study::fit_and_apply_linear_probe(train, test.latent), test.real);
+    nlohmann::json result{{"mlp", study::to_json(mlp)},
+                          {"linear", study::to_json(linear)},
+                          {"train_views", train.frames.size()},
+                          {"test_views", test.frames.size()},
+                          {"train_split", a->train_split},
+                          {"test_split", a->split},
+                          {"gap", a->gap},
+                          {"checkpoint", a->model.checkpoint},
+                          {"conventions",
+                           "real poses relative to the first context view, translations in context baselines; "
+                           "translation error |t_pred - t|, rotation error 2 acos|<q_pred, q>| in degrees; the "
+                           "first context view is excluded"}};
+    const auto text = result.dump(2) + "\n";
+    io::write_file_atomic((fs::path(a->out) / "probe.json").string(), text.data(), text.size());
+    auto row = [](const char* name, const study::PoseAccuracy& p) {
+      return fmt::format("  {:<7} trans@0.1/0.2/0.3 {:5.1f} {:5.1f} {:5.1f}   rot@10/20/30 {:5.1f} {:5.1f} {:5.1f}\n", name,
+                         100 * p.translation_accuracy[0], 100 * p.translation_accuracy[1],
+                         100 * p.translation_accuracy[2], 100 * p.rotation_accuracy[0], 100 * p.rotation_accuracy[1],
+                         100 * p.rotation_accuracy[2]);
+    };
+    std::cout << fmt::format("pose probe: fitted on {} views, scored on {} views -> {}/probe.json\n",
+                             train.frames.size(), test.frames.size(), a->out)
+              << row("MLP", mlp) << row("linear", linear);
+  });
+}
+
+}  // namespace
+
+void add_study_command(CLI::App& app) {
+  auto* study = app.add_subcommand("study", "The paper's analyses as tools (pose-pairs, pose-probe)");
+  study->require_subcommand(1);
+  add_pose_pairs(*study);
+  add_pose_probe(*study);
+}
+
+}  // namespace uplvsm::cli
