@@ -252,6 +252,27 @@ TEST(Evaluator, AveragesPerSceneThenOverScenes) {
   EXPECT_TRUE(nlohmann::json::parse(summary_to_json(empty).dump())["table"]["model"]["psnr"].is_null());  // NaN
 }
 
+TEST(Evaluator, SceneResultsRoundTripThroughJsonForShardMerging) {
+  auto r = fake_scene("k", 0.4, {21.5, 18.25});
+  r.context = {0, 9};
+  r.target = {3, 12};
+  r.views[1].extrapolated = true;
+  r.views[0].lpips = 0.125;  // the other LPIPS values stay NaN (unavailable) and must come back as NaN
+  auto back = scene_from_json(nlohmann::json::parse(scene_to_json(r).dump()));
+  EXPECT_EQ(back.key, "k");
+  EXPECT_EQ(back.context, r.context);
+  EXPECT_EQ(back.target, r.target);
+  EXPECT_EQ(back.bucket, r.bucket);
+  ASSERT_TRUE(back.overlap);
+  EXPECT_DOUBLE_EQ(*back.overlap, 0.4);
+  ASSERT_EQ(back.views.size(), 2u);
+  EXPECT_TRUE(back.views[1].extrapolated);
+  EXPECT_DOUBLE_EQ(back.views[0].lpips, 0.125);
+  EXPECT_TRUE(std::isnan(back.views[1].lpips));
+  EXPECT_DOUBLE_EQ(back.psnr, r.psnr);
+  EXPECT_DOUBLE_EQ(back.ssim_copy, r.ssim_copy);
+}
+
 TEST(Evaluator, InterpolationAndExtrapolationSpans) {
   auto a = fake_scene("a", std::nullopt, {20, 10});  // frame 1 interpolated, frame 0 extrapolated
   a.views[1].extrapolated = true;

@@ -147,3 +147,40 @@ TEST(Distributed, TwoGlooRanksMatchOneProcessWithTheCombinedBatch) {
   EXPECT_LT(std::sqrt(diff / norm), 1e-4) << "relative L2 difference of the weights";
   if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(dir);
 }
+
+TEST(Distributed, TwoGlooEvalShardsMergeToTheSingleProcessResults) {
+  const auto dir = test::temp_dir("distributed_eval");
+  auto config = test::micro_config();
+  config.training.train_steps = 2;
+  std::ofstream(dir / "config.json") << config_to_json(config).dump(2);
+  const std::string cli = UPLVSM_CLI, data = test::micro_dataset();
+  ASSERT_EQ(std::system((cli + " train --threads 1 --config " + (dir / "config.json").string() + " --data " + data +
+                         " --run " + (dir / "run").string() + " > " + (dir / "train.log").string() + " 2>&1").c_str()),
+            0) << read_text(dir / "train.log");
+  auto eval_cmd = [&](const fs::path& out) {
+    return cli + " eval --device cpu --threads 1 --batch 1 --checkpoint " + (dir / "run").string() + " --data " + data +
+           " --out " + out.string();
+  };
+  const int port = free_loopback_port();
+  std::string script;
+  for (int rank = 0; rank < 2; ++rank)
+    script += "RANK=" + std::to_string(rank) + " LOCAL_RANK=" + std::to_string(rank) +
+              " WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(port) + " " + eval_cmd(dir / "dp") +
+              " > " + (dir / ("eval" + std::to_string(rank) + ".log")).string() + " 2>&1 & p" + std::to_string(rank) +
+              "=$!; ";
+  script += "wait $p0; r0=$?; wait $p1; r1=$?; exit $((r0 | r1))";
+  const int rc = std::system(("bash -c '" + script + "'").c_str());
+  ASSERT_EQ(rc, 0) << read_text(dir / "eval0.log") << "\n" << read_text(dir / "eval1.log");
+  ASSERT_EQ(std::system((eval_cmd(dir / "single") + " > " + (dir / "single.log").string() + " 2>&1").c_str()), 0)
+      << read_text(dir / "single.log");
+  // Each scene is scored by one rank; the merged per-scene rows and means equal one process's.
+  EXPECT_EQ(read_text(dir / "dp/per_scene.csv"), read_text(dir / "single/per_scene.csv"));
+  EXPECT_EQ(read_text(dir / "dp/per_view.csv"), read_text(dir / "single/per_view.csv"));
+  auto a = nlohmann::json::parse(read_text(dir / "dp/metrics.json"));
+  auto b = nlohmann::json::parse(read_text(dir / "single/metrics.json"));
+  EXPECT_EQ(a.at("scenes"), b.at("scenes"));
+  EXPECT_EQ(a.at("table"), b.at("table"));
+  EXPECT_NE(read_text(dir / "eval0.log").find("evaluated"), std::string::npos);
+  EXPECT_EQ(read_text(dir / "eval1.log").find("evaluated"), std::string::npos);  // only rank 0 reports
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(dir);
+}

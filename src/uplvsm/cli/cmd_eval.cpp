@@ -10,6 +10,7 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/train/distributed.h"
 
 namespace uplvsm::cli {
 
@@ -17,7 +18,9 @@ void add_eval_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "eval", "Evaluate a checkpoint on held-out scenes (unposed protocol: the estimator sees each target image), "
               "with the copy-nearest-input and mean-colour baselines; per scene mean, then mean over scenes, and per "
-              "overlap bucket when the index has overlaps.");
+              "overlap bucket when the index has overlaps. Multi-process: launch one process per device with "
+              "torchrun's variables (RANK, WORLD_SIZE, ...); the scenes are sharded and rank 0 writes the merged "
+              "results.");
   struct Args {
     CommonOptions common;
     ModelSource model;
@@ -60,7 +63,11 @@ void add_eval_command(CLI::App& app) {
   cmd->callback([a] {
     apply_common_options(a->common);
     Config config;
-    auto device = parse_device(a->common.device);
+    // torchrun / SLURM variables make this process one shard of a multi-process evaluation (results merged).
+    const auto env = train::distributed_env_from_environment();
+    auto device = train::rank_device(parse_device(a->common.device), env);
+    std::shared_ptr<train::Communicator> comm;
+    if (env.distributed()) comm = std::make_shared<train::Communicator>(env, device);
     auto net = load_model(a->model, device, &config);
     data::ChunkDataset dataset(a->data, a->split);
     data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
@@ -74,6 +81,11 @@ void add_eval_command(CLI::App& app) {
     opt.out_dir = a->out;
     opt.bf16 = parse_amp(a->amp);
     opt.target_poses = model::parse_target_poses(a->target_poses, config.model);
+    if (comm) {
+      opt.shard_rank = comm->rank();
+      opt.shard_count = comm->world_size();
+      opt.gather = [comm](const std::string& mine) { return comm->all_gather(mine); };
+    }
     if (!a->lpips_backbone.empty()) {
       opt.lpips = eval::load_lpips(eval::parse_lpips_net(a->lpips_net), a->lpips_backbone, a->lpips_lin);
       opt.lpips->to(device);
@@ -82,6 +94,7 @@ void add_eval_command(CLI::App& app) {
                  {"config", config.name},
                  {"variant", config.model.variant}, {"target_poses", model::to_string(opt.target_poses)}};
     auto summary = eval::evaluate(net, dataset, prep, opt);
+    if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
     const auto& t = summary.table;
     auto line = [&](const std::string& name, const std::string& row) {
       const auto& r = t.at(row);

@@ -372,15 +372,39 @@ void write_results(const std::string& out_dir, const EvalSummary& s, const nlohm
   write_text((fs::path(out_dir) / "per_view.csv").string(), per_view_csv(s));
 }
 
+// Every shard's scenes, bad-frame counts and grids into every rank's state (results by index position).
+static void merge_shards(const EvalOptions& opt, RunState& state) {
+  nlohmann::json mine{{"bad_frames", state.bad_frames}, {"grids", state.grids}, {"scenes", nlohmann::json::array()}};
+  for (size_t pos = 0; pos < state.results.size(); ++pos)
+    if (state.results[pos]) mine["scenes"].push_back({{"position", pos}, {"scene", scene_to_json(*state.results[pos])}});
+  const auto all = opt.gather(mine.dump());
+  TORCH_CHECK(static_cast<int>(all.size()) == opt.shard_count, "eval: gathered ", all.size(), " shards, expected ",
+              opt.shard_count);
+  state.bad_frames = 0;
+  state.grids.clear();
+  for (const auto& text : all) {
+    const auto j = nlohmann::json::parse(text);
+    state.bad_frames += j.at("bad_frames").get<int64_t>();
+    for (const auto& g : j.at("grids")) state.grids.push_back(g.get<std::string>());
+    for (const auto& e : j.at("scenes"))
+      state.results.at(e.at("position").get<size_t>()) = scene_from_json(e.at("scene"));
+  }
+}
+
 EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string index_path =
       opt.index_path.empty() ? (fs::path(dataset.root()) / "evaluation_index.json").string() : opt.index_path;
   EvalSummary counts;
-  const auto jobs = plan_jobs(dataset, opt, index_path, counts);
+  TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count,
+              "eval: shard ", opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");
+  const auto all_jobs = plan_jobs(dataset, opt, index_path, counts);
+  std::vector<Job> jobs;  // this shard's
+  for (const auto& job : all_jobs)
+    if (static_cast<int>(job.position % static_cast<size_t>(opt.shard_count)) == opt.shard_rank) jobs.push_back(job);
   RunState state;
-  state.results.resize(jobs.size());
+  state.results.resize(all_jobs.size());
   {
     EvalModeGuard mode(net);
     torch::NoGradGuard no_grad;
@@ -406,6 +430,7 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
     }
     bar.finish();
   }
+  if (opt.shard_count > 1 && opt.gather) merge_shards(opt, state);
   std::vector<SceneResult> results;
   for (auto& r : state.results)
     if (r) results.push_back(std::move(*r));
@@ -429,8 +454,46 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
                  s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
                  s.table["mean_colour"]["ssim"]);
   }
-  if (!opt.out_dir.empty()) write_results(opt.out_dir, s, opt.extra);
+  if (!opt.out_dir.empty() && opt.shard_rank == 0) write_results(opt.out_dir, s, opt.extra);
   return s;
+}
+
+namespace {
+double number(const nlohmann::json& j, const char* key) {
+  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kUnavailable;
+}
+}  // namespace
+
+nlohmann::json scene_to_json(const SceneResult& r) {
+  nlohmann::json views = nlohmann::json::array();
+  for (const auto& v : r.views)
+    views.push_back({{"frame", v.frame}, {"psnr", v.psnr}, {"ssim", v.ssim}, {"lpips", v.lpips},
+                     {"psnr_copy", v.psnr_copy}, {"ssim_copy", v.ssim_copy}, {"lpips_copy", v.lpips_copy},
+                     {"psnr_mean", v.psnr_mean}, {"ssim_mean", v.ssim_mean}, {"lpips_mean", v.lpips_mean},
+                     {"extrapolated", v.extrapolated}});
+  nlohmann::json j{{"key", r.key}, {"context", r.context}, {"target", r.target}, {"bucket", r.bucket}, {"views", views}};
+  if (r.overlap) j["overlap"] = *r.overlap;
+  return j;
+}
+
+SceneResult scene_from_json(const nlohmann::json& j) {
+  SceneResult r;
+  r.key = j.at("key").get<std::string>();
+  r.context = j.at("context").get<std::vector<int64_t>>();
+  r.target = j.at("target").get<std::vector<int64_t>>();
+  r.bucket = j.at("bucket").get<std::string>();
+  if (j.contains("overlap") && j["overlap"].is_number()) r.overlap = j["overlap"].get<double>();
+  for (const auto& v : j.at("views")) {
+    ViewMetrics m;
+    m.frame = v.at("frame").get<int64_t>();
+    m.psnr = number(v, "psnr"), m.ssim = number(v, "ssim"), m.lpips = number(v, "lpips");
+    m.psnr_copy = number(v, "psnr_copy"), m.ssim_copy = number(v, "ssim_copy"), m.lpips_copy = number(v, "lpips_copy");
+    m.psnr_mean = number(v, "psnr_mean"), m.ssim_mean = number(v, "ssim_mean"), m.lpips_mean = number(v, "lpips_mean");
+    m.extrapolated = v.at("extrapolated").get<bool>();
+    r.views.push_back(m);
+  }
+  finalise_scene(r);
+  return r;
 }
 
 torch::Tensor error_heatmap(const torch::Tensor& pred, const torch::Tensor& gt, double gain) {

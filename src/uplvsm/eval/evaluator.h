@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <map>
 #include <optional>
@@ -38,6 +39,12 @@ struct EvalOptions {
   // cameras through the pose mapper (camera control), or the dataset cameras directly (posed variants).
   model::TargetPoses target_poses = model::TargetPoses::Estimator;
   nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
+  // Sharded evaluation, one process per rank: this rank scores the scenes whose position in the index is
+  // shard_rank mod shard_count; `gather` (the caller's collective, e.g. c10d) returns every rank's string in rank
+  // order, so every rank ends with the full summary. Only shard 0 writes the metrics files; each rank writes the
+  // grids of its own scenes.
+  int shard_rank = 0, shard_count = 1;
+  std::function<std::vector<std::string>(const std::string&)> gather;
 };
 
 struct ViewMetrics {
@@ -86,6 +93,10 @@ struct EvalSummary {
 // unreadable index, frames out of range and undecodable images (naming the scene).
 EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt);
+
+// One scene's results as JSON and back (NaN, e.g. unavailable LPIPS, travels as null); used to merge shards.
+nlohmann::json scene_to_json(const SceneResult& scene);
+SceneResult scene_from_json(const nlohmann::json& j);
 
 // Per-scene means from the views, then the table and bucket means over scenes (community convention). Exposed so
 // results can be re-aggregated (tests, merging runs).

@@ -142,6 +142,30 @@ void Communicator::allreduce_sum(const std::vector<torch::Tensor>& tensors) {
   }
 }
 
+std::vector<std::string> Communicator::all_gather(const std::string& mine) {
+  // Sizes, then the bytes, each through a sum where only the owner's slots are non-zero.
+  auto sizes = torch::zeros({env_.world_size}, torch::TensorOptions().dtype(torch::kInt64).device(device_));
+  sizes[env_.rank] = static_cast<int64_t>(mine.size());
+  allreduce_sum({sizes});
+  auto sizes_cpu = sizes.cpu();
+  std::vector<int64_t> offsets(env_.world_size + 1, 0);
+  for (int r = 0; r < env_.world_size; ++r) offsets[r + 1] = offsets[r] + sizes_cpu[r].item<int64_t>();
+  auto bytes = torch::zeros({std::max<int64_t>(1, offsets.back())}, torch::kInt32);
+  int32_t* slot = bytes.data_ptr<int32_t>() + offsets[env_.rank];
+  for (size_t i = 0; i < mine.size(); ++i) slot[i] = static_cast<unsigned char>(mine[i]);
+  auto shared = bytes.to(device_);
+  allreduce_sum({shared});
+  auto all = shared.cpu().contiguous();
+  const int32_t* data = all.data_ptr<int32_t>();
+  std::vector<std::string> out;
+  for (int r = 0; r < env_.world_size; ++r) {
+    std::string s(static_cast<size_t>(offsets[r + 1] - offsets[r]), '\0');
+    for (size_t i = 0; i < s.size(); ++i) s[i] = static_cast<char>(data[offsets[r] + static_cast<int64_t>(i)]);
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
 void Communicator::allreduce_max(torch::Tensor& tensor) {
   std::vector<at::Tensor> buffer = {tensor.to(device_).contiguous()};
   c10d::AllreduceOptions opt;

@@ -43,6 +43,8 @@ class Communicator {
   // Every rank gets rank `root`'s values, in place.
   void broadcast(const std::vector<torch::Tensor>& tensors, int root = 0);
   void barrier();
+  // Every rank's string, in rank order, on every rank (results of sharded work, e.g. evaluation).
+  std::vector<std::string> all_gather(const std::string& mine);
 
   struct Impl;  // the backend's process group; public so the .cpp's free helpers can bind it
 
