@@ -1,6 +1,6 @@
 // `uplvsm study ...`: the paper's analyses as tools. pose-pairs exports (latent pose, real pose) pairs of a split;
 // pose-probe fits the paper's 2-layer MLP probe (and a linear one) latent -> SE(3) on one split and scores it on
-// another (Table 7's accuracies).
+// another (Table 7's accuracies); tsne embeds latent and real poses together (the appendix figure).
 #include <filesystem>
 #include <iostream>
 #include <set>
@@ -10,7 +10,9 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
 #include "uplvsm/study/pose_probe.h"
+#include "uplvsm/study/tsne.h"
 
 namespace uplvsm::cli {
 
@@ -120,13 +122,50 @@ void add_pose_probe(CLI::App& study) {
   });
 }
 
+void add_tsne(CLI::App& study) {
+  auto* cmd = study.add_subcommand(
+      "tsne", "t-SNE of latent and real poses together (paper appendix figure): tsne.png with each pair in one "
+              "colour, tsne.csv with the 2-D points, pairs.csv");
+  auto a = std::make_shared<PoseArgs>();
+  auto perplexity = std::make_shared<double>(30.0);
+  add_pose_options(cmd, *a);
+  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
+  cmd->add_option("--perplexity", *perplexity, "t-SNE perplexity")->capture_default_str();
+  cmd->add_option("--iterations", a->iterations, "t-SNE gradient steps")->capture_default_str();
+  cmd->add_option("--out", a->out, "output directory")->required();
+  cmd->callback([a, perplexity] {
+    apply_common_options(a->common);
+    Config config;
+    const auto device = parse_device(a->common.device);
+    auto net = load_model(a->model, device, &config);
+    auto pairs = study::without_canonical_views(pairs_of(net, config, *a, a->split, device));
+    fs::create_directories(a->out);
+    study::write_pose_pairs_csv((fs::path(a->out) / "pairs.csv").string(), pairs);
+    study::TsneOptions o;
+    o.perplexity = *perplexity;
+    o.iterations = a->iterations;
+    auto r = study::tsne(torch::cat({pairs.latent, pairs.real}), o);
+    const int64_t n = pairs.latent.size(0);
+    std::string csv = "pair,kind,scene,frame,x,y\n";
+    auto e = r.embedding.contiguous();
+    for (int64_t i = 0; i < 2 * n; ++i)
+      csv += fmt::format("{},{},{},{},{:.6f},{:.6f}\n", i % n, i < n ? "latent" : "real", pairs.scenes[i % n],
+                         pairs.frames[i % n], e[i][0].item<double>(), e[i][1].item<double>());
+    io::write_file_atomic((fs::path(a->out) / "tsne.csv").string(), csv.data(), csv.size());
+    const auto png = (fs::path(a->out) / "tsne.png").string();
+    io::write_png(png, study::pose_pair_figure(r.embedding, fmt::format("t-SNE of {} latent/real pose pairs", n)));
+    std::cout << fmt::format("t-SNE of {} pose pairs (KL {:.3f}) -> {}\n", n, r.kl_divergence, png);
+  });
+}
+
 }  // namespace
 
 void add_study_command(CLI::App& app) {
-  auto* study = app.add_subcommand("study", "The paper's analyses as tools (pose-pairs, pose-probe)");
+  auto* study = app.add_subcommand("study", "The paper's analyses as tools (pose-pairs, pose-probe, tsne)");
   study->require_subcommand(1);
   add_pose_pairs(*study);
   add_pose_probe(*study);
+  add_tsne(*study);
 }
 
 }  // namespace uplvsm::cli
