@@ -79,6 +79,16 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
                    (dir / "dolly").string(), &out), 0);
   EXPECT_NE(out.find("--stage mapper"), std::string::npos) << out;
 
+  // The pose studies on the trained run (tiny budgets).
+  ASSERT_EQ(sh("study pose-probe --checkpoint " + run + " --data " + data + " --gap 5 --iterations 50 --out " +
+                   (dir / "probe").string(), &out), 0);
+  EXPECT_NE(out.find("trans@0.1/0.2/0.3"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(dir / "probe/probe.json"));
+  ASSERT_EQ(sh("study tsne --checkpoint " + run + " --data " + data + " --gap 5 --perplexity 3 --iterations 100 --out " +
+                   (dir / "tsne").string(), &out), 0);
+  EXPECT_TRUE(fs::exists(dir / "tsne/tsne.png"));
+  EXPECT_TRUE(fs::exists(dir / "tsne/tsne.csv"));
+
   // Bring-your-own photos: two frames written as PNG files.
   ASSERT_EQ(sh("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +
                    (dir / "byo").string(), &out) != 0, true);

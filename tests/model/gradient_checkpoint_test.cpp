@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include "test_util.h"
+#include "train/train_test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/gradient_checkpoint.h"
 #include "uplvsm/model/transformer.h"
@@ -75,19 +76,10 @@ TEST(GradientCheckpoint, FrozenWeightsAndInputsWithoutGradAreSkipped) {
 }
 
 ModelConfig small_model() {
-  ModelConfig m;
-  m.image_size = 32;
-  m.patch_size = 8;
-  m.transformer.d = 32;
-  m.transformer.d_head = 16;
-  m.transformer.encoder_n_layer = 2;
+  auto m = test::micro_model();
+  m.transformer.encoder_n_layer = 2;  // several blocks per stack, so groups of k matter
   m.transformer.estimator_n_layer = 2;
   m.transformer.decoder_n_layer = 3;
-  m.transformer.n_latent_vectors = 8;
-  m.dinov2.embed_dim = 32;
-  m.dinov2.depth = 1;
-  m.dinov2.num_heads = 2;
-  m.dinov2.pos_grid = 4;
   return m;
 }
 

@@ -2,6 +2,7 @@
 #include <gtest/gtest.h>
 
 #include "test_util.h"
+#include "train/train_test_util.h"
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/model/flops.h"
 #include "uplvsm/model/pretrained_weights.h"
@@ -12,24 +13,7 @@ using namespace uplvsm;
 using torch::indexing::Slice;
 
 namespace {
-ModelConfig small_config(const std::string& variant) {
-  ModelConfig m;
-  m.variant = variant;
-  m.image_size = 32;
-  m.patch_size = 8;
-  m.transformer.d = 32;
-  m.transformer.d_head = 16;
-  m.transformer.encoder_n_layer = 1;
-  m.transformer.estimator_n_layer = 1;
-  m.transformer.decoder_n_layer = 1;
-  m.transformer.n_layer = 2;
-  m.transformer.n_latent_vectors = 8;
-  m.dinov2.embed_dim = 32;
-  m.dinov2.depth = 1;
-  m.dinov2.num_heads = 2;
-  m.dinov2.pos_grid = 4;
-  return m;
-}
+ModelConfig small_config(const std::string& variant) { return test::micro_model(variant); }
 
 struct Scene {
   model::Views inputs, targets;

@@ -4,6 +4,7 @@
 #include <fstream>
 
 #include "test_util.h"
+#include "train/train_test_util.h"
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
@@ -96,20 +97,9 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
 
 namespace {
 ModelConfig micro_model(const std::string& variant, bool mapper) {
-  ModelConfig m;
-  m.variant = variant;
-  m.pose_mapper = mapper;
-  m.image_size = 32;
-  m.patch_size = 8;
-  m.transformer.d = 32;
-  m.transformer.d_head = 16;
-  m.transformer.encoder_n_layer = m.transformer.estimator_n_layer = m.transformer.decoder_n_layer = 1;
+  auto m = test::micro_model(variant);
   m.transformer.n_layer = 1;
-  m.transformer.n_latent_vectors = 8;
-  m.dinov2.embed_dim = 32;
-  m.dinov2.depth = 1;
-  m.dinov2.num_heads = 2;
-  m.dinov2.pos_grid = 4;
+  m.pose_mapper = mapper;
   return m;
 }
 }  // namespace

@@ -9,10 +9,10 @@
 
 namespace uplvsm::test {
 
-inline Config micro_config() {
-  Config c;
-  c.name = "micro";
-  auto& m = c.model;
+// A micro model of any variant: 32 px, patch 8, d 32, one block per stack (posed variants: n_layer 2).
+inline ModelConfig micro_model(const std::string& variant = "uplvsm") {
+  ModelConfig m;
+  m.variant = variant;
   m.image_size = 32;
   m.patch_size = 8;
   m.transformer.d = 32;
@@ -20,11 +20,19 @@ inline Config micro_config() {
   m.transformer.encoder_n_layer = 1;
   m.transformer.estimator_n_layer = 1;
   m.transformer.decoder_n_layer = 1;
+  m.transformer.n_layer = 2;
   m.transformer.n_latent_vectors = 8;
   m.dinov2.embed_dim = 32;
   m.dinov2.depth = 1;
   m.dinov2.num_heads = 2;
   m.dinov2.pos_grid = 4;
+  return m;
+}
+
+inline Config micro_config() {
+  Config c;
+  c.name = "micro";
+  c.model = micro_model();
   auto& t = c.training;
   t.lr = 3e-3;
   t.warmup = 2;

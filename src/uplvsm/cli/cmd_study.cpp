@@ -39,6 +39,20 @@ void add_pose_options(CLI::App* cmd, PoseArgs& a) {
       ->capture_default_str();
 }
 
+// The runtime set-up and the model every study starts from.
+struct StudyModel {
+  Config config;
+  torch::Device device = torch::kCPU;
+  model::UPLVSM net{nullptr};
+};
+StudyModel start(const PoseArgs& a) {
+  apply_common_options(a.common);
+  StudyModel m;
+  m.device = parse_device(a.common.device);
+  m.net = load_model(a.model, m.device, &m.config);
+  return m;
+}
+
 study::PosePairs pairs_of(model::UPLVSM& net, const Config& config, const PoseArgs& a, const std::string& split,
                           torch::Device device) {
   data::ChunkDataset dataset(a.data, split);
@@ -59,10 +73,7 @@ void add_pose_pairs(CLI::App& study) {
   cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
   cmd->add_option("--out", a->out, "CSV file")->required();
   cmd->callback([a] {
-    apply_common_options(a->common);
-    Config config;
-    const auto device = parse_device(a->common.device);
-    auto net = load_model(a->model, device, &config);
+    auto [config, device, net] = start(*a);
     auto pairs = pairs_of(net, config, *a, a->split, device);
     study::write_pose_pairs_csv(a->out, pairs);
     const auto scenes = std::set<std::string>(pairs.scenes.begin(), pairs.scenes.end()).size();
@@ -82,10 +93,7 @@ void add_pose_probe(CLI::App& study) {
   cmd->add_option("--iterations", a->iterations, "MLP probe: full-batch Adam steps")->capture_default_str();
   cmd->add_option("--out", a->out, "output directory")->required();
   cmd->callback([a] {
-    apply_common_options(a->common);
-    Config config;
-    const auto device = parse_device(a->common.device);
-    auto net = load_model(a->model, device, &config);
+    auto [config, device, net] = start(*a);
     auto train_pairs = pairs_of(net, config, *a, a->train_split, device);
     auto test_pairs = pairs_of(net, config, *a, a->split, device);
     fs::create_directories(a->out);
@@ -134,10 +142,7 @@ void add_tsne(CLI::App& study) {
   cmd->add_option("--iterations", a->iterations, "t-SNE gradient steps")->capture_default_str();
   cmd->add_option("--out", a->out, "output directory")->required();
   cmd->callback([a, perplexity] {
-    apply_common_options(a->common);
-    Config config;
-    const auto device = parse_device(a->common.device);
-    auto net = load_model(a->model, device, &config);
+    auto [config, device, net] = start(*a);
     auto pairs = study::without_canonical_views(pairs_of(net, config, *a, a->split, device));
     fs::create_directories(a->out);
     study::write_pose_pairs_csv((fs::path(a->out) / "pairs.csv").string(), pairs);
