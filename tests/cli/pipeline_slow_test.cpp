@@ -88,6 +88,13 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
                    (dir / "tsne").string(), &out), 0);
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.png"));
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.csv"));
+  ASSERT_EQ(sh("study attention --checkpoint " + run + " --data " + data + " --scenes 2 --patch 1 2 --out " +
+                   (dir / "attention").string(), &out), 0);
+  EXPECT_NE(out.find("patch (1, 2)"), std::string::npos) << out;
+  EXPECT_TRUE(fs::exists(dir / "attention/attention.json"));
+  EXPECT_NE(sh("study attention --checkpoint " + run + " --data " + data + " --patch 9 0 --out " +
+                   (dir / "attention_bad").string(), &out), 0);
+  EXPECT_NE(out.find("outside view 1's 4x4 patch grid"), std::string::npos) << out;
 
   // Bring-your-own photos: two frames written as PNG files.
   ASSERT_EQ(sh("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +

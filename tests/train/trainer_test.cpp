@@ -141,7 +141,7 @@ TEST(Trainer, PeriodicEvaluationIsLoggedBesideTheLoss) {
   opt.periodic_eval = [&](model::UPLVSM& net, int64_t step) {
     EXPECT_FALSE(net->is_training());
     steps.push_back(step);
-    return nlohmann::json{{"psnr", 10.0 + static_cast<double>(step)}};
+    return nlohmann::json{{"psnr", step == 4 ? 20.0 : 15.0}};
   };
   train::train(config, opt);
   EXPECT_EQ(steps, (std::vector<int64_t>{4, 6}));  // every 4 steps and at the end
@@ -152,7 +152,17 @@ TEST(Trainer, PeriodicEvaluationIsLoggedBesideTheLoss) {
     auto j = nlohmann::json::parse(line);
     if (j.contains("eval")) eval_psnr.push_back(j["eval"]["psnr"].get<double>());
   }
-  EXPECT_EQ(eval_psnr, (std::vector<double>{14.0, 16.0}));
+  EXPECT_EQ(eval_psnr, (std::vector<double>{20.0, 15.0}));
+  // The best evaluation's weights are kept beside the rotating checkpoints; the directory still resolves to the
+  // latest training checkpoint, whose state remembers the best PSNR.
+  const auto best = fs::path(run) / "checkpoints/best.safetensors";
+  ASSERT_TRUE(fs::exists(best));
+  auto best_ckpt = model::read_checkpoint(best.string());
+  EXPECT_EQ(best_ckpt.state.at("step"), 4);
+  EXPECT_EQ(best_ckpt.state.at("best_eval_psnr").get<double>(), 20.0);
+  auto latest = model::read_checkpoint(run);
+  EXPECT_EQ(latest.state.at("step"), 6);
+  EXPECT_EQ(latest.state.at("best_eval_psnr").get<double>(), 20.0);
 }
 
 TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {

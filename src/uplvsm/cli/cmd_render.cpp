@@ -38,20 +38,6 @@ struct Args {
   double fps = 12, fov = 60;
 };
 
-// A user's photo: pinhole camera with the principal point at the centre and the given horizontal field of view.
-data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep) {
-  auto img = io::read_image(path);
-  const double W = static_cast<double>(img.size(1)), H = static_cast<double>(img.size(0));
-  const double fx_norm = 0.5 / std::tan(fov_deg * M_PI / 360.0);
-  auto cam = torch::zeros({1, 18});
-  cam[0][0] = fx_norm;
-  cam[0][1] = fx_norm * W / H;  // square pixels
-  cam[0][2] = 0.5;
-  cam[0][3] = 0.5;
-  for (int i = 0; i < 3; ++i) cam[0][6 + 5 * i] = 1.0;  // identity w2c: unused by the unposed model
-  return data::preprocess({img}, cam, prep, path);
-}
-
 // The camera path of the video in camera-control units and its pixel intrinsics, or undefined poses for the latent
 // interpolation (unposed inputs and no way to place real cameras).
 std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const data::Views& views, bool posed,

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/data/preprocess.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::cli {
@@ -26,6 +27,10 @@ struct ModelSource {
 void add_model_options(CLI::App* cmd, ModelSource& src);
 model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
 
+// A user's photo (JPEG/PNG) as one view: a pinhole camera with the principal point at the centre and the given
+// horizontal field of view, identity pose (unused by the unposed model).
+data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep);
+
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
 void add_train_command(CLI::App& app);
@@ -34,5 +39,7 @@ void add_render_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
 void add_study_command(CLI::App& app);
+// study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
+void add_study_grid_commands(CLI::App& study);
 
 }  // namespace uplvsm::cli

@@ -1,5 +1,6 @@
 #include "uplvsm/core/config.h"
 
+#include <cmath>
 #include <fstream>
 #include <set>
 #include <stdexcept>
@@ -111,6 +112,8 @@ void training_fields(C& c, F&& f) {
   f("loader_threads", c.loader_threads);
   f("amp", c.amp);
   f("target_poses", c.target_poses);
+  f("max_train_scenes", c.max_train_scenes);
+  f("pose_noise_variance", c.pose_noise_variance);
 }
 
 template <typename C, typename F>
@@ -227,6 +230,9 @@ void validate_config(const Config& c, const std::string& s) {
   require(m.variant == "uplvsm" || tp == "auto" || tp == "dataset", s,
           "training.target_poses: the " + m.variant + " variant renders from dataset cameras ('auto' or 'dataset')");
   require(tp != "mapper" || m.pose_mapper, s, "training.target_poses 'mapper' needs model.pose_mapper: true");
+  require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
+  require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
+          "training.pose_noise_variance must be a finite number >= 0");
   require(tr.train_steps >= 1 && tr.warmup >= 0, s, "training.train_steps must be >= 1 and warmup >= 0");
   require(c.dataset.frames_per_scene >= tr.num_views, s, "dataset.frames_per_scene must be >= training.num_views");
 }

@@ -74,6 +74,11 @@ struct TrainingConfig {
   // Where targets' cameras come from (model::TargetPoses): "auto" (estimator for uplvsm, dataset for the posed
   // variants), "estimator", "mapper" (camera-control fine-tuning) or "dataset" (the SfM-target-pose ablation).
   std::string target_poses = "auto";
+  // Nested training subsets (the scalability study): train on the first N scenes of the train split; 0: all.
+  int64_t max_train_scenes = 0;
+  // The pose-noise study: N(0, variance) added to the 7-D (t, q) encoding of every training camera (the official
+  // `noise_scale` knob); 0: clean cameras. Only variants that read training cameras are affected.
+  double pose_noise_variance = 0;
 };
 
 struct DatasetConfig {

@@ -5,6 +5,7 @@
 #include <sched.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -13,12 +14,56 @@
 
 namespace uplvsm {
 
+namespace {
+std::string loaded_openblas_core() {
+  using GetCorename = char* (*)();
+  auto fn = reinterpret_cast<GetCorename>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
+  return fn ? std::string(fn()) : std::string();
+}
+}  // namespace
+
+CpuFeatures detect_cpu_features() {
+  CpuFeatures cpu;
+#if defined(__x86_64__) || defined(__i386__)
+  __builtin_cpu_init();
+  cpu.avx2_fma = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  cpu.avx512 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
+               __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
+  cpu.avx512_bf16 = cpu.avx512 && __builtin_cpu_supports("avx512bf16");
+#endif
+  return cpu;
+}
+
+std::string openblas_core_for_cpu(const std::string& picked_core, const CpuFeatures& cpu) {
+  // Only a fallback pick is overridden: a core OpenBLAS recognised (Haswell, SkylakeX, Zen, ...) is its choice.
+  std::string core = picked_core;
+  for (auto& c : core) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (core != "prescott" && core != "core2" && core != "nehalem" && core != "sandybridge") return "";
+  if (cpu.avx512_bf16) return "Cooperlake";
+  if (cpu.avx512) return "SkylakeX";
+  if (cpu.avx2_fma && core != "sandybridge") return "Haswell";
+  return "";
+}
+
 void ensure_passive_openmp(char** argv) {
-  if (std::getenv("OMP_WAIT_POLICY") != nullptr || std::getenv("UPLVSM_NO_REEXEC") != nullptr) return;
-  setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+  if (std::getenv("UPLVSM_NO_REEXEC") != nullptr) return;
+  bool reexec = false;
+  if (std::getenv("OMP_WAIT_POLICY") == nullptr) {
+    setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+    reexec = true;
+  }
+  // A user's OPENBLAS_CORETYPE always wins; OpenBLAS reads it only when it is loaded, hence the re-exec.
+  if (std::getenv("OPENBLAS_CORETYPE") == nullptr) {
+    std::string core = openblas_core_for_cpu(loaded_openblas_core(), detect_cpu_features());
+    if (!core.empty()) {
+      setenv("OPENBLAS_CORETYPE", core.c_str(), 1);
+      reexec = true;
+    }
+  }
+  if (!reexec) return;
   setenv("UPLVSM_NO_REEXEC", "1", 1);
   execv("/proc/self/exe", argv);
-  // execv only returns on failure: carry on with the active policy rather than refuse to run.
+  // execv only returns on failure: carry on with the current set-up rather than refuse to run.
 }
 
 int available_cores() {
@@ -61,6 +106,7 @@ RuntimeInfo runtime_info() {
   if (info.blas_library.empty()) info.blas_library = "unknown";
   using GetConfig = char* (*)();
   if (auto fn = reinterpret_cast<GetConfig>(dlsym(RTLD_DEFAULT, "openblas_get_config"))) info.blas_config = fn();
+  info.blas_core = loaded_openblas_core();
   info.threads = torch::get_num_threads();
   info.interop_threads = torch::get_num_interop_threads();
   const char* policy = std::getenv("OMP_WAIT_POLICY");
@@ -76,9 +122,11 @@ std::string format_runtime_info(const RuntimeInfo& info) {
                                                                                         : "unknown BLAS")
                               : "OpenBLAS";
   return fmt::format(
-      "LibTorch     {}\nBLAS         {} ({})\nBLAS config  {}\nthreads      {} intra-op, {} inter-op "
+      "LibTorch     {}\nBLAS         {} ({})\nBLAS config  {}\nBLAS core    {}{}\nthreads      {} intra-op, {} inter-op "
       "(cores available: {})\nOpenMP wait  {}\nCUDA         {}\n",
       info.torch_version, blas_kind, info.blas_library, info.blas_config.empty() ? "-" : info.blas_config,
+      info.blas_core.empty() ? "-" : info.blas_core,
+      std::getenv("OPENBLAS_CORETYPE") ? fmt::format(" (OPENBLAS_CORETYPE={})", std::getenv("OPENBLAS_CORETYPE")) : "",
       info.threads, info.interop_threads, available_cores(), info.omp_wait_policy,
       info.cuda_available ? fmt::format("available, {} device(s)", info.cuda_devices) : "not available");
 }

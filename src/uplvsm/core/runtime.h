@@ -9,6 +9,7 @@ struct RuntimeInfo {
   std::string torch_version;
   std::string blas_library;  // path of the loaded libblas.so.3 (or "unknown")
   std::string blas_config;   // openblas_get_config() when OpenBLAS is loaded
+  std::string blas_core;     // openblas_get_corename(): the kernel family OpenBLAS picked for this CPU
   int threads = 0;
   int interop_threads = 0;
   std::string omp_wait_policy;
@@ -18,7 +19,19 @@ struct RuntimeInfo {
 
 // libgomp reads OMP_WAIT_POLICY when it is loaded, before main(); so when the variable is unset we set it to
 // PASSIVE and re-exec the same binary once. Spinning workers would otherwise burn the cores the data loader needs.
+// The same re-exec fixes OpenBLAS's kernel choice (see openblas_core_for_cpu). UPLVSM_NO_REEXEC=1 disables both.
 void ensure_passive_openmp(char** argv);
+
+// Debian's OpenBLAS 0.3.21 (DYNAMIC_ARCH) does not recognise CPUs newer than it (Sapphire Rapids, Zen 4, ...) and
+// falls back to its SSE3 "Prescott" kernels, ~3x slower than the AVX-512 ones. Given the core OpenBLAS picked and
+// what the CPU supports, this names the core to ask for through OPENBLAS_CORETYPE, or "" when the pick is fine.
+struct CpuFeatures {
+  bool avx2_fma = false;
+  bool avx512 = false;  // F, VL, BW and DQ: what OpenBLAS's SkylakeX kernels use
+  bool avx512_bf16 = false;
+};
+CpuFeatures detect_cpu_features();
+std::string openblas_core_for_cpu(const std::string& picked_core, const CpuFeatures& cpu);
 
 // Threads default to the cores this process may run on (sched affinity); 0 means "all of them".
 void init_runtime(int threads = 0);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <numeric>
 #include <random>
 
@@ -9,6 +10,7 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/data/view_sampler.h"
+#include "uplvsm/geometry/camera.h"
 
 namespace uplvsm::data {
 
@@ -33,8 +35,19 @@ std::vector<int64_t> epoch_permutation(int64_t n, uint64_t seed, int64_t epoch) 
 
 }  // namespace
 
+// Annotation noise: every camera's (t, q) encoding plus N(0, variance), decoded back (the quaternion renormalised).
+torch::Tensor perturb_cameras(const torch::Tensor& c2w, double variance, uint64_t seed) {
+  auto enc = geometry::c2w_to_pose_encoding(c2w.to(torch::kFloat64));
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> normal(0.0, std::sqrt(variance));
+  std::vector<double> noise(static_cast<size_t>(enc.numel()));
+  for (auto& x : noise) x = normal(rng);
+  enc = enc + torch::tensor(noise, torch::kFloat64).view(enc.sizes());
+  return geometry::pose_encoding_to_c2w(enc).to(c2w.dtype());
+}
+
 TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step) {
-  const int64_t n = dataset.size();
+  const int64_t n = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
   if (n == 0) throw std::runtime_error("training data: split '" + dataset.split() + "' of " + dataset.root() + " has no scenes");
   TrainingBatch batch;
   batch.step = step;
@@ -82,6 +95,9 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
   batch.images = torch::stack(images);
   batch.fxfycxcy = torch::stack(intrinsics);
   batch.c2w = torch::stack(c2ws);
+  if (opt.pose_noise_variance > 0)
+    batch.c2w = perturb_cameras(batch.c2w, opt.pose_noise_variance,
+                                mix(opt.seed ^ 0x6e6f697365ULL, static_cast<uint64_t>(step * opt.world_size + opt.rank)));
   batch.target_index = torch::stack(targets);
   return batch;
 }

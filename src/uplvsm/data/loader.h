@@ -31,6 +31,10 @@ struct LoaderOptions {
   int rank = 0, world_size = 1;
   int threads = 2;
   int prefetch = 4;                // batches decoded ahead
+  int64_t max_scenes = 0;          // train on the split's first N scenes only (nested subsets); 0: all
+  // N(0, variance) on the 7-D (t, q) encoding of every camera (pose-noise study), drawn from its own stream so the
+  // views chosen do not change with it; 0: the dataset's cameras.
+  double pose_noise_variance = 0;
 };
 
 struct TrainingBatch {

@@ -85,9 +85,10 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   auto flat = tokens.reshape({b, v * n, d});
   auto x = torch::cat({flat.index({Slice(), Slice(0, n)}) + marker, flat.index({Slice(), Slice(n)})}, 1);
   const int64_t L = n_light_field_latent.size(0);
-  auto z = run_stack(transformer_encoder, torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1),
-                     grad_checkpoint_every);
+  auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);
+  auto z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every);
   if (trace) {
+    trace->encoder_input = encoder_input;
     trace->input_dino_tokens = tokens;
     trace->canonical_plucker =
         geometry::plucker_rays(geometry::identity_c2w({b, v}, fxfycxcy.options()), fxfycxcy, H, W);

@@ -28,6 +28,7 @@ namespace uplvsm::model {
 struct ForwardTrace {
   torch::Tensor input_dino_tokens;   // [b, v_in, n, d]
   torch::Tensor canonical_plucker;   // [b, v_in, 6, H, W] identity camera with the inputs' intrinsics
+  torch::Tensor encoder_input;       // [b, L + v_in n, d] latents ; marked input tokens (analysis replays blocks)
   torch::Tensor encoder_output;      // [b, L + v_in n, d]
   torch::Tensor target_dino_tokens;  // [b, v_t, n, d]
   torch::Tensor estimator_pooled;    // [b, v_t, d]

@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 nlohmann::json TrainState::to_json() const {
   return {{"step", step}, {"scheduler_step", scheduler_step}, {"param_update_step", param_update_step},
           {"skipped_nonfinite", skipped_nonfinite}, {"skipped_gradnorm", skipped_gradnorm},
-          {"train_seconds", train_seconds}};
+          {"train_seconds", train_seconds}, {"best_eval_psnr", best_eval_psnr}};
 }
 
 TrainState TrainState::from_json(const nlohmann::json& j) {
@@ -26,6 +26,7 @@ TrainState TrainState::from_json(const nlohmann::json& j) {
   s.skipped_nonfinite = j.value("skipped_nonfinite", int64_t{0});
   s.skipped_gradnorm = j.value("skipped_gradnorm", int64_t{0});
   s.train_seconds = j.value("train_seconds", 0.0);
+  s.best_eval_psnr = j.value("best_eval_psnr", -1.0);
   return s;
 }
 
@@ -96,6 +97,14 @@ std::string save_training_checkpoint(const std::string& dir, const Config& confi
   }
   std::sort(all.begin(), all.end());
   for (size_t i = 0; keep > 0 && i + static_cast<size_t>(keep) < all.size(); ++i) fs::remove(all[i]);
+  return path;
+}
+
+std::string save_best_checkpoint(const std::string& dir, const Config& config, const TrainState& state,
+                                 const torch::nn::Module& module) {
+  fs::create_directories(dir);
+  auto path = (fs::path(dir) / "best.safetensors").string();
+  model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), {});
   return path;
 }
 

@@ -58,6 +58,8 @@ data::LoaderOptions loader_options(const Config& c, const Communicator* comm) {
   o.preprocess.square_crop = c.dataset.square_crop;
   o.seed = static_cast<uint64_t>(t.seed);
   o.threads = static_cast<int>(t.loader_threads);
+  o.max_scenes = t.max_train_scenes;
+  o.pose_noise_variance = t.pose_noise_variance;
   if (comm) {
     o.rank = comm->rank();
     o.world_size = comm->world_size();
@@ -149,12 +151,18 @@ PerceptualLoss make_perceptual_loss(const TrainingConfig& tc, const TrainOptions
   return loss;
 }
 
-void run_periodic_eval(const TrainOptions& opt, model::UPLVSM& net, int64_t step, bool lead, std::ofstream& metrics) {
+// Held-out evaluation on rank 0; a new best PSNR is recorded in the state and its weights kept as best.safetensors.
+void run_periodic_eval(const TrainOptions& opt, const Config& config, model::UPLVSM& net, TrainState& state, bool lead,
+                       std::ofstream& metrics, const std::string& ckpt_dir) {
   if (lead) {
     net->eval();
-    auto result = opt.periodic_eval(net, step);
+    auto result = opt.periodic_eval(net, state.step);
     net->train();
-    metrics << json{{"step", step}, {"eval", result}}.dump() << "\n";
+    if (result.contains("psnr") && result.at("psnr").is_number() && result.at("psnr").get<double>() > state.best_eval_psnr) {
+      state.best_eval_psnr = result.at("psnr").get<double>();
+      result["best"] = save_best_checkpoint(ckpt_dir, config, state, *net);
+    }
+    metrics << json{{"step", state.step}, {"eval", result}}.dump() << "\n";
     metrics.flush();
   }
   if (opt.comm) opt.comm->barrier();
@@ -220,8 +228,19 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     return result;
   }
   data::ChunkDataset dataset(opt.data_root, "train");
-  spdlog::info("training {} ({} parameters) on {} scenes of {}, steps {} -> {}", config.name, net->parameter_count(),
-               dataset.size(), opt.data_root, state.step, tc.train_steps);
+  if (tc.max_train_scenes > dataset.size())
+    throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
+                                         tc.max_train_scenes, opt.data_root, dataset.size()));
+  const int64_t scenes = tc.max_train_scenes > 0 ? tc.max_train_scenes : dataset.size();
+  spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, net->parameter_count(),
+               scenes, opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
+               state.step, tc.train_steps);
+  if (tc.pose_noise_variance > 0)
+    spdlog::info("pose noise: N(0, {}) on the (t, q) of every training camera{}", tc.pose_noise_variance,
+                 config.model.variant == "uplvsm" && model::parse_target_poses(tc.target_poses, config.model) ==
+                         model::TargetPoses::Estimator
+                     ? " (this UP-LVSM run never reads them)"
+                     : "");
   data::TrainingLoader loader(dataset, loader_options(config, comm), state.step);
   PerceptualLoss perceptual = make_perceptual_loss(tc, opt);
   const bool use_bf16 = parse_amp(tc.amp);
@@ -316,12 +335,13 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
                               {"psnr", fmt::format("{:.2f}", psnr_from_mse(mse_ema))},
                               {"lr", fmt::format("{:.2e}", lr)}});
     const bool stop_now = stop_signal || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
+    // Evaluation first, so the checkpoint of this step carries its best-so-far record.
+    const bool eval_now = opt.periodic_eval && tc.eval_every > 0 &&
+                          (state.step % tc.eval_every == 0 || state.step == tc.train_steps);
+    if (eval_now) run_periodic_eval(opt, config, net, state, lead, metrics, ckpt_dir);
     if (lead && (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now)) {
       result.last_checkpoint = save_training_checkpoint(ckpt_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
     }
-    const bool eval_now = opt.periodic_eval && tc.eval_every > 0 &&
-                          (state.step % tc.eval_every == 0 || state.step == tc.train_steps);
-    if (eval_now) run_periodic_eval(opt, net, state.step, lead, metrics);
     if (stop_now) {
       result.interrupted = stop_signal;
       if (result.interrupted) spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);

@@ -1,0 +1,292 @@
+// `uplvsm study scaling` and `uplvsm study pose-noise`: grids of training runs. Series are model configs (UP-LVSM,
+// PT-LVSM, LVSM), settings are nested training-data subsets (the paper's scalability study, Table 3) or Gaussian
+// noise on the training poses (the appendix's pose-noise study). Every run has the same step budget and is scored
+// on one fixed test set. <out>/runs/<series>__<setting>/ is an ordinary run directory (resumable training, eval/);
+// a run whose result.json exists is not redone. The grid's table, CSV, plots and README.md land in <out>/.
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include "uplvsm/cli/commands.h"
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/core/progress.h"
+#include "uplvsm/core/runtime.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/eval/evaluator.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
+#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/study/study_grid.h"
+#include "uplvsm/train/trainer.h"
+
+namespace uplvsm::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct GridArgs {
+  CommonOptions common;
+  std::vector<std::string> configs;
+  std::string data, out, vgg19, lpips_net = "vgg", lpips_backbone, lpips_lin;
+  int64_t steps = -1, eval_scenes = 0;
+};
+
+struct GridRun {
+  std::string series, setting, dir_name;
+  double x = 0;
+  Config config;
+};
+
+void add_grid_options(CLI::App* cmd, GridArgs& a) {
+  add_common_options(cmd, a.common);
+  cmd->add_option("--config", a.configs, "one config per series (model variant), e.g. configs/tiny.json "
+                                         "configs/tiny_ptlvsm.json configs/tiny_lvsm.json")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--data", a.data, "dataset root: train/ for training, test/ + evaluation_index.json for scoring")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--out", a.out, "study directory (runs/, table.md, table.csv, *.png, README.md)")->required();
+  cmd->add_option("--steps", a.steps, "training steps of every run (default: each config's training.train_steps)");
+  cmd->add_option("--eval-scenes", a.eval_scenes, "test scenes scored per run (0: the whole index)")
+      ->capture_default_str();
+  cmd->add_option("--vgg19", a.vgg19, "VGG19 weights for the perceptual loss (as for `uplvsm train`)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg or alex")
+      ->check(CLI::IsMember({"vgg", "alex"}))
+      ->capture_default_str();
+  auto* backbone = cmd->add_option("--lpips-backbone", a.lpips_backbone, "LPIPS backbone weights (as for eval)")
+                       ->check(CLI::ExistingFile);
+  cmd->add_option("--lpips-lin", a.lpips_lin, "LPIPS lin weights (as for eval)")->check(CLI::ExistingFile)->needs(backbone);
+  backbone->needs("--lpips-lin");
+}
+
+// Series name: the model variant, or the config's name when two configs share a variant.
+std::vector<std::pair<std::string, Config>> load_series(const GridArgs& a) {
+  std::vector<std::pair<std::string, Config>> out;
+  for (const auto& path : a.configs) {
+    auto c = load_config(path);
+    if (a.steps > 0) c.training.train_steps = a.steps;
+    out.emplace_back(c.model.variant, c);
+  }
+  for (auto& [name, c] : out) {
+    int same = 0;
+    for (const auto& other : out) same += other.first == name;
+    if (same > 1) name = c.name;
+  }
+  for (size_t i = 0; i < out.size(); ++i)
+    for (size_t j = i + 1; j < out.size(); ++j)
+      if (out[i].first == out[j].first)
+        throw std::runtime_error("study: configs " + a.configs[i] + " and " + a.configs[j] +
+                                 " have the same variant and name '" + out[i].first + "'; give them distinct names");
+  return out;
+}
+
+study::GridCell cell_from_json(const nlohmann::json& j) {
+  study::GridCell c;
+  c.series = j.at("series");
+  c.setting = j.at("setting");
+  c.x = j.at("x");
+  c.psnr = j.at("psnr");
+  c.ssim = j.at("ssim");
+  c.lpips = j.at("lpips").is_null() ? eval::kUnavailable : j.at("lpips").get<double>();
+  return c;
+}
+
+// Trains (or resumes) one run, scores it on the test set and records result.json; a finished run is read back.
+study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device device, const eval::Lpips& lpips) {
+  const auto dir = fs::path(a.out) / "runs" / r.dir_name;
+  const auto result_path = dir / "result.json";
+  if (fs::exists(result_path)) {
+    std::ifstream in(result_path);
+    spdlog::info("study: {} @ {} already done ({})", r.series, r.setting, result_path.string());
+    return cell_from_json(nlohmann::json::parse(in));
+  }
+  train::TrainOptions topt;
+  topt.data_root = a.data;
+  topt.run_dir = dir.string();
+  topt.device = device;
+  topt.perceptual_weights = a.vgg19;
+  auto trained = train::train(r.config, topt);
+  if (trained.interrupted) throw std::runtime_error("study interrupted by a signal (rerun the same command to resume)");
+
+  Config config;
+  auto net = load_model(ModelSource{dir.string(), ""}, device, &config);
+  data::ChunkDataset test(a.data, "test");
+  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+                               config.dataset.square_crop};
+  eval::EvalOptions eopt;
+  eopt.max_scenes = a.eval_scenes;
+  eopt.device = device;
+  eopt.num_visualised = 2;
+  eopt.out_dir = (dir / "eval").string();
+  eopt.bf16 = parse_amp(config.training.amp);
+  eopt.target_poses = model::parse_target_poses("auto", config.model);
+  eopt.lpips = lpips;
+  eopt.extra = {{"checkpoint", trained.last_checkpoint}, {"series", r.series}, {"setting", r.setting}};
+  auto summary = eval::evaluate(net, test, prep, eopt);
+  const auto& row = summary.table.at("model");
+  auto finite_or_null = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
+  nlohmann::json j = {{"series", r.series},       {"setting", r.setting},   {"x", r.x},
+                      {"psnr", row.at("psnr")},   {"ssim", row.at("ssim")}, {"lpips", finite_or_null(row.at("lpips"))},
+                      {"steps", trained.step},    {"scenes", summary.scenes},
+                      {"copy_nearest_psnr", summary.table.at("copy_nearest").at("psnr")}};
+  const auto text = j.dump(2);
+  io::write_file_atomic(result_path.string(), text.data(), text.size());
+  return cell_from_json(j);
+}
+
+struct GridFigure {
+  std::string title, xlabel;
+  bool log_x = false, with_gain = false;
+};
+
+void write_grid_outputs(const std::vector<study::GridCell>& cells, const GridArgs& a, const GridFigure& fig,
+                        const std::string& description) {
+  const fs::path out(a.out);
+  const auto table = study::grid_markdown(cells, fig.with_gain);
+  const auto csv = study::grid_csv(cells);
+  io::write_file_atomic((out / "table.md").string(), table.data(), table.size());
+  io::write_file_atomic((out / "table.csv").string(), csv.data(), csv.size());
+  std::string readme = "# " + fig.title + "\n\n" + description + "\n\nPSNR / SSIM / LPIPS on the test set " +
+                       "(per-scene mean, then mean over scenes).\n\n" + table + "\n";
+  bool any_lpips = false;
+  for (const auto& c : cells) any_lpips |= !std::isnan(c.lpips);
+  for (std::string metric : {"psnr", "ssim", "lpips"}) {
+    if (metric == "lpips" && !any_lpips) continue;
+    io::PlotOptions po;
+    po.title = fig.title + ": " + metric;
+    po.xlabel = fig.xlabel;
+    po.ylabel = metric;
+    po.log_x = fig.log_x;
+    io::write_png((out / (metric + ".png")).string(), study::grid_plot(cells, metric, po));
+    readme += "![" + metric + "](" + metric + ".png)\n";
+  }
+  io::write_file_atomic((out / "README.md").string(), readme.data(), readme.size());
+  std::cout << "\n" << table << fmt::format("\nstudy results -> {}/README.md\n", a.out);
+}
+
+void run_grid(const std::vector<GridRun>& runs, const GridArgs& a, const GridFigure& fig,
+              const std::string& description) {
+  apply_common_options(a.common);
+  const auto device = parse_device(a.common.device);
+  eval::Lpips lpips{nullptr};
+  if (!a.lpips_backbone.empty()) {
+    lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
+    lpips->to(device);
+  }
+  fs::create_directories(a.out);
+  nlohmann::json plan = nlohmann::json::array();
+  for (const auto& r : runs)
+    plan.push_back({{"series", r.series}, {"setting", r.setting}, {"dir", "runs/" + r.dir_name},
+                    {"config", config_to_json(r.config)}});
+  const auto plan_text = nlohmann::json{{"study", fig.title}, {"data", a.data}, {"runs", plan}}.dump(2);
+  io::write_file_atomic((fs::path(a.out) / "study.json").string(), plan_text.data(), plan_text.size());
+
+  std::vector<study::GridCell> cells;
+  const auto t0 = std::chrono::steady_clock::now();
+  for (size_t i = 0; i < runs.size(); ++i) {
+    spdlog::info("study: run {}/{}: {} @ {}", i + 1, runs.size(), runs[i].series, runs[i].setting);
+    cells.push_back(run_cell(runs[i], a, device, lpips));
+    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    spdlog::info("study: {}/{} runs done, {} elapsed, ETA {} | {} @ {}: PSNR {:.2f}, SSIM {:.4f}", i + 1, runs.size(),
+                 format_duration(elapsed), format_duration(elapsed / (i + 1) * (runs.size() - i - 1)),
+                 runs[i].series, runs[i].setting, cells.back().psnr, cells.back().ssim);
+  }
+  write_grid_outputs(cells, a, fig, description);
+}
+
+// "100", "full" -> scene counts (0: every training scene), checked against the train split's size.
+std::vector<int64_t> parse_subsets(const std::vector<std::string>& tokens, int64_t available) {
+  std::vector<int64_t> out;
+  for (const auto& t : tokens) {
+    int64_t n = 0;
+    if (t != "full") {
+      try {
+        size_t used = 0;
+        n = std::stoll(t, &used);
+        if (used != t.size() || n <= 0) throw std::invalid_argument(t);
+      } catch (const std::exception&) {
+        throw std::runtime_error("--subsets: expected scene counts or 'full', got '" + t + "'");
+      }
+      if (n > available)
+        throw std::runtime_error(fmt::format("--subsets {}: the train split has only {} scenes", n, available));
+    }
+    out.push_back(n);
+  }
+  return out;
+}
+
+void add_scaling(CLI::App& study) {
+  auto* cmd = study.add_subcommand(
+      "scaling", "Scalability study (paper Table 3): train each --config on nested subsets of the training scenes "
+                 "(the first N of the train split) with the same step budget, score all on one test set; table with "
+                 "the average gain per subset step (4x data in the paper), plots vs scenes (log x)");
+  auto a = std::make_shared<GridArgs>();
+  auto subsets = std::make_shared<std::vector<std::string>>();
+  add_grid_options(cmd, *a);
+  cmd->add_option("--subsets", *subsets, "training scenes per subset, small to large, e.g. 25 100 400 or full")
+      ->required();
+  cmd->callback([a, subsets] {
+    const int64_t available = data::ChunkDataset(a->data, "train").size();
+    const auto sizes = parse_subsets(*subsets, available);
+    std::vector<GridRun> runs;
+    for (const auto& [series, config] : load_series(*a))
+      for (int64_t n : sizes) {
+        GridRun r{series, n == 0 ? fmt::format("full ({})", available) : fmt::format("{} scenes", n),
+                  fmt::format("{}__{}", series, n == 0 ? std::string("full") : std::to_string(n)),
+                  static_cast<double>(n == 0 ? available : n), config};
+        r.config.training.max_train_scenes = n;
+        runs.push_back(r);
+      }
+    const auto description = fmt::format(
+        "Each run: the same {} training steps on the first N training scenes of {}; scored on its test split. Avg. "
+        "gain: mean change per subset step (improvement positive; LPIPS lower is better).",
+        runs.front().config.training.train_steps, a->data);
+    run_grid(runs, *a, {"Scalability", "training scenes", true, true}, description);
+  });
+}
+
+void add_pose_noise(CLI::App& study) {
+  auto* cmd = study.add_subcommand(
+      "pose-noise", "Pose-noise study (paper appendix): train each --config with Gaussian noise of the given "
+                    "variances added to the (translation, quaternion) of every training camera, score all on the "
+                    "clean test set. UP-LVSM never reads training poses, so it should not move; LVSM does");
+  auto a = std::make_shared<GridArgs>();
+  auto levels = std::make_shared<std::vector<double>>(std::vector<double>{0, 0.001, 0.01, 0.1});
+  add_grid_options(cmd, *a);
+  cmd->add_option("--noise", *levels, "noise variances sigma^2")->capture_default_str();
+  cmd->callback([a, levels] {
+    for (double v : *levels)
+      if (!(v >= 0)) throw std::runtime_error(fmt::format("--noise: variances must be >= 0, got {}", v));
+    std::vector<GridRun> runs;
+    for (const auto& [series, config] : load_series(*a))
+      for (size_t i = 0; i < levels->size(); ++i) {
+        const double v = (*levels)[i];
+        GridRun r{series, fmt::format("noise {:g}", v), fmt::format("{}__noise{:g}", series, v),
+                  static_cast<double>(i), config};
+        r.config.training.pose_noise_variance = v;
+        runs.push_back(r);
+      }
+    std::string axis = "noise level:";
+    for (size_t i = 0; i < levels->size(); ++i) axis += fmt::format(" {}={:g}", i, (*levels)[i]);
+    const auto description = fmt::format(
+        "Each run: the same {} training steps on {} with N(0, sigma^2) added to the 7-D (t, q) encoding of every "
+        "training camera (before the scene normalisation); scored with clean test cameras.",
+        runs.front().config.training.train_steps, a->data);
+    run_grid(runs, *a, {"Pose noise", axis, false, false}, description);
+  });
+}
+
+}  // namespace
+
+void add_study_grid_commands(CLI::App& study) {
+  add_scaling(study);
+  add_pose_noise(study);
+}
+
+}  // namespace uplvsm::cli

@@ -1,0 +1,42 @@
+// Multi-run studies (the paper's scalability study and pose-noise study): a grid of series (model variants) by
+// settings (training-data subsets, pose-noise levels), each cell one trained and evaluated run. This file turns the
+// cells into the paper-style table (Markdown and CSV), metric-vs-setting plots, and the paper's scalability
+// measure, the average gain per 4x data (Table 3's "Avg. Gain").
+#pragma once
+#include <torch/torch.h>
+
+#include <limits>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "uplvsm/io/plot.h"
+
+namespace uplvsm::study {
+
+struct GridCell {
+  std::string series;   // e.g. "uplvsm"
+  std::string setting;  // e.g. "little (100 scenes)" or "noise 0.01"
+  double x = 0;         // the setting's value on the plot's x axis (scenes, noise variance)
+  double psnr = 0, ssim = 0;
+  double lpips = std::numeric_limits<double>::quiet_NaN();  // NaN: LPIPS weights were not given
+};
+
+// Mean change between consecutive settings, signed so that an improvement is positive (PSNR, SSIM up; LPIPS
+// down). With settings 4x apart this is the paper's average gain per 4x data: (last - first) / (settings - 1).
+// NaN with fewer than two values or any NaN value.
+double average_gain(const std::vector<double>& values, bool higher_is_better);
+
+// Series and settings in the order they first appear in `cells`.
+std::vector<std::string> series_of(const std::vector<GridCell>& cells);
+std::vector<std::string> settings_of(const std::vector<GridCell>& cells);
+
+// Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable), plus the
+// average-gain column when with_gain. Missing cells read "(not run)".
+std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain);
+// One row per cell: series,setting,x,psnr,ssim,lpips (empty when unavailable).
+std::string grid_csv(const std::vector<GridCell>& cells);
+// metric "psnr" | "ssim" | "lpips" against x, one line per series. uint8 [H, W, 3].
+torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& metric, io::PlotOptions options);
+
+}  // namespace uplvsm::study

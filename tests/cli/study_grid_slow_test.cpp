@@ -1,0 +1,96 @@
+// The multi-run studies through the binary at micro scale: study scaling (nested subsets, resumable) and study
+// pose-noise (UP-LVSM never reads training cameras, so its results must not move; LVSM's must).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include "train/train_test_util.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+int sh(const std::string& args, std::string* out = nullptr) {
+  std::string cmd = std::string(UPLVSM_CLI) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  size_t n;
+  std::string text;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) text.append(buf, n);
+  if (out) *out = text;
+  int status = pclose(pipe);
+  if (status != 0) std::cerr << cmd << "\n" << text;
+  return status;
+}
+
+nlohmann::json read_json(const fs::path& p) {
+  std::ifstream in(p);
+  return nlohmann::json::parse(in);
+}
+
+// Micro configs of two variants and a micro built-in dataset, written once.
+struct StudyFixture {
+  fs::path dir = uplvsm::test::temp_dir("study_grid");
+  std::string uplvsm_cfg, lvsm_cfg, data;
+  StudyFixture() {
+    auto c = uplvsm::test::micro_config();
+    c.training.train_steps = 6;
+    c.dataset.num_train_scenes = 4;
+    c.dataset.num_test_scenes = 2;
+    c.dataset.render_height = 36;
+    c.dataset.render_width = 64;
+    c.dataset.eval_gap = 6;
+    uplvsm_cfg = (dir / "micro.json").string();
+    std::ofstream(uplvsm_cfg) << uplvsm::config_to_json(c).dump(2);
+    c.name = "micro_lvsm";
+    c.model = uplvsm::test::micro_model("lvsm");
+    lvsm_cfg = (dir / "micro_lvsm.json").string();
+    std::ofstream(lvsm_cfg) << uplvsm::config_to_json(c).dump(2);
+    data = (dir / "data").string();
+    EXPECT_EQ(sh("make-dataset --config " + uplvsm_cfg + " --out " + data), 0);
+  }
+};
+}  // namespace
+
+TEST(StudyGrid, ScalingTrainsEachSubsetOnceAndWritesTheTable) {
+  StudyFixture f;
+  const auto out = (f.dir / "scaling").string();
+  const auto cmd = "study scaling --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
+                   " --subsets 2 full --steps 4 --out " + out;
+  std::string text;
+  ASSERT_EQ(sh(cmd, &text), 0);
+  EXPECT_NE(text.find("| Method | 2 scenes | full (4) | Avg. gain |"), std::string::npos) << text;
+  EXPECT_NE(text.find("first 2 of 4"), std::string::npos) << text;
+  for (const auto* run : {"uplvsm__2", "uplvsm__full", "lvsm__2", "lvsm__full"}) {
+    auto r = read_json(fs::path(out) / "runs" / run / "result.json");
+    EXPECT_EQ(r.at("steps"), 4) << run;
+    EXPECT_GT(r.at("psnr").get<double>(), 5.0) << run;
+  }
+  for (const auto* file : {"table.md", "table.csv", "psnr.png", "ssim.png", "README.md", "study.json"})
+    EXPECT_TRUE(fs::exists(fs::path(out) / file)) << file;
+  EXPECT_FALSE(fs::exists(fs::path(out) / "lpips.png"));  // no LPIPS weights given: no made-up LPIPS figure
+  // Rerunning does not redo finished runs.
+  ASSERT_EQ(sh(cmd, &text), 0);
+  EXPECT_NE(text.find("already done"), std::string::npos) << text;
+  EXPECT_EQ(text.find("training micro"), std::string::npos) << text;
+  // A subset larger than the split is refused, naming the sizes.
+  EXPECT_NE(sh("study scaling --config " + f.uplvsm_cfg + " --data " + f.data + " --subsets 9 --out " + out + "_bad",
+               &text), 0);
+  EXPECT_NE(text.find("only 4 scenes"), std::string::npos) << text;
+}
+
+TEST(StudyGrid, PoseNoiseMovesLvsmButNotUplvsm) {
+  StudyFixture f;
+  const auto out = (f.dir / "noise").string();
+  std::string text;
+  ASSERT_EQ(sh("study pose-noise --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
+                   " --noise 0 0.1 --steps 4 --out " + out, &text), 0);
+  auto up0 = read_json(fs::path(out) / "runs/uplvsm__noise0/result.json");
+  auto up1 = read_json(fs::path(out) / "runs/uplvsm__noise0.1/result.json");
+  auto lv0 = read_json(fs::path(out) / "runs/lvsm__noise0/result.json");
+  auto lv1 = read_json(fs::path(out) / "runs/lvsm__noise0.1/result.json");
+  EXPECT_EQ(up0.at("psnr").get<double>(), up1.at("psnr").get<double>());
+  EXPECT_NE(lv0.at("psnr").get<double>(), lv1.at("psnr").get<double>());
+  EXPECT_NE(text.find("never reads them"), std::string::npos) << text;
+  EXPECT_TRUE(fs::exists(fs::path(out) / "README.md"));
+}

@@ -1,0 +1,43 @@
+#include <gtest/gtest.h>
+
+#include <stdexcept>
+
+#include "uplvsm/core/runtime.h"
+
+using namespace uplvsm;
+
+TEST(Runtime, OpenBlasFallbackCoreIsReplacedByTheCpusBest) {
+  CpuFeatures sapphire_rapids{true, true, true};
+  CpuFeatures skylake_x{true, true, false};
+  CpuFeatures haswell{true, false, false};
+  CpuFeatures old_cpu{};
+  // OpenBLAS 0.3.21 reports an unknown new CPU as Prescott: ask for the widest kernels the CPU runs.
+  EXPECT_EQ(openblas_core_for_cpu("Prescott", sapphire_rapids), "Cooperlake");
+  EXPECT_EQ(openblas_core_for_cpu("Prescott", skylake_x), "SkylakeX");
+  EXPECT_EQ(openblas_core_for_cpu("Prescott", haswell), "Haswell");
+  EXPECT_EQ(openblas_core_for_cpu("Prescott", old_cpu), "");
+  // A core OpenBLAS recognised is left alone.
+  EXPECT_EQ(openblas_core_for_cpu("Haswell", sapphire_rapids), "");
+  EXPECT_EQ(openblas_core_for_cpu("Cooperlake", sapphire_rapids), "");
+  EXPECT_EQ(openblas_core_for_cpu("Zen", haswell), "");
+}
+
+TEST(Runtime, LoadedOpenBlasUsesVectorKernelsTheCpuSupports) {
+  // The tests run through the same start-up as the binary, so a fallback core must have been fixed by now
+  // (unless the environment pins OPENBLAS_CORETYPE, which always wins).
+  auto info = runtime_info();
+  ASSERT_FALSE(info.blas_core.empty()) << "OpenBLAS is not the loaded BLAS";
+  if (std::getenv("OPENBLAS_CORETYPE") == nullptr)
+    EXPECT_EQ(openblas_core_for_cpu(info.blas_core, detect_cpu_features()), "") << info.blas_core;
+  EXPECT_NE(format_runtime_info(info).find("BLAS core    " + info.blas_core), std::string::npos);
+}
+
+TEST(Runtime, DeviceNamesAreParsedOrRejectedClearly) {
+  EXPECT_EQ(parse_device("cpu"), torch::Device(torch::kCPU));
+  try {
+    parse_device("gpu");
+    FAIL() << "expected an error";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("'gpu'"), std::string::npos) << e.what();
+  }
+}

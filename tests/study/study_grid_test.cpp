@@ -1,0 +1,38 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "uplvsm/study/study_grid.h"
+
+using namespace uplvsm;
+
+TEST(StudyGrid, AverageGainIsThePapersPer4xMeasure) {
+  // Paper Table 3, LVSM: little -> full 25.67 / 0.831 / 0.145 -> 27.60 / 0.874 / 0.117, avg. gain 0.64 / 0.014 / 0.009.
+  EXPECT_NEAR(study::average_gain({25.67, 26.52, 27.11, 27.60}, true), 0.643, 1e-3);
+  EXPECT_NEAR(study::average_gain({0.831, 0.851, 0.864, 0.874}, true), 0.0143, 1e-4);
+  EXPECT_NEAR(study::average_gain({0.145, 0.135, 0.124, 0.117}, false), 0.0093, 1e-4);
+  EXPECT_TRUE(std::isnan(study::average_gain({25.0}, true)));
+  EXPECT_TRUE(std::isnan(study::average_gain({25.0, std::nan("")}, true)));
+}
+
+TEST(StudyGrid, TableCsvAndPlotFollowTheCells) {
+  std::vector<study::GridCell> cells = {
+      {"uplvsm", "25 scenes", 25, 20.0, 0.60, std::nan("")},
+      {"uplvsm", "100 scenes", 100, 22.0, 0.70, std::nan("")},
+      {"lvsm", "25 scenes", 25, 21.0, 0.65, 0.30},
+  };
+  EXPECT_EQ(study::series_of(cells), (std::vector<std::string>{"uplvsm", "lvsm"}));
+  EXPECT_EQ(study::settings_of(cells), (std::vector<std::string>{"25 scenes", "100 scenes"}));
+  const auto md = study::grid_markdown(cells, true);
+  EXPECT_NE(md.find("| Method | 25 scenes | 100 scenes | Avg. gain |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| uplvsm | 20.00 / 0.600 / - | 22.00 / 0.700 / - | 2.00 / 0.100 / - |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| lvsm | 21.00 / 0.650 / 0.300 | (not run) | - / - / - |"), std::string::npos) << md;
+  const auto csv = study::grid_csv(cells);
+  EXPECT_NE(csv.find("lvsm,25 scenes,25,21.000000,0.650000,0.300000\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("uplvsm,25 scenes,25,20.000000,0.600000,\n"), std::string::npos) << csv;
+  io::PlotOptions po;
+  po.log_x = true;
+  auto png = study::grid_plot(cells, "psnr", po);
+  EXPECT_EQ(png.sizes(), (std::vector<int64_t>{po.height, po.width, 3}));
+  EXPECT_THROW(study::grid_plot(cells, "fid", po), std::invalid_argument);
+}
