@@ -102,6 +102,21 @@ TEST(Image, PngRoundTripAndReadImageByMagic) {
   std::filesystem::remove_all(dir);
 }
 
+TEST(Image, DecodeImageTellsPngFromJpegInMemory) {
+  auto img = gradient_image(30, 50);
+  auto png = encode_png(img);
+  EXPECT_EQ(image_size(png.data(), png.size(), "png"), (std::pair<int, int>{30, 50}));
+  EXPECT_EQ(test::max_abs_diff(decode_image(png.data(), png.size(), "png"), img), 0.0);
+  auto jpeg = encode_jpeg(img, 95);
+  EXPECT_EQ(image_size(jpeg.data(), jpeg.size(), "jpeg"), (std::pair<int, int>{30, 50}));
+  EXPECT_LT(test::max_abs_diff(decode_image(jpeg.data(), jpeg.size(), "jpeg"), img), 8.0);
+  const std::vector<uint8_t> junk = {'G', 'I', 'F', '8', '9', 'a', 0, 0};
+  EXPECT_NE(error_of([&] { decode_image(junk.data(), junk.size(), "scene x frame 3"); }).find("scene x frame 3"),
+            std::string::npos);
+  std::vector<uint8_t> cut(png.begin(), png.begin() + 40);
+  EXPECT_NE(error_of([&] { decode_image(cut.data(), cut.size(), "cut.png"); }).find("cut.png"), std::string::npos);
+}
+
 TEST(Image, FloatConversions) {
   auto img = gradient_image(5, 7);
   auto f = to_float_chw(img);

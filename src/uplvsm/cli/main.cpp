@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   uplvsm::cli::add_info_command(app);
   uplvsm::cli::add_make_dataset_command(app);
+  uplvsm::cli::add_dataset_command(app);
   uplvsm::cli::add_train_command(app);
   uplvsm::cli::add_eval_command(app);
   uplvsm::cli::add_render_command(app);

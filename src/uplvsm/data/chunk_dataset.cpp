@@ -328,7 +328,7 @@ Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, co
   const std::string where = fmt::format("{}: scene {}", chunk_path(i), s.key);
   if (frames.empty()) throw std::runtime_error(fmt::format("{}: no frames requested", where));
   const auto& first = s.images[0];
-  auto [h0, w0] = io::jpeg_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
+  auto [h0, w0] = io::image_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
   std::vector<torch::Tensor> decoded;
   decoded.reserve(frames.size());
   for (int64_t f : frames) {
@@ -336,7 +336,7 @@ Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, co
       throw std::runtime_error(fmt::format("{}: frame {} out of range (scene has {} frames)", where, f, n));
     const auto& bytes = s.images[f];
     std::string what = fmt::format("{} frame {}", where, f);
-    auto img = io::decode_jpeg(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
+    auto img = io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
     int h = static_cast<int>(img.size(0)), w = static_cast<int>(img.size(1));
     if (h != h0 || w != w0)
       throw BadFrameError(fmt::format("{}: frame is {}x{} but frame 0 is {}x{} (pixelSplat skips such frames)",

@@ -130,11 +130,19 @@ void check_u8_image(const torch::Tensor& t, const char* fn, bool allow_gray) {
                                          t.defined() ? c10::str(t.scalar_type(), t.sizes()) : "undefined"));
 }
 
-torch::Tensor read_png(const std::vector<uint8_t>& bytes, const std::string& path) {
+bool is_png(const uint8_t* data, size_t size) {
+  static const uint8_t png_magic[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  return data != nullptr && size >= 8 && std::memcmp(data, png_magic, 8) == 0;
+}
+bool is_jpeg(const uint8_t* data, size_t size) {
+  return data != nullptr && size >= 3 && data[0] == 0xFF && data[1] == 0xD8 && data[2] == 0xFF;
+}
+
+torch::Tensor read_png(const uint8_t* data, size_t size, const std::string& path) {
   png_image image;
   std::memset(&image, 0, sizeof(image));
   image.version = PNG_IMAGE_VERSION;
-  if (!png_image_begin_read_from_memory(&image, bytes.data(), bytes.size()))
+  if (!png_image_begin_read_from_memory(&image, data, size))
     throw std::runtime_error(fmt::format("read_image: {}: not a readable PNG ({})", path, image.message));
   // Keep alpha while decoding and drop it afterwards: asking libpng for RGB would composite onto a background,
   // unlike PIL's convert("RGB").
@@ -193,8 +201,8 @@ std::vector<uint8_t> encode_jpeg(const torch::Tensor& hwc_u8, int quality) {
   return bytes;
 }
 
-void write_png(const std::string& path, const torch::Tensor& hwc_u8) {
-  check_u8_image(hwc_u8, "write_png", true);
+std::vector<uint8_t> encode_png(const torch::Tensor& hwc_u8) {
+  check_u8_image(hwc_u8, "encode_png", true);
   auto img = hwc_u8.contiguous();
   png_image image;
   std::memset(&image, 0, sizeof(image));
@@ -203,21 +211,49 @@ void write_png(const std::string& path, const torch::Tensor& hwc_u8) {
   image.height = static_cast<png_uint_32>(img.size(0));
   image.format = img.dim() == 3 ? PNG_FORMAT_RGB : PNG_FORMAT_GRAY;
   png_alloc_size_t size = 0;
-  // First call sizes the buffer, second fills it; memory output lets us write atomically ourselves.
+  // First call sizes the buffer, second fills it.
   if (!png_image_write_to_memory(&image, nullptr, &size, 0, img.data_ptr<uint8_t>(), 0, nullptr))
-    throw std::runtime_error(fmt::format("write_png: {}: {}", path, image.message));
+    throw std::runtime_error(fmt::format("encode_png: {}", image.message));
   std::vector<uint8_t> buffer(size);
   if (!png_image_write_to_memory(&image, buffer.data(), &size, 0, img.data_ptr<uint8_t>(), 0, nullptr))
-    throw std::runtime_error(fmt::format("write_png: {}: {}", path, image.message));
-  write_file_atomic(path, buffer.data(), size);
+    throw std::runtime_error(fmt::format("encode_png: {}", image.message));
+  buffer.resize(size);
+  return buffer;
+}
+
+void write_png(const std::string& path, const torch::Tensor& hwc_u8) {
+  std::vector<uint8_t> bytes;
+  try {
+    bytes = encode_png(hwc_u8);
+  } catch (const std::runtime_error& e) {
+    throw std::runtime_error(fmt::format("write_png: {}: {}", path, e.what()));
+  }
+  write_file_atomic(path, bytes.data(), bytes.size());
+}
+
+torch::Tensor decode_image(const uint8_t* data, size_t size, const std::string& what) {
+  if (is_png(data, size)) return read_png(data, size, what);
+  if (is_jpeg(data, size)) return decode_jpeg(data, size, what);
+  throw std::runtime_error(fmt::format("{}: neither PNG nor JPEG (unknown magic bytes; {} bytes)", what, size));
+}
+
+std::pair<int, int> image_size(const uint8_t* data, size_t size, const std::string& what) {
+  if (is_png(data, size)) {
+    // IHDR is the first chunk: width and height big-endian at bytes 16..23.
+    if (size < 24) throw std::runtime_error(fmt::format("{}: truncated PNG header ({} bytes)", what, size));
+    auto be32 = [&](size_t at) {
+      return static_cast<int>((uint32_t(data[at]) << 24) | (uint32_t(data[at + 1]) << 16) |
+                              (uint32_t(data[at + 2]) << 8) | uint32_t(data[at + 3]));
+    };
+    return {be32(20), be32(16)};
+  }
+  return jpeg_size(data, size, what);
 }
 
 torch::Tensor read_image(const std::string& path) {
   auto bytes = read_file(path);
-  static const uint8_t png_magic[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
-  if (bytes.size() >= 8 && std::memcmp(bytes.data(), png_magic, 8) == 0) return read_png(bytes, path);
-  if (bytes.size() >= 3 && bytes[0] == 0xFF && bytes[1] == 0xD8 && bytes[2] == 0xFF)
-    return decode_jpeg(bytes.data(), bytes.size(), path);
+  if (is_png(bytes.data(), bytes.size())) return read_png(bytes.data(), bytes.size(), path);
+  if (is_jpeg(bytes.data(), bytes.size())) return decode_jpeg(bytes.data(), bytes.size(), path);
   throw std::runtime_error(fmt::format("read_image: {}: neither PNG nor JPEG (unknown magic bytes)", path));
 }
 

@@ -18,8 +18,16 @@ torch::Tensor decode_jpeg(const uint8_t* data, size_t size, const std::string& w
 // Reads only the JPEG header: {height, width}. Cheap; used to check frame shapes before decoding.
 std::pair<int, int> jpeg_size(const uint8_t* data, size_t size, const std::string& what);
 
+// PNG or JPEG bytes (told apart by their magic bytes, as PIL does; pixelSplat readers open chunk images with
+// PIL, so a chunk may carry lossless PNG frames, e.g. converted from the LVSM layout): decode, or read the size.
+torch::Tensor decode_image(const uint8_t* data, size_t size, const std::string& what);
+std::pair<int, int> image_size(const uint8_t* data, size_t size, const std::string& what);
+
 // Encodes uint8 [H,W,3] RGB (or [H,W] gray) as a baseline JPEG (4:2:0 for RGB) of the given quality (1..100).
 std::vector<uint8_t> encode_jpeg(const torch::Tensor& hwc_u8, int quality = 90);
+
+// uint8 RGB [H,W,3] or gray [H,W] -> PNG file bytes.
+std::vector<uint8_t> encode_png(const torch::Tensor& hwc_u8);
 
 // Writes uint8 RGB [H,W,3] or gray [H,W] as PNG, atomically (temporary file in the same folder, then rename).
 void write_png(const std::string& path, const torch::Tensor& hwc_u8);
