@@ -2,7 +2,9 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <cstdio>
 #include <filesystem>
+#include <iostream>
 #include <string>
 
 namespace uplvsm::test {
@@ -15,6 +17,21 @@ inline std::filesystem::path temp_dir(const std::string& name) {
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
+}
+
+// Runs the uplvsm binary with `args` (stderr merged); returns its exit status, the output in *out. A failing run
+// prints its command and output, so a test's failure shows why.
+inline int run_cli(const std::string& args, std::string* out = nullptr) {
+  const std::string cmd = std::string(UPLVSM_CLI) + " " + args + " 2>&1";
+  FILE* pipe = popen(cmd.c_str(), "r");
+  char buf[4096];
+  size_t n;
+  std::string text;
+  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) text.append(buf, n);
+  if (out) *out = text;
+  const int status = pclose(pipe);
+  if (status != 0) std::cerr << cmd << "\n" << text;
+  return status;
 }
 
 // The message of the exception f() throws, or "(no exception)".

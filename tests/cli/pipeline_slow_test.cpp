@@ -10,18 +10,7 @@
 namespace fs = std::filesystem;
 
 namespace {
-int sh(const std::string& args, std::string* out = nullptr) {
-  std::string cmd = std::string(UPLVSM_CLI) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  size_t n;
-  std::string text;
-  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) text.append(buf, n);
-  if (out) *out = text;
-  int status = pclose(pipe);
-  if (status != 0) std::cerr << cmd << "\n" << text;
-  return status;
-}
+using uplvsm::test::run_cli;
 }  // namespace
 
 TEST(Pipeline, DatasetTrainEvalRenderReport) {
@@ -38,25 +27,25 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   std::ofstream(dir / "micro.json") << uplvsm::config_to_json(config).dump(2);
   auto cfg = (dir / "micro.json").string(), data = (dir / "data").string(), run = (dir / "run").string();
 
-  ASSERT_EQ(sh("make-dataset --config " + cfg + " --out " + data), 0);
+  ASSERT_EQ(run_cli("make-dataset --config " + cfg + " --out " + data), 0);
   EXPECT_TRUE(fs::exists(dir / "data/train/index.json"));
   EXPECT_TRUE(fs::exists(dir / "data/evaluation_index.json"));
 
-  ASSERT_EQ(sh("train --config " + cfg + " --data " + data + " --run " + run + " --stop-after 7"), 0);
+  ASSERT_EQ(run_cli("train --config " + cfg + " --data " + data + " --run " + run + " --stop-after 7"), 0);
   std::string out;
-  ASSERT_EQ(sh("train --config " + cfg + " --data " + data + " --run " + run, &out), 0);
+  ASSERT_EQ(run_cli("train --config " + cfg + " --data " + data + " --run " + run, &out), 0);
   EXPECT_NE(out.find("resumed"), std::string::npos) << out;
   EXPECT_NE(out.find("trained to step 12"), std::string::npos) << out;
 
-  ASSERT_EQ(sh("eval --checkpoint " + run + " --data " + data + " --out " + (dir / "eval").string(), &out), 0);
+  ASSERT_EQ(run_cli("eval --checkpoint " + run + " --data " + data + " --out " + (dir / "eval").string(), &out), 0);
   EXPECT_NE(out.find("copy nearest"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(dir / "eval/metrics.json"));
   EXPECT_TRUE(fs::exists(dir / "eval/per_scene.csv"));
 
-  ASSERT_EQ(sh("render --checkpoint " + run + " --data " + data + " --frames 6 --out " + (dir / "video").string()), 0);
+  ASSERT_EQ(run_cli("render --checkpoint " + run + " --data " + data + " --frames 6 --out " + (dir / "video").string()), 0);
   EXPECT_TRUE(fs::exists(dir / "video/videos.json"));
 
-  ASSERT_EQ(sh("report --run " + run + " --eval " + (dir / "eval").string() + " --video " + (dir / "video").string() +
+  ASSERT_EQ(run_cli("report --run " + run + " --eval " + (dir / "eval").string() + " --video " + (dir / "video").string() +
                    " --out " + (dir / "report").string(), &out), 0);
   EXPECT_TRUE(fs::exists(dir / "report/index.html"));
   EXPECT_TRUE(fs::exists(dir / "report/training_curve.png"));
@@ -65,39 +54,39 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   // Camera control: the mapper stage from the trained run, evaluation from dataset cameras through the mapper, and
   // an orbit video through it.
   auto mapper_run = (dir / "mapper_run").string();
-  ASSERT_EQ(sh("train --stage mapper --init " + run + " --config " + cfg + " --data " + data + " --run " + mapper_run +
+  ASSERT_EQ(run_cli("train --stage mapper --init " + run + " --config " + cfg + " --data " + data + " --run " + mapper_run +
                    " --steps 4", &out), 0);
   EXPECT_NE(out.find("pose mapper: least-squares fit"), std::string::npos) << out;
-  ASSERT_EQ(sh("eval --checkpoint " + mapper_run + " --target-poses mapper --data " + data + " --out " +
+  ASSERT_EQ(run_cli("eval --checkpoint " + mapper_run + " --target-poses mapper --data " + data + " --out " +
                    (dir / "eval_mapper").string(), &out), 0);
   EXPECT_NE(out.find("uplvsm (mapper)"), std::string::npos) << out;
-  ASSERT_EQ(sh("render --checkpoint " + mapper_run + " --data " + data + " --trajectory orbit --frames 4 --side-by-side "
+  ASSERT_EQ(run_cli("render --checkpoint " + mapper_run + " --data " + data + " --trajectory orbit --frames 4 --side-by-side "
                    "--out " + (dir / "orbit").string()), 0);
   EXPECT_TRUE(fs::exists(dir / "orbit/videos.json"));
   // The plain model has no mapper: a camera path is refused with the way to get one.
-  ASSERT_NE(sh("render --checkpoint " + run + " --data " + data + " --trajectory dolly --out " +
+  ASSERT_NE(run_cli("render --checkpoint " + run + " --data " + data + " --trajectory dolly --out " +
                    (dir / "dolly").string(), &out), 0);
   EXPECT_NE(out.find("--stage mapper"), std::string::npos) << out;
 
   // The pose studies on the trained run (tiny budgets).
-  ASSERT_EQ(sh("study pose-probe --checkpoint " + run + " --data " + data + " --gap 5 --iterations 50 --out " +
+  ASSERT_EQ(run_cli("study pose-probe --checkpoint " + run + " --data " + data + " --gap 5 --iterations 50 --out " +
                    (dir / "probe").string(), &out), 0);
   EXPECT_NE(out.find("trans@0.1/0.2/0.3"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(dir / "probe/probe.json"));
-  ASSERT_EQ(sh("study tsne --checkpoint " + run + " --data " + data + " --gap 5 --perplexity 3 --iterations 100 --out " +
+  ASSERT_EQ(run_cli("study tsne --checkpoint " + run + " --data " + data + " --gap 5 --perplexity 3 --iterations 100 --out " +
                    (dir / "tsne").string(), &out), 0);
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.png"));
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.csv"));
-  ASSERT_EQ(sh("study attention --checkpoint " + run + " --data " + data + " --scenes 2 --patch 1 2 --out " +
+  ASSERT_EQ(run_cli("study attention --checkpoint " + run + " --data " + data + " --scenes 2 --patch 1 2 --out " +
                    (dir / "attention").string(), &out), 0);
   EXPECT_NE(out.find("patch (1, 2)"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(dir / "attention/attention.json"));
-  EXPECT_NE(sh("study attention --checkpoint " + run + " --data " + data + " --patch 9 0 --out " +
+  EXPECT_NE(run_cli("study attention --checkpoint " + run + " --data " + data + " --patch 9 0 --out " +
                    (dir / "attention_bad").string(), &out), 0);
   EXPECT_NE(out.find("outside view 1's 4x4 patch grid"), std::string::npos) << out;
 
   // Bring-your-own photos: two frames written as PNG files.
-  ASSERT_EQ(sh("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +
+  ASSERT_EQ(run_cli("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +
                    (dir / "byo").string(), &out) != 0, true);
   EXPECT_NE(out.find("missing.png"), std::string::npos) << out;
 }

@@ -10,18 +10,7 @@
 namespace fs = std::filesystem;
 
 namespace {
-int sh(const std::string& args, std::string* out = nullptr) {
-  std::string cmd = std::string(UPLVSM_CLI) + " " + args + " 2>&1";
-  FILE* pipe = popen(cmd.c_str(), "r");
-  char buf[4096];
-  size_t n;
-  std::string text;
-  while ((n = fread(buf, 1, sizeof(buf), pipe)) > 0) text.append(buf, n);
-  if (out) *out = text;
-  int status = pclose(pipe);
-  if (status != 0) std::cerr << cmd << "\n" << text;
-  return status;
-}
+using uplvsm::test::run_cli;
 
 nlohmann::json read_json(const fs::path& p) {
   std::ifstream in(p);
@@ -47,7 +36,7 @@ struct StudyFixture {
     lvsm_cfg = (dir / "micro_lvsm.json").string();
     std::ofstream(lvsm_cfg) << uplvsm::config_to_json(c).dump(2);
     data = (dir / "data").string();
-    EXPECT_EQ(sh("make-dataset --config " + uplvsm_cfg + " --out " + data), 0);
+    EXPECT_EQ(run_cli("make-dataset --config " + uplvsm_cfg + " --out " + data), 0);
   }
 };
 }  // namespace
@@ -58,7 +47,7 @@ TEST(StudyGrid, ScalingTrainsEachSubsetOnceAndWritesTheTable) {
   const auto cmd = "study scaling --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
                    " --subsets 2 full --steps 4 --out " + out;
   std::string text;
-  ASSERT_EQ(sh(cmd, &text), 0);
+  ASSERT_EQ(run_cli(cmd, &text), 0);
   EXPECT_NE(text.find("| Method | 2 scenes | full (4) | Avg. gain |"), std::string::npos) << text;
   EXPECT_NE(text.find("first 2 of 4"), std::string::npos) << text;
   for (const auto* run : {"uplvsm__2", "uplvsm__full", "lvsm__2", "lvsm__full"}) {
@@ -70,11 +59,11 @@ TEST(StudyGrid, ScalingTrainsEachSubsetOnceAndWritesTheTable) {
     EXPECT_TRUE(fs::exists(fs::path(out) / file)) << file;
   EXPECT_FALSE(fs::exists(fs::path(out) / "lpips.png"));  // no LPIPS weights given: no made-up LPIPS figure
   // Rerunning does not redo finished runs.
-  ASSERT_EQ(sh(cmd, &text), 0);
+  ASSERT_EQ(run_cli(cmd, &text), 0);
   EXPECT_NE(text.find("already done"), std::string::npos) << text;
   EXPECT_EQ(text.find("training micro"), std::string::npos) << text;
   // A subset larger than the split is refused, naming the sizes.
-  EXPECT_NE(sh("study scaling --config " + f.uplvsm_cfg + " --data " + f.data + " --subsets 9 --out " + out + "_bad",
+  EXPECT_NE(run_cli("study scaling --config " + f.uplvsm_cfg + " --data " + f.data + " --subsets 9 --out " + out + "_bad",
                &text), 0);
   EXPECT_NE(text.find("only 4 scenes"), std::string::npos) << text;
 }
@@ -83,7 +72,7 @@ TEST(StudyGrid, PoseNoiseMovesLvsmButNotUplvsm) {
   StudyFixture f;
   const auto out = (f.dir / "noise").string();
   std::string text;
-  ASSERT_EQ(sh("study pose-noise --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
+  ASSERT_EQ(run_cli("study pose-noise --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
                    " --noise 0 0.1 --steps 4 --out " + out, &text), 0);
   auto up0 = read_json(fs::path(out) / "runs/uplvsm__noise0/result.json");
   auto up1 = read_json(fs::path(out) / "runs/uplvsm__noise0.1/result.json");
