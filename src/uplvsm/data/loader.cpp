@@ -33,8 +33,6 @@ std::vector<int64_t> epoch_permutation(int64_t n, uint64_t seed, int64_t epoch) 
   return perm;
 }
 
-}  // namespace
-
 // Annotation noise: every camera's (t, q) encoding plus N(0, variance), decoded back (the quaternion renormalised).
 torch::Tensor perturb_cameras(const torch::Tensor& c2w, double variance, uint64_t seed) {
   auto enc = geometry::c2w_to_pose_encoding(c2w.to(torch::kFloat64));
@@ -45,6 +43,8 @@ torch::Tensor perturb_cameras(const torch::Tensor& c2w, double variance, uint64_
   enc = enc + torch::tensor(noise, torch::kFloat64).view(enc.sizes());
   return geometry::pose_encoding_to_c2w(enc).to(c2w.dtype());
 }
+
+}  // namespace
 
 TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step) {
   const int64_t n = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
