@@ -6,15 +6,12 @@
 //   build/uplvsm_bench --benchmark_filter='TrainStep/paper_x224/fp32/ckpt:1$'
 #include <benchmark/benchmark.h>
 
-#include <sys/resource.h>
-
 #include <torch/torch.h>
 
 #include <chrono>
-#include <cstdlib>
-#include <map>
 #include <string>
 
+#include "bench_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/flops.h"
@@ -24,30 +21,8 @@
 namespace {
 
 using namespace uplvsm;
+using bench::bench_config, bench::matmul_flops_per_second, bench::peak_rss_gib;
 constexpr int64_t kInputViews = 2, kTargetViews = 6;
-
-// Configs are read from $UPLVSM_CONFIG_DIR (default: configs/ under the working directory).
-Config bench_config(const std::string& name) {
-  const char* dir = std::getenv("UPLVSM_CONFIG_DIR");
-  return load_config(std::string(dir ? dir : "configs") + "/" + name + ".json");
-}
-
-// A matmul of the transformer's shape (tokens x d) @ (d x 4d); FLOP/s of the best of a few timed runs.
-double matmul_flops_per_second(bool bf16) {
-  static std::map<bool, double> cache;
-  if (cache.count(bf16)) return cache[bf16];
-  const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
-  auto a = torch::randn({2048, 768}).to(dtype), b = torch::randn({768, 3072}).to(dtype);
-  const double flops = 2.0 * 2048 * 768 * 3072;
-  double best = 0;
-  for (int i = 0; i < 8; ++i) {
-    auto t0 = std::chrono::steady_clock::now();
-    auto c = torch::matmul(a, b);
-    benchmark::DoNotOptimize(c.data_ptr());
-    best = std::max(best, flops / std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-  }
-  return cache[bf16] = best;
-}
 
 void BM_MatmulPeak(benchmark::State& state) {
   const bool bf16 = state.range(0) != 0;
@@ -59,12 +34,6 @@ void BM_MatmulPeak(benchmark::State& state) {
   state.SetLabel(bf16 ? "bf16" : "fp32");
 }
 BENCHMARK(BM_MatmulPeak)->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
-
-double peak_rss_gib() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_maxrss) / (1024.0 * 1024.0);  // ru_maxrss is in KiB on Linux
-}
 
 void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
   const bool bf16 = state.range(0) != 0;
@@ -95,6 +64,7 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
     return loss.item<double>();
   };
   step();  // warm-up: allocator, optimiser state
+  bench::maybe_profile("TrainStep_" + config_name + (bf16 ? "_bf16" : "_fp32") + "_ckpt" + std::to_string(checkpoint_every), step);
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) benchmark::DoNotOptimize(step());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

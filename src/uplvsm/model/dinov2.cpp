@@ -1,5 +1,7 @@
 #include "uplvsm/model/dinov2.h"
 
+#include "uplvsm/model/gradient_checkpoint.h"
+
 #include <cmath>
 
 namespace uplvsm::model {
@@ -105,7 +107,9 @@ DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x) {
   const int64_t R = config.num_register_tokens;
   if (R > 0)
     t = torch::cat({t.index({Slice(), Slice(0, 1)}), register_tokens.expand({N, -1, -1}), t.index({Slice(), Slice(1)})}, 1);
-  for (const auto& block : *blocks) t = block->as<DinoBlockImpl>()->forward(t);
+  t = run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list = blocks](size_t i, const torch::Tensor& x) {
+    return list->ptr<DinoBlockImpl>(i)->forward(x);
+  });
   auto normed = norm(t);
   return {normed.select(1, 0), normed.index({Slice(), Slice(1 + R)}), t};
 }

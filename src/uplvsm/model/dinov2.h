@@ -63,6 +63,7 @@ struct Dinov2Impl : torch::nn::Module {
   torch::nn::Conv2d patch_embed_proj{nullptr};
   torch::nn::ModuleList blocks{nullptr};
   LayerNorm norm{nullptr};
+  int64_t grad_checkpoint_every = 0;  // blocks per checkpointed group when training (0: off)
 };
 TORCH_MODULE(Dinov2);
 

@@ -1,5 +1,7 @@
 #include "uplvsm/model/transformer.h"
 
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/model/flash_attention.h"
 #include "uplvsm/model/gradient_checkpoint.h"
 
 #include <cmath>
@@ -26,6 +28,10 @@ torch::Tensor RMSNormImpl::forward(const torch::Tensor& x) {
 }
 
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  // Under autocast the fused kernel takes bf16 operands (as autocast's matmuls would) and accumulates in fp32.
+  const auto dtype = autocast_active(q.device()) ? torch::kBFloat16 : q.scalar_type();
+  if (q.dim() == 4 && fused_attention_applies(q.device(), dtype, q.size(3)))
+    return fused_attention(q.to(dtype), k.to(dtype), v.to(dtype));
   const double scale = 1.0 / std::sqrt(static_cast<double>(q.size(-1)));
 #if TORCH_VERSION_MAJOR >= 2
   return at::scaled_dot_product_attention(q, k, v);
@@ -103,27 +109,10 @@ torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t
   return stack;
 }
 
-namespace {
-torch::Tensor run_blocks(const torch::nn::ModuleList& stack, size_t begin, size_t end, torch::Tensor x) {
-  for (size_t i = begin; i < end; ++i) x = stack->ptr<TransformerBlockImpl>(i)->forward(x);
-  return x;
-}
-}  // namespace
-
 torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every) {
-  const size_t n = stack->size();
-  if (checkpoint_every <= 0) return run_blocks(stack, 0, n, x);
-  for (size_t begin = 0; begin < n; begin += static_cast<size_t>(checkpoint_every)) {
-    const size_t end = std::min(n, begin + static_cast<size_t>(checkpoint_every));
-    std::vector<torch::Tensor> params;
-    for (size_t i = begin; i < end; ++i) {
-      auto p = stack->ptr(i)->parameters();
-      params.insert(params.end(), p.begin(), p.end());
-    }
-    x = checkpointed([stack, begin, end](const torch::Tensor& t) { return run_blocks(stack, begin, end, t); }, x,
-                     params);
-  }
-  return x;
+  return run_checkpointed_stack(stack, std::move(x), checkpoint_every, [stack](size_t i, const torch::Tensor& t) {
+    return stack->ptr<TransformerBlockImpl>(i)->forward(t);
+  });
 }
 
 }  // namespace uplvsm::model

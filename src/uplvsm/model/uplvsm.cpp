@@ -60,6 +60,7 @@ UPLVSMImpl::UPLVSMImpl(const ModelConfig& c) : config(c) {
 }
 
 torch::Tensor UPLVSMImpl::tokenize(const torch::Tensor& images) {
+  RECORD_FUNCTION("uplvsm::dinov2_tokenizer", std::vector<c10::IValue>());  // profiler spans (bench UPLVSM_PROFILE)
   const int64_t b = images.size(0), v = images.size(1);
   auto tokens = tokenizer(images.flatten(0, 1));
   return tokens.view({b, v, tokens.size(1), tokens.size(2)});
@@ -86,7 +87,11 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   auto x = torch::cat({flat.index({Slice(), Slice(0, n)}) + marker, flat.index({Slice(), Slice(n)})}, 1);
   const int64_t L = n_light_field_latent.size(0);
   auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);
-  auto z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every);
+  torch::Tensor z;
+  {
+    RECORD_FUNCTION("uplvsm::encoder", std::vector<c10::IValue>());
+    z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every);
+  }
   if (trace) {
     trace->encoder_input = encoder_input;
     trace->input_dino_tokens = tokens;
@@ -105,6 +110,7 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torc
   auto tokens = tokenize(images);
   auto flat_tokens = tokens.flatten(0, 1);
   auto latents = repeat_per_view(scene_latents, v);
+  RECORD_FUNCTION("uplvsm::estimator", std::vector<c10::IValue>());
   auto pooled = estimator->pooled(flat_tokens, latents);
   if (trace) {
     trace->target_dino_tokens = tokens;
@@ -122,7 +128,11 @@ torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const
   auto q = target_pose_tokenizer(rays.flatten(0, 1));  // [b v, n, d]
   const int64_t n = q.size(1);
   auto x = transformer_input_layernorm_decoder(torch::cat({q, repeat_per_view(scene_latents, v)}, 1));
-  auto y = run_stack(transformer_decoder, x, grad_checkpoint_every).index({Slice(), Slice(0, n)});
+  torch::Tensor y;
+  {
+    RECORD_FUNCTION("uplvsm::decoder", std::vector<c10::IValue>());
+    y = run_stack(transformer_decoder, x, grad_checkpoint_every).index({Slice(), Slice(0, n)});
+  }
   if (trace) trace->target_plucker = rays;
   return decode_rgb(y, b, v, H, W);
 }
@@ -232,6 +242,7 @@ UPLVSMOutput UPLVSMImpl::forward(const torch::Tensor& input_images, const torch:
 void UPLVSMImpl::set_grad_checkpoint_every(int64_t k) {
   TORCH_CHECK(k >= 0, "grad_checkpoint_every must be >= 0, got ", k);
   grad_checkpoint_every = k;
+  tokenizer->dino_vit->grad_checkpoint_every = k;
   if (estimator) estimator->grad_checkpoint_every = k;
 }
 

@@ -90,7 +90,8 @@ struct UPLVSMImpl : torch::nn::Module {
   bool posed_variant() const { return config.variant != "uplvsm"; }
 
   int64_t parameter_count() const;
-  // Gradient checkpointing of the encoder, estimator and decoder stacks in groups of k blocks (0: off).
+  // Gradient checkpointing of the DINOv2 tokenizer, encoder, estimator and decoder stacks in groups of k blocks
+  // (0: off).
   void set_grad_checkpoint_every(int64_t k);
 
   ModelConfig config;

@@ -1,0 +1,85 @@
+// Inference throughput of a model config at batch 1, as the official numbers are quoted: the UP-LVSM evaluation
+// forward (2 input views + 3 target views; the estimator sees the targets) and the interpolation video (inputs
+// encoded once, 8 frames decoded in chunks of 4), fp32 and bf16 autocast, no gradients. Counters: seconds per
+// target view / per frame, model TFLOP/s and the fraction of the same-dtype matmul peak measured in this process.
+//   build/uplvsm_bench --benchmark_filter='Inference/paper_x224'
+#include <benchmark/benchmark.h>
+
+#include <torch/torch.h>
+
+#include <chrono>
+#include <string>
+
+#include "bench_util.h"
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/model/flops.h"
+#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/render/renderer.h"
+
+namespace {
+
+using namespace uplvsm;
+constexpr int64_t kInputViews = 2, kTargetViews = 3, kFrames = 8;
+
+struct Scene {
+  torch::Tensor images, fxfycxcy;  // [1, v, 3, S, S], [1, v, 4]
+};
+
+Scene random_scene(int64_t size, int64_t views) {
+  return {torch::rand({1, views, 3, size, size}),
+          torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({1, views, 4}).contiguous()};
+}
+
+void BM_Inference(benchmark::State& state, const std::string& config_name) {
+  const bool bf16 = state.range(0) != 0;
+  const auto config = bench::bench_config(config_name);
+  torch::manual_seed(0);
+  model::UPLVSM net(config.model);
+  net->eval();
+  const auto scene = random_scene(config.model.image_size, kInputViews + kTargetViews);
+  auto inputs = scene.images.narrow(1, 0, kInputViews), targets = scene.images.narrow(1, kInputViews, kTargetViews);
+  auto in_k = scene.fxfycxcy.narrow(1, 0, kInputViews), tg_k = scene.fxfycxcy.narrow(1, kInputViews, kTargetViews);
+  auto run = [&] {
+    torch::NoGradGuard no_grad;
+    AutocastGuard amp(torch::kCPU, bf16);
+    return net->forward(inputs, in_k, targets, tg_k).render;
+  };
+  run();  // warm-up
+  bench::maybe_profile("Inference_" + config_name + (bf16 ? "_bf16" : "_fp32"), run);
+  const auto t0 = std::chrono::steady_clock::now();
+  for (auto _ : state) benchmark::DoNotOptimize(run().data_ptr());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double iterations = static_cast<double>(state.iterations());
+  bench::set_flop_counters(state, model::forward_flops(config.model, 1, kInputViews, kTargetViews).total(), seconds,
+                           bf16);
+  state.counters["s_per_view"] = seconds / iterations / kTargetViews;
+  state.counters["peak_RSS_GiB"] = bench::peak_rss_gib();
+  state.SetLabel(bf16 ? "bf16" : "fp32");
+}
+BENCHMARK_CAPTURE(BM_Inference, tiny, std::string("tiny"))->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Inference, paper_x224, std::string("paper_x224"))
+    ->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(3);
+
+void BM_RenderInterpolation(benchmark::State& state, const std::string& config_name) {
+  const bool bf16 = state.range(0) != 0;
+  const auto config = bench::bench_config(config_name);
+  torch::manual_seed(0);
+  model::UPLVSM net(config.model);
+  net->eval();
+  const auto scene = random_scene(config.model.image_size, kInputViews);
+  auto run = [&] {
+    AutocastGuard amp(torch::kCPU, bf16);
+    return render::render_interpolation(net, scene.images[0], scene.fxfycxcy[0], kFrames).frames;
+  };
+  run();
+  const auto t0 = std::chrono::steady_clock::now();
+  for (auto _ : state) benchmark::DoNotOptimize(run().data_ptr());
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  state.counters["s_per_frame"] = seconds / static_cast<double>(state.iterations()) / kFrames;
+  state.SetLabel(bf16 ? "bf16" : "fp32");
+}
+BENCHMARK_CAPTURE(BM_RenderInterpolation, tiny, std::string("tiny"))->ArgName("bf16")->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_RenderInterpolation, paper_x224, std::string("paper_x224"))
+    ->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(2);
+
+}  // namespace

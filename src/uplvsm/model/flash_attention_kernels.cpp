@@ -1,0 +1,215 @@
+#include "uplvsm/model/flash_attention_kernels.h"
+
+#include "uplvsm/model/flash_attention_simd.h"
+
+namespace uplvsm::model::flash {
+namespace {
+
+using namespace detail;
+
+// C[R x 16*NV] (+)= A[R x K] B[K x 16*NV]; A element (r, p) at A[r * a_rs + p * a_cs], B rows ldb apart.
+template <int R, int NV>
+UPLVSM_AVX512 void micro_kernel(int64_t K, const float* A, int64_t a_rs, int64_t a_cs, const float* B, int64_t ldb,
+                                float* C, int64_t ldc, bool accumulate) {
+  __m512 acc[R][NV];
+#pragma GCC unroll 8
+  for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) acc[r][v] = accumulate ? _mm512_loadu_ps(C + r * ldc + 16 * v) : _mm512_setzero_ps();
+  const float* a_row[R];
+#pragma GCC unroll 8
+  for (int r = 0; r < R; ++r) a_row[r] = A + r * a_rs;
+  for (int64_t p = 0; p < K; ++p) {
+    __m512 b[NV];
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) b[v] = _mm512_loadu_ps(B + p * ldb + 16 * v);
+#pragma GCC unroll 8
+    for (int r = 0; r < R; ++r) {
+      const __m512 a = _mm512_set1_ps(a_row[r][p * a_cs]);
+#pragma GCC unroll 4
+      for (int v = 0; v < NV; ++v) acc[r][v] = _mm512_fmadd_ps(a, b[v], acc[r][v]);
+    }
+  }
+#pragma GCC unroll 8
+  for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) _mm512_storeu_ps(C + r * ldc + 16 * v, acc[r][v]);
+}
+
+using MicroKernel = void (*)(int64_t, const float*, int64_t, int64_t, const float*, int64_t, float*, int64_t, bool);
+
+template <int NV>
+constexpr MicroKernel kernels_for_rows[kRows] = {micro_kernel<1, NV>, micro_kernel<2, NV>, micro_kernel<3, NV>,
+                                                 micro_kernel<4, NV>, micro_kernel<5, NV>, micro_kernel<6, NV>};
+
+// C[M x N] (+)= A[M x K] B[K x N] for N a multiple of 16, in 64-column panels (a K x 64 panel of B stays in L1).
+void gemm(int64_t M, int64_t N, int64_t K, const float* A, int64_t a_rs, int64_t a_cs, const float* B, int64_t ldb,
+          float* C, int64_t ldc, bool accumulate) {
+  static const MicroKernel* const table[4] = {kernels_for_rows<1>, kernels_for_rows<2>, kernels_for_rows<3>,
+                                              kernels_for_rows<4>};
+  for (int64_t n0 = 0; n0 < N; n0 += 64) {
+    const int64_t nv = std::min<int64_t>(4, (N - n0) / 16);
+    for (int64_t m0 = 0; m0 < M; m0 += kRows) {
+      const int64_t rows = std::min(kRows, M - m0);
+      table[nv - 1][rows - 1](K, A + m0 * a_rs, a_rs, a_cs, B + n0, ldb, C + m0 * ldc + n0, ldc, accumulate);
+    }
+  }
+}
+
+// ---- forward ----
+
+// Rows [0, L) of an operand as a row-major [L x D] fp32 matrix, times `mul`.
+void load_rows(const Problem& p, const void* base, Strides s, int64_t bh, int64_t L, float mul, float* dst) {
+  for (int64_t i = 0; i < L; ++i) load_row(p, base, s, bh, i, mul, dst + i * p.D);
+}
+
+// The transpose [D x ld] of a row-major [L x D] matrix, columns L..ld zero (so key tiles can be padded to 16).
+void transpose_rows(const float* rows, int64_t L, int64_t D, int64_t ld, float* dst) {
+  std::fill(dst, dst + D * ld, 0.0f);
+  for (int64_t i = 0; i < L; ++i)
+    for (int64_t d = 0; d < D; ++d) dst[d * ld + i] = rows[i * D + d];
+}
+
+// fp32 forward, per thread: K^T (scratch 1) and V (scratch 0) of the head being worked on.
+void pack_head_fp32(const Problem& p, int64_t bh) {
+  const int64_t ld_kt = round_up(p.Lk, 16);
+  float* Vf = scratch<float>(0, p.Lk * p.D);
+  load_rows(p, p.k, p.sk, bh, p.Lk, 1.0f, Vf);
+  transpose_rows(Vf, p.Lk, p.D, ld_kt, scratch<float>(1, p.D * ld_kt));
+  load_rows(p, p.v, p.sv, bh, p.Lk, 1.0f, Vf);
+}
+
+void forward_rows_fp32(const Problem& p, int64_t bh, int64_t row_begin, int64_t row_end, void* o, Strides so,
+                       float* lse) {
+  const int64_t D = p.D, ld_kt = round_up(p.Lk, 16);
+  const float* Vf = scratch<float>(0, p.Lk * D);
+  const float* Kt = scratch<float>(1, D * ld_kt);
+  float* Q = scratch<float>(2, kQueryTile * D);
+  float* S = scratch<float>(3, kQueryTile * kKeyTile);
+  float* O = scratch<float>(4, kQueryTile * D);
+  float m[kQueryTile], l[kQueryTile];
+  for (int64_t i0 = row_begin; i0 < row_end; i0 += kQueryTile) {
+    const int64_t rows = std::min(kQueryTile, row_end - i0);
+    for (int64_t r = 0; r < rows; ++r) load_row(p, p.q, p.sq, bh, i0 + r, p.scale, Q + r * D);
+    std::fill(O, O + rows * D, 0.0f);
+    std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
+    std::fill(l, l + rows, 0.0f);
+    for (int64_t j0 = 0; j0 < p.Lk; j0 += kKeyTile) {
+      const int64_t keys = std::min(kKeyTile, p.Lk - j0), key_pad = round_up(keys, 16);
+      gemm(rows, key_pad, D, Q, D, 1, Kt + j0, ld_kt, S, kKeyTile, false);  // S = (scale q) k^T
+      online_softmax_step(rows, keys, kKeyTile, 1.0f, S, m, l, O, D);
+      gemm(rows, D, keys, S, kKeyTile, 1, Vf + j0 * D, D, O, D, true);  // O += P v
+    }
+    for (int64_t r = 0; r < rows; ++r) {
+      store_row(p, o, so, bh, i0 + r, O + r * D, 1.0f / l[r]);
+      lse[bh * p.Lq + i0 + r] = m[r] + std::log(l[r]);
+    }
+  }
+}
+
+void backward_head_fp32(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
+                        const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
+  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk, ld_t = round_up(Lk, 16);
+  float* Qs = scratch<float>(0, Lq * D);  // q * scale, row-major
+  float* dO = scratch<float>(1, Lq * D);
+  float* Kf = scratch<float>(2, Lk * D);
+  float* Kt = scratch<float>(3, D * ld_t);
+  float* Vt = scratch<float>(4, D * ld_t);
+  float* dQ = scratch<float>(5, Lq * D);
+  float* S = scratch<float>(6, kBwdQueryTile * kBwdKeyTile);
+  float* dP = scratch<float>(7, kBwdQueryTile * kBwdKeyTile);
+  float* dK = scratch<float>(8, kBwdKeyTile * D);
+  float* dV = scratch<float>(9, kBwdKeyTile * D);
+  load_rows(p, p.q, p.sq, bh, Lq, p.scale, Qs);
+  load_rows(p, dout, sdo, bh, Lq, 1.0f, dO);
+  load_rows(p, p.v, p.sv, bh, Lk, 1.0f, Kf);
+  transpose_rows(Kf, Lk, D, ld_t, Vt);
+  load_rows(p, p.k, p.sk, bh, Lk, 1.0f, Kf);
+  transpose_rows(Kf, Lk, D, ld_t, Kt);
+  std::fill(dQ, dQ + Lq * D, 0.0f);
+  const float* lse_h = lse + bh * Lq;
+  const float* delta_h = delta + bh * Lq;
+  for (int64_t j0 = 0; j0 < Lk; j0 += kBwdKeyTile) {
+    const int64_t keys = std::min(kBwdKeyTile, Lk - j0), key_pad = round_up(keys, 16);
+    std::fill(dK, dK + keys * D, 0.0f);
+    std::fill(dV, dV + keys * D, 0.0f);
+    for (int64_t i0 = 0; i0 < Lq; i0 += kBwdQueryTile) {
+      const int64_t rows = std::min(kBwdQueryTile, Lq - i0);
+      const float* Qi = Qs + i0 * D;
+      const float* dOi = dO + i0 * D;
+      gemm(rows, key_pad, D, Qi, D, 1, Kt + j0, ld_t, S, kBwdKeyTile, false);     // S = Qs K^T
+      gemm(rows, key_pad, D, dOi, D, 1, Vt + j0, ld_t, dP, kBwdKeyTile, false);   // dP = dO V^T
+      softmax_backward_tile(rows, keys, kBwdKeyTile, 1.0f, S, dP, lse_h + i0, delta_h + i0);
+      gemm(keys, D, rows, S, 1, kBwdKeyTile, dOi, D, dV, D, true);                // dV += P^T dO
+      gemm(keys, D, rows, dP, 1, kBwdKeyTile, Qi, D, dK, D, true);                // dK += dS^T Qs
+      gemm(rows, D, keys, dP, kBwdKeyTile, 1, Kf + j0 * D, D, dQ + i0 * D, D, true);  // dQ += dS K
+    }
+    for (int64_t j = 0; j < keys; ++j) {
+      store_row(p, dk, sdk, bh, j0 + j, dK + j * D, 1.0f);
+      store_row(p, dv, sdv, bh, j0 + j, dV + j * D, 1.0f);
+    }
+  }
+  for (int64_t i = 0; i < Lq; ++i) store_row(p, dq, sdq, bh, i, dQ + i * D, p.scale);
+}
+
+bool cpu_has_avx512() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+         __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
+}
+
+bool cpu_has_avx512_bf16() {
+  __builtin_cpu_init();
+  return cpu_has_avx512() && __builtin_cpu_supports("avx512bf16");
+}
+
+}  // namespace
+
+bool flash_kernels_available(Precision precision, int64_t d_head) {
+  if (d_head <= 0 || d_head % 16 != 0 || d_head > 256) return false;
+  static const bool avx512 = cpu_has_avx512(), bf16 = cpu_has_avx512_bf16();
+  return precision == Precision::Fp32 ? avx512 : bf16;
+}
+
+int64_t forward_task_count(const Problem& p) { return p.B * p.H * row_chunks(p); }
+
+void forward_tasks(const Problem& p, int64_t begin, int64_t end, void* o, Strides so, float* lse) {
+  const bool bf16 = p.precision == Precision::Bf16;
+  const int64_t chunks = row_chunks(p);
+  int64_t packed_head = -1;
+  for (int64_t t = begin; t < end; ++t) {
+    const int64_t bh = t / chunks, chunk = t % chunks;
+    if (bh != packed_head) {  // consecutive tasks of one head share its packed K and V
+      bf16 ? pack_head_bf16(p, bh) : pack_head_fp32(p, bh);
+      packed_head = bh;
+    }
+    const int64_t row_begin = chunk * kRowsPerTask, row_end = std::min(p.Lq, row_begin + kRowsPerTask);
+    bf16 ? forward_rows_bf16(p, bh, row_begin, row_end, o, so, lse)
+         : forward_rows_fp32(p, bh, row_begin, row_end, o, so, lse);
+  }
+}
+
+void backward_delta(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo, int64_t begin,
+                    int64_t end, float* delta) {
+  std::vector<float> a(p.D), b(p.D);
+  for (int64_t bh = begin; bh < end; ++bh)
+    for (int64_t i = 0; i < p.Lq; ++i) {
+      load_row(p, o, so, bh, i, 1.0f, a.data());
+      load_row(p, dout, sdo, bh, i, 1.0f, b.data());
+      double sum = 0;
+      for (int64_t d = 0; d < p.D; ++d) sum += static_cast<double>(a[d]) * b[d];
+      delta[bh * p.Lq + i] = static_cast<float>(sum);
+    }
+}
+
+void backward_tasks(const Problem& p, const void* dout, Strides sdo, const float* lse, const float* delta,
+                    int64_t begin, int64_t end, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
+  for (int64_t bh = begin; bh < end; ++bh) {
+    if (p.precision == Precision::Bf16)
+      backward_head_bf16(p, bh, dout, sdo, lse, delta, dq, sdq, dk, sdk, dv, sdv);
+    else
+      backward_head_fp32(p, bh, dout, sdo, lse, delta, dq, sdq, dk, sdk, dv, sdv);
+  }
+}
+
+}  // namespace uplvsm::model::flash

@@ -1,0 +1,42 @@
+// CPU kernels of fused (flash-style) attention over raw fp32 / bf16 buffers: tiled, online softmax with fp32
+// accumulation, no L x L matrix in memory (workspace is O(L) per head). AVX-512 only; callers check
+// `flash_kernels_available()` and fall back to the unfused LibTorch path elsewhere. Threading is the caller's
+// (each entry point handles a range of tasks), so these files need no LibTorch headers.
+#pragma once
+#include <cstdint>
+
+namespace uplvsm::model::flash {
+
+// Element strides of a [B, H, L, D] operand whose last dimension is contiguous.
+struct Strides {
+  int64_t b = 0, h = 0, l = 0;
+};
+
+enum class Precision { Fp32, Bf16 };
+
+// One attention problem: o = softmax(scale q k^T) v per (batch, head). Pointers are float* for Fp32 and
+// uint16_t* (bf16 bit patterns) for Bf16; lse ([B*H*Lq], fp32, contiguous) is the row log-sum-exp of the scaled
+// scores, kept for the backward pass.
+struct Problem {
+  int64_t B = 0, H = 0, Lq = 0, Lk = 0, D = 0;
+  float scale = 1.0f;
+  Precision precision = Precision::Fp32;
+  const void *q = nullptr, *k = nullptr, *v = nullptr;
+  Strides sq, sk, sv;
+};
+
+// True when this CPU runs the kernels (AVX-512F; bf16 additionally needs AVX-512 BF16) and d_head suits them.
+bool flash_kernels_available(Precision precision, int64_t d_head);
+
+// Forward over (batch*head, query tile) tasks [begin, end) of forward_task_count(p).
+int64_t forward_task_count(const Problem& p);
+void forward_tasks(const Problem& p, int64_t begin, int64_t end, void* o, Strides so, float* lse);
+
+// Backward over (batch*head) tasks [begin, end) of p.B * p.H. `o`/`dout` have strides so/sdo; delta ([B*H*Lq]) is
+// rowsum(dout * o) from `backward_delta`. Gradients are written (not accumulated) in the operand precision.
+void backward_delta(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo, int64_t begin,
+                    int64_t end, float* delta);
+void backward_tasks(const Problem& p, const void* dout, Strides sdo, const float* lse, const float* delta,
+                    int64_t begin, int64_t end, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv);
+
+}  // namespace uplvsm::model::flash

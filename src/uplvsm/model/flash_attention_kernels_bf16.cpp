@@ -1,0 +1,237 @@
+// The bf16 fused attention kernels: every matmul is an AVX-512 BF16 dot product of bf16 pairs with fp32
+// accumulation (twice the fp32 FMA rate); softmax, running max/sum and gradients accumulate in fp32. Operands are
+// packed per head into pair layouts (O(L d) work) so that the micro-kernel only streams.
+#include "uplvsm/model/flash_attention_simd.h"
+
+namespace uplvsm::model::flash::detail {
+namespace {
+
+// Scratch slots (fp32 kernels use 0..9).
+enum Slot : int {
+  kKp = 10, kVp, kQ, kS, kO, kP, kQrows, kQtp, kDOrows, kDOtp, kVtp, kKrp, kDQ, kDP, kPpairs, kDSpairs, kDSrows,
+  kDKt, kDVt, kRow
+};
+
+// C[R x 16*NV] (+)= A[R x 2*K2] B[2*K2 x 16*NV]: A rows are bf16 pairs (one uint32 each) lda words apart; B is
+// packed in pairs, word (p2, n) = (B[2 p2][n], B[2 p2 + 1][n]), rows ldb words apart.
+template <int R, int NV>
+UPLVSM_AVX512_BF16 void micro_kernel_bf16(int64_t K2, const uint32_t* A, int64_t lda, const uint32_t* B,
+                                          int64_t ldb, float* C, int64_t ldc, bool accumulate) {
+  __m512 acc[R][NV];
+#pragma GCC unroll 8
+  for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) acc[r][v] = accumulate ? _mm512_loadu_ps(C + r * ldc + 16 * v) : _mm512_setzero_ps();
+  for (int64_t p = 0; p < K2; ++p) {
+    __m512bh b[NV];
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) b[v] = (__m512bh)_mm512_loadu_si512(B + p * ldb + 16 * v);
+#pragma GCC unroll 8
+    for (int r = 0; r < R; ++r) {
+      const __m512bh a = (__m512bh)_mm512_set1_epi32(static_cast<int>(A[r * lda + p]));
+#pragma GCC unroll 4
+      for (int v = 0; v < NV; ++v) acc[r][v] = _mm512_dpbf16_ps(acc[r][v], a, b[v]);
+    }
+  }
+#pragma GCC unroll 8
+  for (int r = 0; r < R; ++r)
+#pragma GCC unroll 4
+    for (int v = 0; v < NV; ++v) _mm512_storeu_ps(C + r * ldc + 16 * v, acc[r][v]);
+}
+
+using MicroKernelBf16 = void (*)(int64_t, const uint32_t*, int64_t, const uint32_t*, int64_t, float*, int64_t, bool);
+
+template <int NV>
+constexpr MicroKernelBf16 kernels_for_rows[kRows] = {micro_kernel_bf16<1, NV>, micro_kernel_bf16<2, NV>,
+                                                     micro_kernel_bf16<3, NV>, micro_kernel_bf16<4, NV>,
+                                                     micro_kernel_bf16<5, NV>, micro_kernel_bf16<6, NV>};
+
+// C[M x N] (+)= A[M x 2 K2] B[2 K2 x N], N a multiple of 16, in 64-column panels.
+void gemm_bf16(int64_t M, int64_t N, int64_t K2, const uint32_t* A, int64_t lda, const uint32_t* B, int64_t ldb,
+               float* C, int64_t ldc, bool accumulate) {
+  static const MicroKernelBf16* const table[4] = {kernels_for_rows<1>, kernels_for_rows<2>, kernels_for_rows<3>,
+                                                  kernels_for_rows<4>};
+  for (int64_t n0 = 0; n0 < N; n0 += 64) {
+    const int64_t nv = std::min<int64_t>(4, (N - n0) / 16);
+    for (int64_t m0 = 0; m0 < M; m0 += kRows)
+      table[nv - 1][std::min(kRows, M - m0) - 1](K2, A + m0 * lda, lda, B + n0, ldb, C + m0 * ldc + n0, ldc,
+                                                 accumulate);
+  }
+}
+
+// ---- packing one head's operand (rows of length D, bf16) ----
+
+const uint16_t* row_ptr(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row) {
+  return static_cast<const uint16_t*>(base) + head_offset(p, s, bh, row);
+}
+
+// Rows [0, L) as a contiguous [L x D] bf16 matrix: an A operand with pairs along D.
+void copy_rows(const Problem& p, const void* base, Strides s, int64_t bh, int64_t L, uint16_t* dst) {
+  for (int64_t i = 0; i < L; ++i) std::memcpy(dst + i * p.D, row_ptr(p, base, s, bh, i), p.D * sizeof(uint16_t));
+}
+
+uint32_t pair(uint16_t low, uint16_t high) { return static_cast<uint32_t>(low) | static_cast<uint32_t>(high) << 16; }
+
+// B = X^T with pairs along D: word (d2, j) = (X[j][2 d2], X[j][2 d2 + 1]); [D/2 x ld], columns >= L zero.
+void pack_transposed(const uint16_t* rows, int64_t L, int64_t D, int64_t ld, uint32_t* dst) {
+  std::fill(dst, dst + D / 2 * ld, 0u);
+  for (int64_t j = 0; j < L; ++j)
+    for (int64_t d2 = 0; d2 < D / 2; ++d2) dst[d2 * ld + j] = pair(rows[j * D + 2 * d2], rows[j * D + 2 * d2 + 1]);
+}
+
+// B = X with pairs along rows: word (i2, d) = (X[2 i2][d], X[2 i2 + 1][d]); [ceil(L/2) x D], a missing row zero.
+void pack_row_pairs(const uint16_t* rows, int64_t L, int64_t D, uint32_t* dst) {
+  for (int64_t i2 = 0; i2 < (L + 1) / 2; ++i2)
+    for (int64_t d = 0; d < D; ++d)
+      dst[i2 * D + d] = pair(rows[2 * i2 * D + d], 2 * i2 + 1 < L ? rows[(2 * i2 + 1) * D + d] : uint16_t(0));
+}
+
+// A = X^T with pairs along rows: word (d, i2) = (X[2 i2][d], X[2 i2 + 1][d]); [D x ceil(L/2)].
+void pack_transposed_row_pairs(const uint16_t* rows, int64_t L, int64_t D, uint32_t* dst) {
+  const int64_t L2 = (L + 1) / 2;
+  for (int64_t i2 = 0; i2 < L2; ++i2)
+    for (int64_t d = 0; d < D; ++d)
+      dst[d * L2 + i2] = pair(rows[2 * i2 * D + d], 2 * i2 + 1 < L ? rows[(2 * i2 + 1) * D + d] : uint16_t(0));
+}
+
+// ---- fp32 tiles -> bf16 operands ----
+
+// Row-major bf16 copy of an fp32 [rows x cols] tile (pairs along columns); column `cols` zeroed when odd.
+UPLVSM_AVX512_BF16 void tile_to_bf16(const float* src, int64_t ld_src, int64_t rows, int64_t cols, uint16_t* dst,
+                                     int64_t ld_dst) {
+  for (int64_t r = 0; r < rows; ++r)
+    for (int64_t j = 0; j < round_up(cols, 2); j += 16) {
+      const __mmask16 mask = tail_mask(cols - j), store = tail_mask(round_up(cols, 2) - j);
+      const __m256bh h = _mm512_cvtneps_pbh(_mm512_maskz_loadu_ps(mask, src + r * ld_src + j));
+      _mm256_mask_storeu_epi16(dst + r * ld_dst + j, store, (__m256i)h);
+    }
+}
+
+// B operand with pairs along rows from an fp32 [rows x cols] tile: word (i2, j) = (T[2 i2][j], T[2 i2 + 1][j]);
+// a missing odd row is zero. cols is padded to 16 with zeros.
+UPLVSM_AVX512_BF16 void tile_to_row_pairs(const float* src, int64_t ld_src, int64_t rows, int64_t cols,
+                                          uint32_t* dst, int64_t ld_dst) {
+  for (int64_t i2 = 0; i2 < (rows + 1) / 2; ++i2)
+    for (int64_t j = 0; j < cols; j += 16) {
+      const __mmask16 mask = tail_mask(cols - j);
+      const __m512 lo = _mm512_maskz_loadu_ps(mask, src + 2 * i2 * ld_src + j);
+      const __m512 hi = 2 * i2 + 1 < rows ? _mm512_maskz_loadu_ps(mask, src + (2 * i2 + 1) * ld_src + j)
+                                          : _mm512_setzero_ps();
+      const __m512i wlo = _mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(lo));
+      const __m512i whi = _mm512_slli_epi32(_mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(hi)), 16);
+      _mm512_storeu_si512(dst + i2 * ld_dst + j, _mm512_or_si512(wlo, whi));
+    }
+}
+
+// Stores rows [j0, j0 + keys) of a gradient kept transposed ([D x ld] fp32), times `mul`.
+void store_transposed(const Problem& p, void* base, Strides s, int64_t bh, int64_t j0, int64_t keys, const float* t,
+                      int64_t ld, float mul) {
+  float* row = scratch<float>(kRow, p.D);
+  for (int64_t j = 0; j < keys; ++j) {
+    for (int64_t d = 0; d < p.D; ++d) row[d] = t[d * ld + j];
+    store_row(p, base, s, bh, j0 + j, row, mul);
+  }
+}
+
+const uint32_t* words(const uint16_t* x) { return reinterpret_cast<const uint32_t*>(x); }
+
+}  // namespace
+
+void pack_head_bf16(const Problem& p, int64_t bh) {
+  const int64_t D = p.D, ld_k = round_up(p.Lk, 16);
+  uint16_t* rows = scratch<uint16_t>(kQrows, p.Lk * D);
+  copy_rows(p, p.k, p.sk, bh, p.Lk, rows);
+  pack_transposed(rows, p.Lk, D, ld_k, scratch<uint32_t>(kKp, D / 2 * ld_k));
+  copy_rows(p, p.v, p.sv, bh, p.Lk, rows);
+  pack_row_pairs(rows, p.Lk, D, scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D));
+}
+
+void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t row_end, void* o, Strides so,
+                       float* lse) {
+  const int64_t D = p.D, ld_k = round_up(p.Lk, 16);
+  const uint32_t* Kp = scratch<uint32_t>(kKp, D / 2 * ld_k);
+  const uint32_t* Vp = scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D);
+  uint16_t* Q = scratch<uint16_t>(kQ, kQueryTile * D);
+  float* S = scratch<float>(kS, kQueryTile * kKeyTile);
+  float* O = scratch<float>(kO, kQueryTile * D);
+  uint16_t* P = scratch<uint16_t>(kP, kQueryTile * kKeyTile);
+  float m[kQueryTile], l[kQueryTile];
+  for (int64_t i0 = row_begin; i0 < row_end; i0 += kQueryTile) {
+    const int64_t rows = std::min(kQueryTile, row_end - i0);
+    for (int64_t r = 0; r < rows; ++r)
+      std::memcpy(Q + r * D, row_ptr(p, p.q, p.sq, bh, i0 + r), D * sizeof(uint16_t));
+    std::fill(O, O + rows * D, 0.0f);
+    std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
+    std::fill(l, l + rows, 0.0f);
+    for (int64_t j0 = 0; j0 < p.Lk; j0 += kKeyTile) {
+      const int64_t keys = std::min(kKeyTile, p.Lk - j0);
+      gemm_bf16(rows, round_up(keys, 16), D / 2, words(Q), D / 2, Kp + j0, ld_k, S, kKeyTile, false);  // q k^T
+      online_softmax_step(rows, keys, kKeyTile, p.scale, S, m, l, O, D);
+      tile_to_bf16(S, kKeyTile, rows, keys, P, kKeyTile);
+      gemm_bf16(rows, D, round_up(keys, 2) / 2, words(P), kKeyTile / 2, Vp + j0 / 2 * D, D, O, D, true);  // O += P v
+    }
+    for (int64_t r = 0; r < rows; ++r) {
+      store_row(p, o, so, bh, i0 + r, O + r * D, 1.0f / l[r]);
+      lse[bh * p.Lq + i0 + r] = m[r] + std::log(l[r]);
+    }
+  }
+}
+
+// dV^T and dK^T (D x keys) accumulate as A = dO^T / Q^T (pairs along query rows) times B = P / dS packed in row
+// pairs, so no tile is ever transposed; dQ += dS K uses dS row-major. Gradients of the scaled scores carry `scale`.
+void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
+                        const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
+  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk, ld_k = round_up(Lk, 16), Lq2 = (Lq + 1) / 2;
+  constexpr int64_t kTq = kBwdQueryTile, kTk = kBwdKeyTile;
+  uint16_t* Qrows = scratch<uint16_t>(kQrows, std::max(Lq, Lk) * D);
+  uint16_t* dOrows = scratch<uint16_t>(kDOrows, Lq * D);
+  uint32_t* Qtp = scratch<uint32_t>(kQtp, D * Lq2);
+  uint32_t* dOtp = scratch<uint32_t>(kDOtp, D * Lq2);
+  uint32_t* Kp = scratch<uint32_t>(kKp, D / 2 * ld_k);
+  uint32_t* Vtp = scratch<uint32_t>(kVtp, D / 2 * ld_k);
+  uint32_t* Krp = scratch<uint32_t>(kKrp, (Lk + 1) / 2 * D);
+  float* dQ = scratch<float>(kDQ, Lq * D);
+  float* S = scratch<float>(kS, kTq * kTk);
+  float* dP = scratch<float>(kDP, kTq * kTk);
+  uint32_t* Ppairs = scratch<uint32_t>(kPpairs, kTq / 2 * kTk);
+  uint32_t* dSpairs = scratch<uint32_t>(kDSpairs, kTq / 2 * kTk);
+  uint16_t* dSrows = scratch<uint16_t>(kDSrows, kTq * kTk);
+  float* dKt = scratch<float>(kDKt, D * kTk);
+  float* dVt = scratch<float>(kDVt, D * kTk);
+
+  copy_rows(p, p.v, p.sv, bh, Lk, Qrows);  // Qrows is a staging buffer until q itself is copied
+  pack_transposed(Qrows, Lk, D, ld_k, Vtp);
+  copy_rows(p, p.k, p.sk, bh, Lk, Qrows);
+  pack_transposed(Qrows, Lk, D, ld_k, Kp);
+  pack_row_pairs(Qrows, Lk, D, Krp);
+  copy_rows(p, p.q, p.sq, bh, Lq, Qrows);
+  pack_transposed_row_pairs(Qrows, Lq, D, Qtp);
+  copy_rows(p, dout, sdo, bh, Lq, dOrows);
+  pack_transposed_row_pairs(dOrows, Lq, D, dOtp);
+  std::fill(dQ, dQ + Lq * D, 0.0f);
+  const float* lse_h = lse + bh * Lq;
+  const float* delta_h = delta + bh * Lq;
+  for (int64_t j0 = 0; j0 < Lk; j0 += kTk) {
+    const int64_t keys = std::min(kTk, Lk - j0), key_pad = round_up(keys, 16);
+    std::fill(dKt, dKt + D * kTk, 0.0f);
+    std::fill(dVt, dVt + D * kTk, 0.0f);
+    for (int64_t i0 = 0; i0 < Lq; i0 += kTq) {
+      const int64_t rows = std::min(kTq, Lq - i0), row_pairs = (rows + 1) / 2;
+      gemm_bf16(rows, key_pad, D / 2, words(Qrows + i0 * D), D / 2, Kp + j0, ld_k, S, kTk, false);    // q k^T
+      gemm_bf16(rows, key_pad, D / 2, words(dOrows + i0 * D), D / 2, Vtp + j0, ld_k, dP, kTk, false);  // dO v^T
+      softmax_backward_tile(rows, keys, kTk, p.scale, S, dP, lse_h + i0, delta_h + i0);
+      tile_to_row_pairs(S, kTk, rows, key_pad, Ppairs, kTk);
+      tile_to_row_pairs(dP, kTk, rows, key_pad, dSpairs, kTk);
+      tile_to_bf16(dP, kTk, rows, keys, dSrows, kTk);
+      gemm_bf16(D, key_pad, row_pairs, dOtp + i0 / 2, Lq2, Ppairs, kTk, dVt, kTk, true);  // dV^T += dO^T P
+      gemm_bf16(D, key_pad, row_pairs, Qtp + i0 / 2, Lq2, dSpairs, kTk, dKt, kTk, true);  // dK^T += q^T dS
+      gemm_bf16(rows, D, round_up(keys, 2) / 2, words(dSrows), kTk / 2, Krp + j0 / 2 * D, D, dQ + i0 * D, D,
+                true);  // dQ += dS k
+    }
+    store_transposed(p, dk, sdk, bh, j0, keys, dKt, kTk, p.scale);
+    store_transposed(p, dv, sdv, bh, j0, keys, dVt, kTk, 1.0f);
+  }
+  for (int64_t i = 0; i < Lq; ++i) store_row(p, dq, sdq, bh, i, dQ + i * D, p.scale);
+}
+
+}  // namespace uplvsm::model::flash::detail

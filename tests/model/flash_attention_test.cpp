@@ -1,0 +1,119 @@
+#include <gtest/gtest.h>
+
+#include "test_util.h"
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/model/flash_attention.h"
+#include "uplvsm/model/transformer.h"
+
+using namespace uplvsm;
+
+namespace {
+
+bool fused_available(torch::ScalarType dtype, int64_t d_head) {
+  return model::fused_attention_applies(torch::kCPU, dtype, d_head);
+}
+
+// The unfused reference: softmax(q k^T / sqrt(d)) v in LibTorch ops, in double so it is the exact answer.
+torch::Tensor reference_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  auto qd = q.to(torch::kFloat64), kd = k.to(torch::kFloat64), vd = v.to(torch::kFloat64);
+  auto s = torch::matmul(qd, kd.transpose(-2, -1)) / std::sqrt(static_cast<double>(q.size(-1)));
+  return torch::matmul(torch::softmax(s, -1), vd);
+}
+
+struct Grads {
+  torch::Tensor o, dq, dk, dv;
+};
+
+// Output and gradients of sum(o * w) for a fixed random w, through `fn`.
+template <typename Fn>
+Grads run(Fn fn, torch::Tensor q, torch::Tensor k, torch::Tensor v, const torch::Tensor& w) {
+  q = q.detach().requires_grad_(true), k = k.detach().requires_grad_(true), v = v.detach().requires_grad_(true);
+  auto o = fn(q, k, v);
+  (o.to(torch::kFloat64) * w).sum().backward();
+  return {o.detach(), q.grad(), k.grad(), v.grad()};
+}
+
+// Max abs difference of output and gradients <= tol, or <= tol * max|b| per tensor when `relative`.
+void expect_close(const Grads& a, const Grads& b, double tol, bool relative = false) {
+  const std::pair<const char*, std::pair<torch::Tensor, torch::Tensor>> pairs[] = {
+      {"output", {a.o, b.o}}, {"dq", {a.dq, b.dq}}, {"dk", {a.dk, b.dk}}, {"dv", {a.dv, b.dv}}};
+  for (const auto& [name, t] : pairs) {
+    const double bound = relative ? tol * t.second.abs().max().item<double>() : tol;
+    EXPECT_LE(test::max_abs_diff(t.first, t.second), bound) << name;
+  }
+}
+
+}  // namespace
+
+TEST(FlashAttention, Fp32MatchesExactAttentionAndGradients) {
+  if (!fused_available(torch::kFloat32, 64)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  torch::manual_seed(3);
+  // Odd lengths exercise the padded key tiles and the partial micro-kernel rows; Lq != Lk the cross shapes.
+  for (auto [B, H, Lq, Lk, D] : std::vector<std::array<int64_t, 5>>{
+           {2, 3, 37, 53, 32}, {1, 2, 130, 130, 64}, {1, 1, 7, 300, 16}, {3, 2, 50, 5, 48}}) {
+    auto q = torch::randn({B, H, Lq, D}) * 2, k = torch::randn({B, H, Lk, D}) * 2, v = torch::randn({B, H, Lk, D});
+    auto w = torch::randn({B, H, Lq, D}, torch::kFloat64);
+    SCOPED_TRACE(testing::Message() << "B H Lq Lk D = " << B << " " << H << " " << Lq << " " << Lk << " " << D);
+    expect_close(run(model::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 1e-5);
+  }
+}
+
+TEST(FlashAttention, ReadsStridedHeadViewsWithoutCopies) {
+  if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  torch::manual_seed(4);
+  // The model's layout: q, k, v are head views of one [B, L, 3 * H * D] projection.
+  const int64_t B = 2, L = 40, H = 3, D = 32;
+  auto qkv = torch::randn({B, L, 3 * H * D});
+  auto heads = [&](int i) { return qkv.chunk(3, -1)[i].view({B, L, H, D}).transpose(1, 2); };
+  auto w = torch::randn({B, H, L, D}, torch::kFloat64);
+  auto fused = run(model::fused_attention, heads(0), heads(1), heads(2), w);
+  expect_close(fused, run(reference_attention, heads(0), heads(1), heads(2), w), 1e-5);
+  // The output is a head view of a [B, L, H, D] tensor: merging heads is a free reshape.
+  EXPECT_TRUE(fused.o.transpose(1, 2).is_contiguous());
+}
+
+TEST(FlashAttention, Bf16StaysWithinDocumentedTolerance) {
+  if (!fused_available(torch::kBFloat16, 64)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  torch::manual_seed(5);
+  // Odd lengths: padded key tiles, a query row without a pair partner.
+  auto q = torch::randn({2, 2, 97, 64}).mul(2).to(torch::kBFloat16),
+       k = torch::randn({2, 2, 131, 64}).mul(2).to(torch::kBFloat16),
+       v = torch::randn({2, 2, 131, 64}).to(torch::kBFloat16);
+  auto w = torch::randn({2, 2, 97, 64}, torch::kFloat64);
+  auto fused = run(model::fused_attention, q, k, v, w);
+  EXPECT_EQ(fused.o.scalar_type(), torch::kBFloat16);
+  EXPECT_EQ(fused.dq.scalar_type(), torch::kBFloat16);
+  // Against exact attention of the same bf16 inputs: fp32 accumulation leaves the bf16 rounding of the
+  // probabilities, score gradients and results (2^-9 relative each): within 2% of each tensor's largest value.
+  expect_close(fused, run(reference_attention, q, k, v, w), 2e-2, /*relative=*/true);
+}
+
+TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsewhere) {
+  if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  torch::manual_seed(6);
+  auto q = torch::randn({1, 2, 20, 32}), k = torch::randn({1, 2, 20, 32}), v = torch::randn({1, 2, 20, 32});
+  auto exact = reference_attention(q, k, v);
+  EXPECT_LE(test::max_abs_diff(model::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
+  {
+    AutocastGuard amp(torch::kCPU, true);
+    auto o = model::attention(q, k, v);
+    EXPECT_EQ(o.scalar_type(), torch::kBFloat16);
+    EXPECT_LE(test::max_abs_diff(o.to(torch::kFloat64), exact), 3e-2);
+  }
+  // d_head 24 is not a multiple of 16: the unfused path serves it.
+  EXPECT_FALSE(fused_available(torch::kFloat32, 24));
+  auto q24 = torch::randn({1, 2, 9, 24}), k24 = torch::randn({1, 2, 9, 24}), v24 = torch::randn({1, 2, 9, 24});
+  EXPECT_LE(test::max_abs_diff(model::attention(q24, k24, v24).to(torch::kFloat64),
+                               reference_attention(q24, k24, v24)),
+            1e-5);
+  model::set_attention_kernel(model::AttentionKernel::Unfused);
+  EXPECT_FALSE(fused_available(torch::kFloat32, 32));
+  EXPECT_LE(test::max_abs_diff(model::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
+  model::set_attention_kernel(model::AttentionKernel::Fused);
+}
+
+TEST(FlashAttention, RejectsMismatchedShapes) {
+  auto q = torch::randn({1, 2, 8, 32}), k = torch::randn({1, 2, 9, 32}), v = torch::randn({1, 2, 10, 32});
+  EXPECT_THROW(model::fused_attention(q, k, v), c10::Error);
+  EXPECT_THROW(model::fused_attention(q, k.to(torch::kBFloat16), k), c10::Error);
+}
