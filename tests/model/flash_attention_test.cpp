@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <limits>
+
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/flash_attention.h"
@@ -110,6 +112,24 @@ TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsew
   EXPECT_FALSE(fused_available(torch::kFloat32, 32));
   EXPECT_LE(test::max_abs_diff(model::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
   model::set_attention_kernel(model::AttentionKernel::Fused);
+}
+
+TEST(FlashAttention, NonFiniteInputsGiveNonFiniteOutputsLikeTheReference) {
+  // Training skips a step whose loss is not finite: a NaN inside attention must not be smoothed away.
+  for (auto dtype : {torch::kFloat32, torch::kBFloat16}) {
+    if (!fused_available(dtype, 32)) continue;
+    auto q = torch::randn({1, 1, 20, 32}), k = torch::randn({1, 1, 20, 32}), v = torch::randn({1, 1, 20, 32});
+    q[0][0][3][5] = std::numeric_limits<float>::quiet_NaN();
+    auto o = model::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
+    EXPECT_TRUE(torch::isnan(o[0][0][3]).all().item<bool>()) << "the NaN query's row";
+    EXPECT_TRUE(torch::isfinite(o[0][0][4]).all().item<bool>()) << "other rows stay finite";
+    // A NaN key makes one score of every row NaN: every output row is NaN, as in softmax(q k^T) v.
+    q[0][0][3][5] = 0.0f;
+    k[0][0][7][3] = std::numeric_limits<float>::quiet_NaN();
+    o = model::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
+    EXPECT_TRUE(torch::isnan(o).all().item<bool>()) << "a NaN key";
+    EXPECT_TRUE(torch::isnan(reference_attention(q, k, v)).all().item<bool>());
+  }
 }
 
 TEST(FlashAttention, RejectsMismatchedShapes) {

@@ -33,9 +33,10 @@ inline int64_t head_offset(const Problem& p, Strides s, int64_t bh, int64_t row)
 }
 
 // exp(x) for x <= 0 (scores minus their running max / log-sum-exp): Cody-Waite reduction x = n ln2 + r and a
-// degree-7 Taylor polynomial on |r| <= ln2 / 2 (relative error < 1e-8 before rounding); -inf gives 0.
+// degree-7 Taylor polynomial on |r| <= ln2 / 2 (relative error < 1e-8 before rounding); -inf gives 0 and NaN
+// stays NaN (vmaxps returns its second operand when either is NaN), so a diverged model still yields NaN outputs.
 UPLVSM_AVX512 inline __m512 exp_ps(__m512 x) {
-  x = _mm512_max_ps(x, _mm512_set1_ps(-104.0f));
+  x = _mm512_max_ps(_mm512_set1_ps(-104.0f), x);
   const __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
                                         _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
   __m512 r = _mm512_fnmadd_ps(n, _mm512_set1_ps(0.693145751953125f), x);
