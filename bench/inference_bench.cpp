@@ -21,24 +21,30 @@ namespace {
 using namespace uplvsm;
 constexpr int64_t kInputViews = 2, kTargetViews = 3, kFrames = 8;
 
-struct Scene {
+// A randomly initialised model of a config in eval mode and one random scene of `views` views at its resolution.
+struct Setup {
+  Config config;
+  model::UPLVSM net{nullptr};
   torch::Tensor images, fxfycxcy;  // [1, v, 3, S, S], [1, v, 4]
 };
 
-Scene random_scene(int64_t size, int64_t views) {
-  return {torch::rand({1, views, 3, size, size}),
-          torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({1, views, 4}).contiguous()};
+Setup make_setup(const std::string& config_name, int64_t views) {
+  Setup s{bench::bench_config(config_name)};
+  torch::manual_seed(0);
+  s.net = model::UPLVSM(s.config.model);
+  s.net->eval();
+  const int64_t size = s.config.model.image_size;
+  s.images = torch::rand({1, views, 3, size, size});
+  s.fxfycxcy = torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({1, views, 4}).contiguous();
+  return s;
 }
 
 void BM_Inference(benchmark::State& state, const std::string& config_name) {
   const bool bf16 = state.range(0) != 0;
-  const auto config = bench::bench_config(config_name);
-  torch::manual_seed(0);
-  model::UPLVSM net(config.model);
-  net->eval();
-  const auto scene = random_scene(config.model.image_size, kInputViews + kTargetViews);
-  auto inputs = scene.images.narrow(1, 0, kInputViews), targets = scene.images.narrow(1, kInputViews, kTargetViews);
-  auto in_k = scene.fxfycxcy.narrow(1, 0, kInputViews), tg_k = scene.fxfycxcy.narrow(1, kInputViews, kTargetViews);
+  auto setup = make_setup(config_name, kInputViews + kTargetViews);
+  auto& net = setup.net;
+  auto inputs = setup.images.narrow(1, 0, kInputViews), targets = setup.images.narrow(1, kInputViews, kTargetViews);
+  auto in_k = setup.fxfycxcy.narrow(1, 0, kInputViews), tg_k = setup.fxfycxcy.narrow(1, kInputViews, kTargetViews);
   auto run = [&] {
     torch::NoGradGuard no_grad;
     AutocastGuard amp(torch::kCPU, bf16);
@@ -50,7 +56,7 @@ void BM_Inference(benchmark::State& state, const std::string& config_name) {
   for (auto _ : state) benchmark::DoNotOptimize(run().data_ptr());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double iterations = static_cast<double>(state.iterations());
-  bench::set_flop_counters(state, model::forward_flops(config.model, 1, kInputViews, kTargetViews).total(), seconds,
+  bench::set_flop_counters(state, model::forward_flops(setup.config.model, 1, kInputViews, kTargetViews).total(), seconds,
                            bf16);
   state.counters["s_per_view"] = seconds / iterations / kTargetViews;
   state.counters["peak_RSS_GiB"] = bench::peak_rss_gib();
@@ -62,14 +68,10 @@ BENCHMARK_CAPTURE(BM_Inference, paper_x224, std::string("paper_x224"))
 
 void BM_RenderInterpolation(benchmark::State& state, const std::string& config_name) {
   const bool bf16 = state.range(0) != 0;
-  const auto config = bench::bench_config(config_name);
-  torch::manual_seed(0);
-  model::UPLVSM net(config.model);
-  net->eval();
-  const auto scene = random_scene(config.model.image_size, kInputViews);
+  auto setup = make_setup(config_name, kInputViews);
   auto run = [&] {
     AutocastGuard amp(torch::kCPU, bf16);
-    return render::render_interpolation(net, scene.images[0], scene.fxfycxcy[0], kFrames).frames;
+    return render::render_interpolation(setup.net, setup.images[0], setup.fxfycxcy[0], kFrames).frames;
   };
   run();
   const auto t0 = std::chrono::steady_clock::now();

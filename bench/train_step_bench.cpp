@@ -64,7 +64,6 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
     return loss.item<double>();
   };
   step();  // warm-up: allocator, optimiser state
-  bench::maybe_profile("TrainStep_" + config_name + (bf16 ? "_bf16" : "_fp32") + "_ckpt" + std::to_string(checkpoint_every), step);
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) benchmark::DoNotOptimize(step());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
