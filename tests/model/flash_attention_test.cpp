@@ -136,4 +136,6 @@ TEST(FlashAttention, RejectsMismatchedShapes) {
   auto q = torch::randn({1, 2, 8, 32}), k = torch::randn({1, 2, 9, 32}), v = torch::randn({1, 2, 10, 32});
   EXPECT_THROW(model::fused_attention(q, k, v), c10::Error);
   EXPECT_THROW(model::fused_attention(q, k.to(torch::kBFloat16), k), c10::Error);
+  auto q24 = torch::randn({1, 2, 8, 24});  // d_head not a multiple of 16: only attention()'s fallback serves it
+  EXPECT_THROW(model::fused_attention(q24, q24, q24), c10::Error);
 }

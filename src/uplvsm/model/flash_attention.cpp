@@ -102,6 +102,10 @@ torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, co
               "fused_attention: q, k, v must share one dtype");
   TORCH_CHECK(k.sizes() == v.sizes() && q.size(0) == k.size(0) && q.size(1) == k.size(1) && q.size(3) == k.size(3),
               "fused_attention: shapes q ", q.sizes(), ", k ", k.sizes(), ", v ", v.sizes(), " do not match");
+  TORCH_CHECK(q.device().is_cpu() && (q.scalar_type() == torch::kFloat32 || q.scalar_type() == torch::kBFloat16) &&
+                  flash::flash_kernels_available(precision_of(q), q.size(3)),
+              "fused_attention: needs CPU fp32/bf16 tensors, d_head a multiple of 16 (got ", q.size(3),
+              ") and a CPU with AVX-512 (bf16: AVX-512 BF16); attention() falls back to LibTorch otherwise");
   return FusedAttentionFunction::apply(q, k, v);
 }
 
