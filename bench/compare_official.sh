@@ -2,7 +2,7 @@
 # The paper_x224 figures of README "Benchmarks" (the issue-9 table against the official PyTorch code): under the
 # official numbers' conditions (OpenBLAS's own kernel choice, passive OpenMP, 2 threads), then with the environment
 # as it is. Medians and min-max come from --benchmark_repetitions=3; one configuration per process (peak RSS).
-# Run from the repository root after `make build`: bench/compare_official.sh | tee bench.log   (~45 min on 2 cores)
+# Run from the repository root after `make build`: bench/compare_official.sh | tee bench.log   (about an hour on 2 cores)
 set -u
 B=${UPLVSM_BENCH:-build/uplvsm_bench}
 OFFICIAL=(env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE OMP_WAIT_POLICY=PASSIVE OMP_NUM_THREADS=2)
