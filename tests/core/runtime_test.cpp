@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <stdexcept>
 
 #include "uplvsm/core/runtime.h"
@@ -40,4 +41,14 @@ TEST(Runtime, DeviceNamesAreParsedOrRejectedClearly) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("'gpu'"), std::string::npos) << e.what();
   }
+}
+
+TEST(Runtime, LargeTensorsAreServedFromTheHeapAfterInit) {
+  // test_main calls init_runtime(); unless the environment sets glibc's thresholds itself, large blocks (decoder
+  // activations) must come from the heap, not a fresh mmap per op (README, Allocator).
+  const auto info = uplvsm::runtime_info();
+  if (std::getenv("MALLOC_MMAP_THRESHOLD_") || std::getenv("MALLOC_TRIM_THRESHOLD_") || std::getenv("GLIBC_TUNABLES"))
+    GTEST_SKIP() << "glibc thresholds come from the environment";
+  EXPECT_NE(info.allocator.find("1 GiB"), std::string::npos) << info.allocator;
+  EXPECT_NE(uplvsm::format_runtime_info(info).find("allocator"), std::string::npos);
 }
