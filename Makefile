@@ -11,14 +11,19 @@ export CCACHE_DIR ?= $(HOME)/.cache/ccache
 # Why each package is there: README.md, "Dependencies".
 APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp libgloo-dev libcli11-dev \
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
-  libavutil-dev libswscale-dev libgtest-dev libbenchmark-dev
+  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev
 
-.PHONY: all deps build build-cli test test-unit test-slow bench demo clean
+# The fuzz targets need clang and its libFuzzer runtime (only `make fuzz` installs them).
+FUZZ_APT_PACKAGES = clang libclang-rt-14-dev
+FUZZ_BUILD ?= build-fuzz
+FUZZ_SECONDS ?= 60
+
+.PHONY: all deps build build-cli test test-unit test-slow bench demo fuzz clean
 
 all: build
 
 deps:
-	@missing=$$(for p in $(APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
+	@missing=$$(for p in $(APT_PACKAGES) $(EXTRA_APT_PACKAGES); do dpkg -s $$p >/dev/null 2>&1 || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
 	  echo "installing:" $$missing; \
 	  SUDO=$$([ "$$(id -u)" = 0 ] || echo sudo); \
@@ -49,6 +54,18 @@ bench: build
 	$(BUILD)/uplvsm_bench $(BENCH_ARGS)
 	env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE $(BUILD)/uplvsm_bench $(BENCH_ARGS)
 
+# libFuzzer on the chunk and JSON readers (fuzz/): FUZZ_SECONDS per target, from the seeds in fuzz/corpus; new
+# inputs accumulate in $(FUZZ_BUILD)/corpus, crashes are written to $(FUZZ_BUILD)/ and fail the target.
+fuzz:
+	$(MAKE) deps EXTRA_APT_PACKAGES="$(FUZZ_APT_PACKAGES)"
+	test -f $(FUZZ_BUILD)/CMakeCache.txt || CXX=clang++ cmake -S fuzz -B $(FUZZ_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo
+	cmake --build $(FUZZ_BUILD) -j $(JOBS)
+	mkdir -p $(FUZZ_BUILD)/corpus/chunk $(FUZZ_BUILD)/corpus/json
+	cd $(FUZZ_BUILD) && for t in chunk:fuzz_chunk_reader json:fuzz_json_readers; do \
+	  ASAN_OPTIONS=detect_leaks=0:alloc_dealloc_mismatch=0 ./$${t#*:} -max_total_time=$(FUZZ_SECONDS) -timeout=10 \
+	    -rss_limit_mb=4096 -max_len=65536 -print_final_stats=1 corpus/$${t%%:*} $(CURDIR)/fuzz/corpus/$${t%%:*} || exit 1; \
+	done
+
 demo: build-cli
 	$(UPLVSM) info
 	test -f $(DEMO)/dataset/evaluation_index.json || $(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
@@ -58,4 +75,4 @@ demo: build-cli
 	$(UPLVSM) report --run $(DEMO)/run --eval $(DEMO)/eval --video $(DEMO)/video --out $(DEMO)/report
 
 clean:
-	rm -rf $(BUILD)
+	rm -rf $(BUILD) $(FUZZ_BUILD)

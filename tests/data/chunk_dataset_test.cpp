@@ -280,3 +280,13 @@ TEST(ChunkDataset, ConcurrentLoadsMatchSerial) {
 
 }  // namespace
 }  // namespace uplvsm::data
+
+// The first input the chunk fuzzer (fuzz/) crashed on: torch::pickle_load read freed memory in LibTorch's zip reader.
+// read_chunk now goes through io::TorchFile and must reject it cleanly, naming the file.
+TEST(ChunkDataset, FuzzRegressionMalformedZipIsACleanError) {
+  const std::string path = std::string(UPLVSM_SOURCE_DIR) + "/fuzz/corpus/chunk/regression_libtorch_zip_uaf.torch";
+  ASSERT_TRUE(std::filesystem::exists(path));
+  auto msg = uplvsm::test::error_of([&] { uplvsm::data::read_chunk(path); });
+  EXPECT_NE(msg.find("regression_libtorch_zip_uaf.torch"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("not a readable torch.save file"), std::string::npos) << msg;
+}

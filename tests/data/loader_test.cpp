@@ -4,6 +4,7 @@
 
 #include "train/train_test_util.h"
 #include "uplvsm/data/loader.h"
+#include "uplvsm/io/image.h"
 
 using namespace uplvsm;
 
@@ -63,4 +64,61 @@ TEST(Loader, PoseNoisePerturbsOnlyTheCameras) {
   auto R = noisy.c2w.index({Slice(), Slice(), Slice(0, 3), Slice(0, 3)}).to(torch::kFloat64);
   EXPECT_TRUE(torch::allclose(R.matmul(R.transpose(-1, -2)), torch::eye(3, torch::kFloat64).expand_as(R), 1e-5, 1e-5));
   EXPECT_TRUE(torch::allclose(noisy.c2w.index({Slice(), Slice(), 3}), clean.c2w.index({Slice(), Slice(), 3}), 0, 1e-6));
+}
+
+namespace {
+// A scene of n frames of h x w JPEGs whose cameras are valid.
+data::RawScene jpeg_scene(const std::string& key, int n, int h = 24, int w = 32) {
+  data::RawScene s;
+  s.key = key;
+  s.url = "test://" + key;
+  s.timestamps = torch::arange(n, torch::kInt64);
+  s.cameras = torch::zeros({n, 18});
+  for (int i = 0; i < n; ++i) {
+    s.cameras[i][0] = 0.8, s.cameras[i][1] = 1.4, s.cameras[i][2] = 0.5, s.cameras[i][3] = 0.5;
+    s.cameras[i][6] = 1, s.cameras[i][11] = 1, s.cameras[i][16] = 1, s.cameras[i][17] = -0.1 * i;
+    auto bytes = io::encode_jpeg(torch::full({h, w, 3}, 30 + 5 * i, torch::kUInt8), 90);
+    s.images.push_back(torch::from_blob(bytes.data(), {static_cast<int64_t>(bytes.size())}, torch::kUInt8).clone());
+  }
+  return s;
+}
+}  // namespace
+
+TEST(Loader, BadScenesAreReplacedCountedAndNeverServed) {
+  const auto dir = test::temp_dir("loader_bad");
+  std::filesystem::create_directories(dir / "train");
+  std::vector<data::RawScene> scenes;
+  scenes.push_back(jpeg_scene("good0", 12));
+  scenes.push_back(jpeg_scene("good1", 12));
+  scenes.push_back(jpeg_scene("empty", 0));
+  scenes.push_back(jpeg_scene("short", 3));  // fewer frames than 4 views 2+ apart
+  auto nan = jpeg_scene("nan", 12);
+  nan.cameras.index_put_({torch::indexing::Slice(), 9}, std::numeric_limits<float>::quiet_NaN());
+  scenes.push_back(nan);
+  auto resized = jpeg_scene("resized", 12);
+  for (int i = 1; i < 12; ++i) resized.images[i] = jpeg_scene("x", 1, 20, 32).images[0];  // only frame 0 is 24x32
+  scenes.push_back(resized);
+  auto corrupt = jpeg_scene("corrupt", 12);
+  for (int i = 0; i < 12; ++i) corrupt.images[i] = corrupt.images[i].slice(0, 0, 40).clone();  // truncated JPEGs
+  scenes.push_back(corrupt);
+  data::write_chunk((dir / "train/000000.torch").string(), scenes);
+  data::ChunkDataset dataset(dir.string(), "train");
+  ASSERT_EQ(dataset.size(), 7);
+  auto opt = micro_options();
+  int64_t replaced = 0;
+  std::set<std::string> served;
+  for (int64_t step = 0; step < 10; ++step) {
+    auto batch = data::make_training_batch(dataset, opt, step);
+    EXPECT_EQ(batch.images.size(0), opt.batch_size);
+    EXPECT_TRUE(torch::isfinite(batch.c2w).all().item<bool>());
+    replaced += batch.replaced_scenes;
+    served.insert(batch.keys.begin(), batch.keys.end());
+  }
+  EXPECT_EQ(served, (std::set<std::string>{"good0", "good1"}));
+  EXPECT_GT(replaced, 0);
+  // Asked for directly, each bad scene gives an error naming it (the empty one too, without reading past its end).
+  for (const char* key : {"empty", "nan", "corrupt"}) {
+    auto msg = test::error_of([&] { dataset.load_views(dataset.find(key), {0, 1}, opt.preprocess); });
+    EXPECT_NE(msg.find(key), std::string::npos) << msg;
+  }
 }

@@ -12,6 +12,7 @@
 #include "train/train_test_util.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/dataset_stats.h"
+#include "uplvsm/data/loader.h"
 #include "uplvsm/io/image.h"
 
 using namespace uplvsm;
@@ -119,4 +120,56 @@ TEST(DatasetStats, CountsScenesFramesSizesAndSkips) {
   EXPECT_EQ(st.nonfinite_cameras, 0);
   EXPECT_EQ(st.scenes_shorter_than, 6);  // 12 frames < 13 needed
   EXPECT_EQ(to_json(st).at("chunks"), st.chunks);
+}
+
+TEST(LvsmLayout, DatasetReadsTheLayoutInPlaceLikeTheChunks) {
+  const auto dir = test::temp_dir("lvsm_direct");
+  chunks_to_lvsm(test::fixture("re10k_chunks/root/test"), (dir / "lvsm/test").string());
+  ChunkDataset chunks(test::fixture("re10k_chunks/root"), "test");
+  ChunkDataset lvsm((dir / "lvsm").string(), "test");
+  EXPECT_EQ(chunks.layout(), ChunkDataset::Layout::Chunks);
+  ASSERT_EQ(lvsm.layout(), ChunkDataset::Layout::Lvsm);
+  ASSERT_EQ(lvsm.size(), chunks.size());
+  PreprocessOptions prep{224, 14, true};
+  for (int64_t i = 0; i < chunks.size(); ++i) {
+    const int64_t j = lvsm.find(chunks.key(i));
+    ASSERT_GE(j, 0) << chunks.key(i);
+    const int64_t n = chunks.num_frames(i);
+    ASSERT_EQ(lvsm.num_frames(j), n);
+    const std::vector<int64_t> frames{n - 1, 0, n / 2};
+    auto a = chunks.load_views(i, frames, prep), b = lvsm.load_views(j, frames, prep);
+    EXPECT_TRUE(torch::equal(a.images, b.images)) << chunks.key(i);
+    EXPECT_TRUE(torch::allclose(a.fxfycxcy, b.fxfycxcy, 1e-5, 1e-4));
+    EXPECT_TRUE(torch::allclose(a.c2w, b.c2w, 1e-5, 1e-5));
+    EXPECT_EQ(b.frames, frames);
+  }
+  // The training loader and the statistics work on it unchanged.
+  LoaderOptions lo;
+  lo.batch_size = 1;
+  lo.num_views = 4;
+  lo.num_target_views = 2;
+  lo.min_frame_dist = 2;
+  lo.max_frame_dist = 10;
+  lo.preprocess = {32, 8, true};
+  auto batch = make_training_batch(lvsm, lo, 0);
+  EXPECT_EQ(batch.images.sizes(), (std::vector<int64_t>{1, 4, 3, 32, 32}));
+  auto st = dataset_stats((dir / "lvsm").string(), "test", 8);
+  EXPECT_EQ(st.layout, "lvsm");
+  EXPECT_EQ(st.scenes, chunks.size());
+}
+
+TEST(LvsmLayout, MovedDatasetAndMissingFramesAreHandled) {
+  const auto dir = test::temp_dir("lvsm_moved");
+  chunks_to_lvsm(test::fixture("re10k_chunks/root/test"), (dir / "a/test").string());
+  // full_list.txt and the metadata hold absolute paths into a/: after a move they are stale.
+  fs::rename(dir / "a", dir / "b");
+  ChunkDataset moved((dir / "b").string(), "test");
+  ASSERT_GT(moved.size(), 0);
+  EXPECT_EQ(moved.load_views(0, {0, 1}, {32, 8, true}).images.size(0), 2);
+  // A frame file that is gone: the error names it; other frames still load.
+  const auto gone = dir / "b/test/images" / moved.key(0) / "00001.png";
+  fs::remove(gone);
+  auto msg = test::error_of([&] { moved.load_views(0, {0, 1}, {32, 8, true}); });
+  EXPECT_NE(msg.find("00001.png"), std::string::npos) << msg;
+  EXPECT_EQ(moved.load_views(0, {0, 2}, {32, 8, true}).images.size(0), 2);
 }

@@ -9,6 +9,7 @@
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/dataset_stats.h"
 #include "uplvsm/data/lvsm_layout.h"
+#include "uplvsm/data/subset.h"
 #include "uplvsm/io/atomic_file.h"
 
 namespace uplvsm::cli {
@@ -59,7 +60,7 @@ void add_stats(CLI::App& dataset) {
     int64_t min_frames = 8;
   };
   auto a = std::make_shared<Args>();
-  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks or LVSM layout)")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--split", a->split, "split")->capture_default_str();
   cmd->add_option("--min-frames", a->min_frames, "count scenes with fewer frames (training needs num_views)")
       ->capture_default_str();
@@ -80,13 +81,51 @@ void add_stats(CLI::App& dataset) {
   });
 }
 
+void add_subset(CLI::App& dataset) {
+  auto* cmd = dataset.add_subcommand(
+      "subset", "Select a training subset and write its manifest for `uplvsm train --subset`: the paper's little / "
+                "medium / large / full (RealEstate10K: the first 76 / 304 / 1216 / all 4866 chunk files in name order, "
+                "1,202 / 4,121 / 16,449 / 66,033 scenes; an LVSM-layout split takes that many scenes in list order), "
+                "or --chunks N / --scenes N");
+  struct Args {
+    std::string data, split = "train", name, out;
+    int64_t chunks = 0, scenes = 0;
+  };
+  auto a = std::make_shared<Args>();
+  cmd->add_option("--data", a->data, "dataset root (chunks or LVSM layout)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--split", a->split, "split")->capture_default_str();
+  auto* name = cmd->add_option("--subset", a->name, "little, medium, large or full")
+                   ->check(CLI::IsMember({"little", "medium", "large", "full"}));
+  auto* chunks = cmd->add_option("--chunks", a->chunks, "custom: the first N chunk files")->check(CLI::PositiveNumber);
+  auto* scenes = cmd->add_option("--scenes", a->scenes, "custom: the first N scenes")->check(CLI::PositiveNumber);
+  name->excludes(chunks)->excludes(scenes);
+  chunks->excludes(scenes);
+  cmd->add_option("--out", a->out, "manifest JSON to write")->required();
+  cmd->callback([a] {
+    if (a->name.empty() && a->chunks == 0 && a->scenes == 0)
+      throw std::runtime_error("dataset subset: give --subset NAME, --chunks N or --scenes N");
+    data::ChunkDataset dataset(a->data, a->split);
+    const auto m = data::select_subset(dataset, {a->name, a->chunks, a->scenes});
+    data::write_subset_manifest(a->out, m);
+    std::cout << fmt::format("subset {}: {} scenes{} of {} ({}) -> {}\n", m.name, m.scenes.size(),
+                             m.chunks.empty() ? "" : fmt::format(" in {} chunks", m.chunks.size()), dataset.size(),
+                             m.rule, a->out);
+    if (m.official_scenes > 0 && static_cast<int64_t>(m.scenes.size()) != m.official_scenes)
+      std::cout << fmt::format("note: the official {} subset of RealEstate10K has {} scenes; this dataset gives {}\n",
+                               m.name, m.official_scenes, m.scenes.size());
+  });
+}
+
 }  // namespace
 
 void add_dataset_command(CLI::App& app) {
-  auto* dataset = app.add_subcommand("dataset", "Dataset tools: convert (chunks <-> LVSM layout), stats");
+  auto* dataset = app.add_subcommand("dataset", "Dataset tools: convert (chunks <-> LVSM layout), stats, subset (little/medium/large/full manifests), import "
+                                                     "(your own photos)");
   dataset->require_subcommand(1);
   add_convert(*dataset);
   add_stats(*dataset);
+  add_subset(*dataset);
+  add_dataset_import_command(*dataset);
 }
 
 }  // namespace uplvsm::cli

@@ -64,7 +64,7 @@ void add_train_command(CLI::App& app) {
                "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process.");
   struct Args {
     CommonOptions common;
-    std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main";
+    std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
     int64_t steps = -1, stop_after = -1;
   };
   auto a = std::make_shared<Args>();
@@ -98,11 +98,16 @@ void add_train_command(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--steps", a->steps, "override training.train_steps");
   cmd->add_option("--stop-after", a->stop_after, "stop after this many steps of this invocation (checkpointed)");
+  cmd->add_option("--subset", a->subset,
+                  "override training.subset: a manifest from `uplvsm dataset subset` (little/medium/large/full)")
+      ->check(CLI::ExistingFile);
   cmd->callback([a] {
     apply_common_options(a->common);
     auto config = load_config(a->config);
     if (a->steps > 0) config.training.train_steps = a->steps;
     if (!a->amp.empty()) config.training.amp = a->amp;
+    // Absolute, so a resume from another working directory reads the same manifest from the run's config.
+    if (!a->subset.empty()) config.training.subset = std::filesystem::absolute(a->subset).string();
     if (a->stage == "mapper") {
       if (a->init.empty() && a->resume == "none")
         throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");

@@ -34,6 +34,8 @@ data::Views load_user_image(const std::string& path, double fov_deg, const data:
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
 void add_dataset_command(CLI::App& app);
+// dataset import: bring-your-own photo folders (cmd_dataset_import.cpp), registered under `dataset`.
+void add_dataset_import_command(CLI::App& dataset);
 void add_train_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);

@@ -113,6 +113,7 @@ void training_fields(C& c, F&& f) {
   f("amp", c.amp);
   f("target_poses", c.target_poses);
   f("max_train_scenes", c.max_train_scenes);
+  f("subset", c.subset);
   f("pose_noise_variance", c.pose_noise_variance);
 }
 

@@ -76,6 +76,9 @@ struct TrainingConfig {
   std::string target_poses = "auto";
   // Nested training subsets (the scalability study): train on the first N scenes of the train split; 0: all.
   int64_t max_train_scenes = 0;
+  // A subset manifest (`uplvsm dataset subset`: little / medium / large / full or custom): train on its scenes only.
+  // max_train_scenes then counts within it. Empty: the whole train split.
+  std::string subset;
   // The pose-noise study: N(0, variance) added to the 7-D (t, q) encoding of every training camera (the official
   // `noise_scale` knob); 0: clean cameras. Only variants that read training cameras are affected.
   double pose_noise_variance = 0;

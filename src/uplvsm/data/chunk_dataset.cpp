@@ -1,4 +1,5 @@
-// pixelSplat chunk I/O through LibTorch's pickle (torch.save zip format) and the cached, indexed dataset.
+// pixelSplat chunk I/O (read: io::TorchFile; write: LibTorch's pickler, torch.save zip format) and the cached,
+// indexed dataset.
 #include "uplvsm/data/chunk_dataset.h"
 
 #include <caffe2/serialize/inline_container.h>
@@ -16,6 +17,7 @@
 
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
+#include "uplvsm/io/torch_file.h"
 
 namespace uplvsm::data {
 namespace fs = std::filesystem;
@@ -50,51 +52,60 @@ void validate_scene(const RawScene& s, const std::string& where) {
   }
 }
 
-const c10::IValue& field(const c10::impl::GenericDict& dict, const char* name, const std::string& where) {
-  auto it = dict.find(c10::IValue(std::string(name)));
-  if (it == dict.end()) throw std::runtime_error(fmt::format("{}: missing field '{}'", where, name));
-  return it->value();
+using io::PyObject;
+using Kind = io::PyObject::Kind;
+
+const PyObject& field(const PyObject& dict, const char* name, const std::string& where) {
+  const PyObject* v = dict.get(name);
+  if (!v) throw std::runtime_error(fmt::format("{}: missing field '{}'", where, name));
+  return *v;
 }
 
-std::string string_field(const c10::impl::GenericDict& dict, const char* name, const std::string& where) {
+std::string string_field(const PyObject& dict, const char* name, const std::string& where) {
   const auto& v = field(dict, name, where);
-  if (!v.isString()) throw std::runtime_error(fmt::format("{}: field '{}' must be a str, got {}", where, name,
-                                                         v.tagKind()));
-  return v.toStringRef();
+  if (!v.is(Kind::Str))
+    throw std::runtime_error(fmt::format("{}: field '{}' must be a str, got {}", where, name, v.describe()));
+  return v.text;
 }
 
-torch::Tensor tensor_field(const c10::impl::GenericDict& dict, const char* name, const std::string& where) {
+torch::Tensor tensor_field(const io::TorchFile& file, const PyObject& dict, const char* name, const std::string& where) {
   const auto& v = field(dict, name, where);
-  if (!v.isTensor())
-    throw std::runtime_error(fmt::format("{}: field '{}' must be a tensor, got {}", where, name, v.tagKind()));
-  return v.toTensor().contiguous();
+  if (!v.is(Kind::Tensor))
+    throw std::runtime_error(fmt::format("{}: field '{}' must be a tensor, got {}", where, name, v.describe()));
+  return file.tensor(v).contiguous();
 }
 
-RawScene parse_scene(const c10::IValue& item, const std::string& where) {
-  if (!item.isGenericDict()) throw std::runtime_error(fmt::format("{}: expected a dict, got {}", where, item.tagKind()));
-  auto dict = item.toGenericDict();
+RawScene parse_scene(const io::TorchFile& file, const PyObject& item, const std::string& where) {
+  if (!item.is(Kind::Dict)) throw std::runtime_error(fmt::format("{}: expected a dict, got {}", where, item.describe()));
   RawScene s;
-  s.key = string_field(dict, "key", where);
+  s.key = string_field(item, "key", where);
   std::string at = fmt::format("{} (key {})", where, s.key);
-  s.url = string_field(dict, "url", at);
-  s.timestamps = tensor_field(dict, "timestamps", at);
-  if (s.timestamps.defined() && s.timestamps.dim() == 1 && c10::isIntegralType(s.timestamps.scalar_type(), false))
+  s.url = string_field(item, "url", at);
+  s.timestamps = tensor_field(file, item, "timestamps", at);
+  if (s.timestamps.dim() == 1 && c10::isIntegralType(s.timestamps.scalar_type(), false))
     s.timestamps = s.timestamps.to(torch::kInt64);
-  s.cameras = tensor_field(dict, "cameras", at);
+  s.cameras = tensor_field(file, item, "cameras", at);
   if (s.cameras.is_floating_point()) s.cameras = s.cameras.to(torch::kFloat32);
-  const auto& images = field(dict, "images", at);
-  if (!images.isList())
-    throw std::runtime_error(fmt::format("{}: field 'images' must be a list of tensors, got {}", at, images.tagKind()));
-  auto list = images.toList();
-  s.images.reserve(list.size());
-  for (size_t j = 0; j < list.size(); ++j) {
-    c10::IValue v = list.get(j);
-    if (!v.isTensor())
-      throw std::runtime_error(fmt::format("{}: field 'images' entry {} must be a tensor, got {}", at, j, v.tagKind()));
-    s.images.push_back(v.toTensor().contiguous());
+  const auto& images = field(item, "images", at);
+  if (!images.is(Kind::List) && !images.is(Kind::Tuple))
+    throw std::runtime_error(fmt::format("{}: field 'images' must be a list of tensors, got {}", at,
+                                         images.describe()));
+  s.images.reserve(images.items.size());
+  for (size_t j = 0; j < images.items.size(); ++j) {
+    const auto& v = *images.items[j];
+    if (!v.is(Kind::Tensor))
+      throw std::runtime_error(fmt::format("{}: field 'images' entry {} must be a tensor, got {}", at, j,
+                                           v.describe()));
+    s.images.push_back(file.tensor(v).contiguous());
   }
   validate_scene(s, at);
   return s;
+}
+
+torch::Tensor as_tensor(const std::vector<uint8_t>& bytes) {
+  auto t = torch::empty({static_cast<int64_t>(bytes.size())}, torch::kUInt8);
+  std::copy(bytes.begin(), bytes.end(), t.data_ptr<uint8_t>());
+  return t;
 }
 
 // A tensor that owns exactly its bytes (a view would make torch.save write the whole underlying storage).
@@ -149,30 +160,27 @@ void write_chunk(const std::string& path, const std::vector<RawScene>& scenes) {
 }
 
 std::vector<RawScene> read_chunk(const std::string& path) {
-  std::vector<char> bytes;
-  {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw std::runtime_error(fmt::format("read_chunk: cannot open {}", path));
-    bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
-  c10::IValue root;
+  // Our bounds-checked torch.save reader, not torch::pickle_load: fuzzing found LibTorch 1.13's in-memory zip
+  // reader reading freed memory on a malformed archive (fuzz/, `make fuzz`).
+  std::unique_ptr<io::TorchFile> file;
   try {
-    root = torch::pickle_load(bytes);
-  } catch (const c10::Error& e) {
-    throw std::runtime_error(fmt::format("read_chunk: {}: not a readable torch.save file (truncated or corrupt?): {}",
-                                         path, e.what_without_backtrace()));
+    file = std::make_unique<io::TorchFile>(path);
   } catch (const std::exception& e) {
     throw std::runtime_error(fmt::format("read_chunk: {}: not a readable torch.save file (truncated or corrupt?): {}",
                                          path, e.what()));
   }
-  if (!root.isList())
+  const auto& root = file->root();
+  if (!root.is(Kind::List))
     throw std::runtime_error(fmt::format("read_chunk: {}: expected a list of scene dicts, got {}", path,
-                                         root.tagKind()));
-  auto list = root.toList();
+                                         root.describe()));
   std::vector<RawScene> scenes;
-  scenes.reserve(list.size());
-  for (size_t i = 0; i < list.size(); ++i)
-    scenes.push_back(parse_scene(list.get(i), fmt::format("read_chunk: {}: scene {}", path, i)));
+  scenes.reserve(root.items.size());
+  try {
+    for (size_t i = 0; i < root.items.size(); ++i)
+      scenes.push_back(parse_scene(*file, *root.items[i], fmt::format("read_chunk: {}: scene {}", path, i)));
+  } catch (const c10::Error& e) {  // a storage record that is missing or truncated
+    throw std::runtime_error(fmt::format("read_chunk: {}: corrupt tensor data: {}", path, e.what_without_backtrace()));
+  }
   return scenes;
 }
 
@@ -214,24 +222,93 @@ void write_chunk_index(const std::string& split_dir, const std::map<std::string,
   io::write_file_atomic((fs::path(split_dir) / "index.json").string(), text.data(), text.size());
 }
 
+std::vector<std::string> read_unposed_keys(const std::string& split_dir) {
+  const auto path = fs::path(split_dir) / "unposed.json";
+  if (!fs::exists(path)) return {};
+  nlohmann::json j;
+  try {
+    std::ifstream in(path);
+    j = nlohmann::json::parse(in);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
+  }
+  if (!j.is_array()) throw std::runtime_error(fmt::format("{}: expected an array of scene keys", path.string()));
+  std::vector<std::string> keys;
+  for (const auto& k : j) {
+    if (!k.is_string()) throw std::runtime_error(fmt::format("{}: entry {} is not a scene key", path.string(), k.dump()));
+    keys.push_back(k.get<std::string>());
+  }
+  return keys;
+}
+
+namespace {
+
+bool has_chunks(const std::string& dir) {
+  if (fs::exists(fs::path(dir) / "index.json")) return true;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.path().extension() == ".torch") return true;
+  return false;
+}
+
+}  // namespace
+
 ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks)
     : root_(std::move(root)), split_(std::move(split)), cache_chunks_(std::max(1, cache_chunks)) {
   dir_ = (fs::path(root_) / split_).string();
   if (!fs::is_directory(dir_))
     throw std::runtime_error(fmt::format("ChunkDataset: {} is not a folder (expected root/{{train,test}})", dir_));
-  for (const auto& [key, file] : read_chunk_index(dir_)) {
-    if (!fs::exists(fs::path(dir_) / file))
-      throw std::runtime_error(fmt::format("ChunkDataset: {}/index.json maps key {} to missing file {}", dir_, key,
-                                           file));
-    entries_.push_back({key, file});
+  if (!has_chunks(dir_) && is_lvsm_split(dir_)) {
+    layout_ = Layout::Lvsm;
+    cache_chunks_ *= 16;
+    // Keys are the metadata files' stems (process_data.py names them after the scene); checked when read.
+    for (const auto& path : list_lvsm_scenes(dir_)) entries_.push_back({fs::path(path).stem().string(), path});
+  } else {
+    for (const auto& [key, file] : read_chunk_index(dir_)) {
+      if (!fs::exists(fs::path(dir_) / file))
+        throw std::runtime_error(fmt::format("ChunkDataset: {}/index.json maps key {} to missing file {}", dir_, key,
+                                             file));
+      entries_.push_back({key, file});
+    }
   }
   std::sort(entries_.begin(), entries_.end(),
             [](const Entry& a, const Entry& b) { return std::tie(a.chunk, a.key) < std::tie(b.chunk, b.key); });
+  for (size_t i = 1; i < entries_.size(); ++i)
+    if (entries_[i].key == entries_[i - 1].key)
+      throw std::runtime_error(fmt::format("ChunkDataset: {}: scene {} appears twice", dir_, entries_[i].key));
+  for (auto& k : read_unposed_keys(dir_)) unposed_.insert(std::move(k));
+  rebuild_lookup();
+}
+
+void ChunkDataset::rebuild_lookup() {
   num_frames_ = std::make_unique<std::atomic<int64_t>[]>(entries_.size());
+  by_key_.clear();
   for (size_t i = 0; i < entries_.size(); ++i) {
     by_key_[entries_[i].key] = static_cast<int64_t>(i);
     num_frames_[i].store(-1);
   }
+}
+
+void ChunkDataset::keep_only(const std::vector<std::string>& keys) {
+  std::set<std::string> wanted(keys.begin(), keys.end());
+  std::vector<std::string> missing;
+  for (const auto& k : wanted)
+    if (!by_key_.count(k)) missing.push_back(k);
+  if (!missing.empty())
+    throw std::runtime_error(fmt::format("ChunkDataset {}: {} of the {} requested scenes are not in the split (first: "
+                                         "{})",
+                                         dir_, missing.size(), wanted.size(), missing.front()));
+  std::vector<Entry> kept;
+  for (const auto& e : entries_)
+    if (wanted.count(e.key)) kept.push_back(e);
+  entries_ = std::move(kept);
+  rebuild_lookup();
+}
+
+bool ChunkDataset::poses_known(int64_t i) const { return !unposed_.count(key(i)); }
+
+const std::string& ChunkDataset::chunk_name(int64_t i) const {
+  check_index(i);
+  return entries_[i].chunk;
 }
 
 void ChunkDataset::check_index(int64_t i) const {
@@ -279,11 +356,23 @@ std::shared_ptr<const ChunkDataset::LoadedChunk> ChunkDataset::load_chunk(const 
   if (owner) {
     try {
       auto loaded = std::make_shared<LoadedChunk>();
-      loaded->scenes = read_chunk((fs::path(dir_) / chunk).string());
+      if (layout_ == Layout::Lvsm) {
+        auto meta = std::make_shared<LvsmSceneMetadata>(read_lvsm_metadata(chunk));
+        RawScene s;
+        s.key = fs::path(chunk).stem().string();
+        if (meta->key != s.key)
+          throw std::runtime_error(fmt::format("LVSM metadata {}: scene_name '{}' differs from the file name", chunk,
+                                               meta->key));
+        loaded->lvsm = meta;
+        loaded->scenes.push_back(std::move(s));
+      } else {
+        loaded->scenes = read_chunk((fs::path(dir_) / chunk).string());
+      }
       for (size_t j = 0; j < loaded->scenes.size(); ++j) {
         loaded->by_key[loaded->scenes[j].key] = j;
         int64_t idx = find(loaded->scenes[j].key);
-        if (idx >= 0) num_frames_[idx].store(static_cast<int64_t>(loaded->scenes[j].images.size()));
+        const auto frames = loaded->lvsm ? loaded->lvsm->size() : static_cast<int64_t>(loaded->scenes[j].images.size());
+        if (idx >= 0) num_frames_[idx].store(frames);
       }
       promise.set_value(std::move(loaded));
     } catch (...) {
@@ -313,10 +402,12 @@ int64_t ChunkDataset::num_frames(int64_t i) const {
   int64_t n = num_frames_[i].load();
   if (n >= 0) return n;
   ChunkPtr holder;
-  return static_cast<int64_t>(scene_ref(i, holder).images.size());
+  const auto& s = scene_ref(i, holder);
+  return holder->lvsm ? holder->lvsm->size() : static_cast<int64_t>(s.images.size());
 }
 
 RawScene ChunkDataset::scene(int64_t i) const {
+  if (layout_ == Layout::Lvsm) return read_lvsm_scene(chunk_path(i));  // every frame's bytes, as a chunk holds them
   ChunkPtr holder;
   return scene_ref(i, holder);  // a copy sharing the tensors' storage (read-only use expected)
 }
@@ -324,17 +415,21 @@ RawScene ChunkDataset::scene(int64_t i) const {
 Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const {
   ChunkPtr holder;
   const RawScene& s = scene_ref(i, holder);
-  const int64_t n = static_cast<int64_t>(s.images.size());
+  const LvsmSceneMetadata* lvsm = holder->lvsm.get();
+  const int64_t n = lvsm ? lvsm->size() : static_cast<int64_t>(s.images.size());
   const std::string where = fmt::format("{}: scene {}", chunk_path(i), s.key);
   if (frames.empty()) throw std::runtime_error(fmt::format("{}: no frames requested", where));
-  const auto& first = s.images[0];
-  auto [h0, w0] = io::image_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
-  std::vector<torch::Tensor> decoded;
-  decoded.reserve(frames.size());
-  for (int64_t f : frames) {
+  // LVSM frames are files, read only when asked for; chunk frames are already in memory.
+  for (int64_t f : frames)
     if (f < 0 || f >= n)
       throw std::runtime_error(fmt::format("{}: frame {} out of range (scene has {} frames)", where, f, n));
-    const auto& bytes = s.images[f];
+  auto bytes_of = [&](int64_t f) { return lvsm ? as_tensor(io::read_file(lvsm->image_paths[f])) : s.images[f]; };
+  const auto first = bytes_of(0);
+  auto [h0, w0] = io::image_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
+  std::vector<torch::Tensor> decoded, cameras;
+  decoded.reserve(frames.size());
+  for (int64_t f : frames) {
+    const auto bytes = f == 0 ? first : bytes_of(f);
     std::string what = fmt::format("{} frame {}", where, f);
     auto img = io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
     int h = static_cast<int>(img.size(0)), w = static_cast<int>(img.size(1));
@@ -342,13 +437,13 @@ Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, co
       throw BadFrameError(fmt::format("{}: frame is {}x{} but frame 0 is {}x{} (pixelSplat skips such frames)",
                                       what, h, w, h0, w0),
                           s.key, f, h0, w0, h, w);
-    auto row = s.cameras[f];
+    auto row = lvsm ? lvsm_camera_row(*lvsm, f, h, w) : s.cameras[f];
     if (!torch::isfinite(row).all().item<bool>())
       throw std::runtime_error(fmt::format("{}: field 'cameras' has a NaN/Inf value", what));
     decoded.push_back(img);
+    cameras.push_back(row);
   }
-  auto index = torch::tensor(frames, torch::kInt64);
-  Views views = preprocess(decoded, s.cameras.index_select(0, index), opt, where);
+  Views views = preprocess(decoded, torch::stack(cameras), opt, where);
   views.frames = frames;
   return views;
 }

@@ -1,6 +1,7 @@
 // pixelSplat chunk datasets (RealEstate10K / ACID layout): root/{train,test}/NNNNNN.torch, each a torch.save'd
 // list of scene dicts, plus index.json {key: chunk file}. Reading, writing (readable by Python's torch.load) and a
-// thread-safe indexed dataset with a small LRU cache of parsed chunks.
+// thread-safe indexed dataset with a small LRU cache of parsed chunks, which also reads a split in the LVSM layout
+// (lvsm_layout.h) in place: the same scenes, views and errors without converting anything.
 #pragma once
 #include <torch/torch.h>
 
@@ -10,12 +11,14 @@
 #include <list>
 #include <map>
 #include <memory>
+#include <set>
 #include <mutex>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "uplvsm/data/lvsm_layout.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/scene.h"
 
@@ -49,10 +52,26 @@ std::map<std::string, std::string> read_chunk_index(const std::string& split_dir
 // Writes root/<split>/index.json {key: chunk file name} atomically.
 void write_chunk_index(const std::string& split_dir, const std::map<std::string, std::string>& index);
 
+// Scene keys of a split whose cameras are placeholders (imported photos without poses): <split>/unposed.json, a
+// JSON array of keys; empty when the file is absent.
+std::vector<std::string> read_unposed_keys(const std::string& split_dir);
+
 class ChunkDataset {
  public:
-  // `cache_chunks`: how many parsed chunks to keep (a RealEstate10K chunk is ~100 MB of JPEG bytes).
+  enum class Layout { Chunks, Lvsm };
+
+  // root/split holds chunks (index.json or *.torch) or the LVSM layout (full_list.txt or metadata/); chunks win
+  // when both are there. `cache_chunks`: parsed chunks to keep (a RealEstate10K chunk is ~100 MB of JPEG bytes);
+  // the LVSM layout caches 16x as many scenes' metadata (a few kB each, images are read per request).
   ChunkDataset(std::string root, std::string split, int cache_chunks = 4);
+
+  Layout layout() const { return layout_; }
+  // Keep only these scenes (a subset manifest), in the dataset's order. Throws naming the first keys missing.
+  void keep_only(const std::vector<std::string>& keys);
+  // False for scenes listed in <split>/unposed.json: their cameras must not be used as ground truth.
+  bool poses_known(int64_t i) const;
+  // The chunk file name (chunks) or metadata JSON path (LVSM) scene i is read from.
+  const std::string& chunk_name(int64_t i) const;
 
   int64_t size() const { return static_cast<int64_t>(entries_.size()); }
   const std::string& key(int64_t i) const;
@@ -74,16 +93,20 @@ class ChunkDataset {
     std::string chunk;  // file name inside the split folder
   };
   struct LoadedChunk {
-    std::vector<RawScene> scenes;
+    std::vector<RawScene> scenes;  // chunks: every scene of the file; LVSM: one scene, images left empty
     std::unordered_map<std::string, size_t> by_key;
+    std::shared_ptr<const LvsmSceneMetadata> lvsm;  // LVSM layout only
   };
   using ChunkPtr = std::shared_ptr<const LoadedChunk>;
 
   std::shared_ptr<const LoadedChunk> load_chunk(const std::string& chunk) const;
   const RawScene& scene_ref(int64_t i, ChunkPtr& holder) const;
   void check_index(int64_t i) const;
+  void rebuild_lookup();
 
   std::string root_, split_, dir_;
+  Layout layout_ = Layout::Chunks;
+  std::set<std::string> unposed_;
   int cache_chunks_;
   std::vector<Entry> entries_;  // sorted by (chunk file, key): deterministic without reading the chunks
   std::unordered_map<std::string, int64_t> by_key_;

@@ -14,6 +14,7 @@ DatasetStats dataset_stats(const std::string& root, const std::string& split, in
                            const std::function<void(int64_t, int64_t)>& progress) {
   ChunkDataset dataset(root, split, 1);
   DatasetStats st;
+  st.layout = dataset.layout() == ChunkDataset::Layout::Lvsm ? "lvsm" : "chunks";
   st.scenes = dataset.size();
   st.min_frames_needed = min_frames_needed;
   std::set<std::string> chunks;
@@ -25,6 +26,7 @@ DatasetStats dataset_stats(const std::string& root, const std::string& split, in
     st.min_frames = i == 0 ? n : std::min(st.min_frames, n);
     st.max_frames = std::max(st.max_frames, n);
     if (n < min_frames_needed) ++st.scenes_shorter_than;
+    if (!dataset.poses_known(i)) ++st.unposed_scenes;
     std::pair<int, int> first{-1, -1};
     for (int64_t f = 0; f < n; ++f) {
       const auto& bytes = scene.images[f];
@@ -43,7 +45,8 @@ DatasetStats dataset_stats(const std::string& root, const std::string& split, in
 }
 
 nlohmann::json to_json(const DatasetStats& s) {
-  return {{"scenes", s.scenes},
+  return {{"layout", s.layout},
+          {"scenes", s.scenes},
           {"chunks", s.chunks},
           {"frames", s.frames},
           {"frames_per_scene", {{"min", s.min_frames}, {"mean", s.mean_frames}, {"max", s.max_frames}}},
@@ -51,7 +54,8 @@ nlohmann::json to_json(const DatasetStats& s) {
           {"off_size_frames", s.off_size_frames},
           {"nonfinite_camera_frames", s.nonfinite_cameras},
           {"scenes_shorter_than_needed", s.scenes_shorter_than},
-          {"min_frames_needed", s.min_frames_needed}};
+          {"min_frames_needed", s.min_frames_needed},
+          {"unposed_scenes", s.unposed_scenes}};
 }
 
 }  // namespace uplvsm::data

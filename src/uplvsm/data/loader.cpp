@@ -59,7 +59,8 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
     const int64_t g = (step * opt.world_size + opt.rank) * opt.batch_size + i;
     std::mt19937_64 rng(mix(opt.seed, static_cast<uint64_t>(g)));
     bool done = false;
-    for (int64_t attempt = 0; attempt < std::min<int64_t>(n, 64) && !done; ++attempt) {
+    // 64 tries even for a split of a few scenes: each try may land in another epoch's order and repeat scenes.
+    for (int64_t attempt = 0; attempt < 64 && !done; ++attempt) {
       const int64_t slot = g + attempt * 7919;  // a bad scene is replaced by another one of the order
       const int64_t epoch = slot / n;
       if (epoch != epoch_cached) {

@@ -47,18 +47,23 @@ std::vector<double> numbers(const json& j, size_t count, const std::string& what
   return out;
 }
 
-// Image paths may be absolute (official), relative to the split folder, or relative to the JSON's folder.
-fs::path resolve_image(const std::string& image_path, const fs::path& metadata_path) {
+// Image paths may be absolute (official), relative to the split folder, or relative to the JSON's folder. An
+// absolute path that is gone (the dataset was moved) is looked up where process_data.py puts images.
+fs::path resolve_image(const std::string& image_path, const fs::path& metadata_path, const std::string& scene) {
   fs::path p(image_path);
-  if (p.is_absolute()) return p;
   const auto split_dir = metadata_path.parent_path().parent_path();
+  if (p.is_absolute()) {
+    if (fs::exists(p)) return p;
+    const auto moved = split_dir / "images" / scene / p.filename();
+    return fs::exists(moved) ? moved : p;
+  }
   if (fs::exists(split_dir / p)) return split_dir / p;
   return metadata_path.parent_path() / p;
 }
 
 }  // namespace
 
-RawScene read_lvsm_scene(const std::string& metadata_path) {
+LvsmSceneMetadata read_lvsm_metadata(const std::string& metadata_path) {
   std::ifstream in(metadata_path);
   if (!in) throw std::runtime_error(fmt::format("LVSM metadata {}: cannot open", metadata_path));
   json j;
@@ -70,28 +75,75 @@ RawScene read_lvsm_scene(const std::string& metadata_path) {
   if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].empty())
     throw std::runtime_error(fmt::format("LVSM metadata {}: expected an object with a non-empty 'frames' array",
                                          metadata_path));
-  RawScene s;
-  s.key = j.contains("scene_name") && j["scene_name"].is_string() ? j["scene_name"].get<std::string>()
+  LvsmSceneMetadata m;
+  m.key = j.contains("scene_name") && j["scene_name"].is_string() ? j["scene_name"].get<std::string>()
                                                                     : fs::path(metadata_path).stem().string();
-  const int64_t n = static_cast<int64_t>(j["frames"].size());
-  s.cameras = torch::zeros({n, 18}, torch::kFloat32);
-  auto cam = s.cameras.accessor<float, 2>();
-  for (int64_t i = 0; i < n; ++i) {
+  if (m.key.empty()) throw std::runtime_error(fmt::format("LVSM metadata {}: empty scene_name", metadata_path));
+  for (size_t i = 0; i < j["frames"].size(); ++i) {
     const auto& f = j["frames"][i];
     const std::string what = fmt::format("LVSM metadata {}: frames[{}]", metadata_path, i);
+    if (!f.is_object()) throw std::runtime_error(what + ": expected an object");
     for (const char* field : {"image_path", "fxfycxcy", "w2c"})
       if (!f.contains(field)) throw std::runtime_error(fmt::format("{}: missing field '{}'", what, field));
     if (!f["image_path"].is_string()) throw std::runtime_error(what + ".image_path: expected a string");
     const auto k = numbers(f["fxfycxcy"], 4, what + ".fxfycxcy");
     const size_t w2c_count = f["w2c"].is_array() && f["w2c"].size() == 3 ? 12 : 16;
     const auto w2c = numbers(f["w2c"], w2c_count, what + ".w2c");
-    auto bytes = read_bytes(resolve_image(f["image_path"].get<std::string>(), metadata_path), what);
+    m.image_paths.push_back(resolve_image(f["image_path"].get<std::string>(), metadata_path, m.key).string());
+    m.fxfycxcy.push_back({k[0], k[1], k[2], k[3]});
+    std::array<double, 12> rows{};
+    std::copy(w2c.begin(), w2c.begin() + 12, rows.begin());
+    m.w2c.push_back(rows);
+  }
+  return m;
+}
+
+torch::Tensor lvsm_camera_row(const LvsmSceneMetadata& m, int64_t i, int height, int width) {
+  auto row = torch::zeros({18}, torch::kFloat32);
+  auto r = row.accessor<float, 1>();
+  const auto& k = m.fxfycxcy.at(static_cast<size_t>(i));
+  r[0] = static_cast<float>(k[0] / width);
+  r[1] = static_cast<float>(k[1] / height);
+  r[2] = static_cast<float>(k[2] / width);
+  r[3] = static_cast<float>(k[3] / height);
+  for (int e = 0; e < 12; ++e) r[6 + e] = static_cast<float>(m.w2c[static_cast<size_t>(i)][e]);
+  return row;
+}
+
+bool is_lvsm_split(const std::string& split_dir) {
+  return fs::exists(fs::path(split_dir) / "full_list.txt") || fs::is_directory(fs::path(split_dir) / "metadata");
+}
+
+std::vector<std::string> list_lvsm_scenes(const std::string& split_dir) {
+  std::vector<std::string> paths;
+  const auto list = fs::path(split_dir) / "full_list.txt";
+  const auto meta = fs::path(split_dir) / "metadata";
+  if (fs::exists(list)) {
+    paths = read_full_list(list.string());
+    for (auto& p : paths)
+      if (!fs::exists(p) && fs::exists(meta / fs::path(p).filename())) p = (meta / fs::path(p).filename()).string();
+  } else {
+    if (!fs::is_directory(meta))
+      throw std::runtime_error(fmt::format("LVSM split {}: neither full_list.txt nor metadata/ found", split_dir));
+    for (const auto& e : fs::directory_iterator(meta))
+      if (e.path().extension() == ".json") paths.push_back(e.path().string());
+    std::sort(paths.begin(), paths.end());
+  }
+  if (paths.empty()) throw std::runtime_error(fmt::format("LVSM split {}: no scenes listed", split_dir));
+  return paths;
+}
+
+RawScene read_lvsm_scene(const std::string& metadata_path) {
+  const auto m = read_lvsm_metadata(metadata_path);
+  RawScene s;
+  s.key = m.key;
+  const int64_t n = m.size();
+  s.cameras = torch::zeros({n, 18}, torch::kFloat32);
+  for (int64_t i = 0; i < n; ++i) {
+    const std::string what = fmt::format("LVSM metadata {}: frames[{}]", metadata_path, i);
+    auto bytes = read_bytes(m.image_paths[i], what);
     auto [h, w] = io::image_size(bytes.data(), bytes.size(), what + ".image_path");
-    cam[i][0] = static_cast<float>(k[0] / w);
-    cam[i][1] = static_cast<float>(k[1] / h);
-    cam[i][2] = static_cast<float>(k[2] / w);
-    cam[i][3] = static_cast<float>(k[3] / h);
-    for (int e = 0; e < 12; ++e) cam[i][6 + e] = static_cast<float>(w2c[e]);
+    s.cameras[i] = lvsm_camera_row(m, i, h, w);
     auto t = torch::empty({static_cast<int64_t>(bytes.size())}, torch::kUInt8);
     std::copy(bytes.begin(), bytes.end(), t.data_ptr<uint8_t>());
     s.images.push_back(t);
@@ -171,19 +223,7 @@ ConversionResult chunks_to_lvsm(const std::string& chunk_split_dir, const std::s
 ConversionResult lvsm_to_chunks(const std::string& lvsm_split_dir, const std::string& chunk_split_dir,
                                 int64_t scenes_per_chunk, const ConversionProgress& progress) {
   if (scenes_per_chunk < 1) throw std::runtime_error("lvsm_to_chunks: scenes_per_chunk must be >= 1");
-  std::vector<std::string> paths;
-  const auto list = fs::path(lvsm_split_dir) / "full_list.txt";
-  if (fs::exists(list)) {
-    paths = read_full_list(list.string());
-  } else {
-    const auto meta = fs::path(lvsm_split_dir) / "metadata";
-    if (!fs::is_directory(meta))
-      throw std::runtime_error(fmt::format("LVSM split {}: neither full_list.txt nor metadata/ found", lvsm_split_dir));
-    for (const auto& e : fs::directory_iterator(meta))
-      if (e.path().extension() == ".json") paths.push_back(e.path().string());
-    std::sort(paths.begin(), paths.end());
-  }
-  if (paths.empty()) throw std::runtime_error(fmt::format("LVSM split {}: no scenes listed", lvsm_split_dir));
+  const auto paths = list_lvsm_scenes(lvsm_split_dir);
   ConversionResult r;
   std::map<std::string, std::string> index;
   std::vector<RawScene> pending;

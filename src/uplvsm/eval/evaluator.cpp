@@ -88,6 +88,11 @@ std::vector<Job> plan_jobs(const data::ChunkDataset& dataset, const EvalOptions&
       continue;
     }
     if (opt.max_scenes > 0 && static_cast<int64_t>(jobs.size()) >= opt.max_scenes) continue;
+    if (opt.target_poses != model::TargetPoses::Estimator && !dataset.poses_known(i))
+      throw std::runtime_error(fmt::format("eval: scene {} has no ground-truth cameras (imported without poses, listed "
+                                           "in {}/{}/unposed.json); target poses from '{}' need them — evaluate it "
+                                           "with the estimator protocol",
+                                           e.key, dataset.root(), dataset.split(), model::to_string(opt.target_poses)));
     const size_t pos = jobs.size();
     jobs.push_back({std::move(e), i, pos, static_cast<int64_t>(pos) < opt.num_visualised});
   }

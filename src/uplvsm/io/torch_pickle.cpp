@@ -135,6 +135,9 @@ PyPtr call(const PyPtr& callee, const PyPtr& args) {
     if (args->kind != Kind::Tuple || args->items.empty()) throw std::runtime_error("_rebuild_parameter: no data");
     return args->items[0];
   }
+  // LibTorch's own pickler (torch::pickle_save) wraps containers in their TorchScript type: the value is args[0].
+  if (name == "torch.jit._pickle.restore_type_tag" && args->kind == Kind::Tuple && !args->items.empty())
+    return args->items[0];
   if ((name == "builtins.set" || name == "__builtin__.set") && args->kind == Kind::Tuple) {
     auto s = make(Kind::Set);
     if (!args->items.empty()) s->items = args->items[0]->items;

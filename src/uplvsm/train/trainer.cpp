@@ -12,6 +12,7 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/loader.h"
+#include "uplvsm/data/subset.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/pretrained_weights.h"
@@ -228,6 +229,20 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     return result;
   }
   data::ChunkDataset dataset(opt.data_root, "train");
+  if (!tc.subset.empty()) {
+    const auto subset = data::read_subset_manifest(tc.subset);
+    dataset.keep_only(subset.scenes);
+    spdlog::info("subset {} ({}): {} scenes{}", subset.name, tc.subset, dataset.size(),
+                 subset.chunks.empty() ? "" : fmt::format(" in {} chunks", subset.chunks.size()));
+  }
+  const bool reads_cameras = !(config.model.variant == "uplvsm" && model::parse_target_poses(tc.target_poses,
+                                                                                               config.model) ==
+                                                                        model::TargetPoses::Estimator);
+  for (int64_t i = 0; reads_cameras && i < dataset.size(); ++i)
+    if (!dataset.poses_known(i))
+      throw std::runtime_error(fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
+                                           "(imported without poses, listed in train/unposed.json)",
+                                           config.model.variant, dataset.key(i), opt.data_root));
   if (tc.max_train_scenes > dataset.size())
     throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
                                          tc.max_train_scenes, opt.data_root, dataset.size()));
@@ -237,10 +252,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
                state.step, tc.train_steps);
   if (tc.pose_noise_variance > 0)
     spdlog::info("pose noise: N(0, {}) on the (t, q) of every training camera{}", tc.pose_noise_variance,
-                 config.model.variant == "uplvsm" && model::parse_target_poses(tc.target_poses, config.model) ==
-                         model::TargetPoses::Estimator
-                     ? " (this UP-LVSM run never reads them)"
-                     : "");
+                 reads_cameras ? "" : " (this UP-LVSM run never reads them)");
   data::TrainingLoader loader(dataset, loader_options(config, comm), state.step);
   PerceptualLoss perceptual = make_perceptual_loss(tc, opt);
   const bool use_bf16 = parse_amp(tc.amp);

@@ -1,0 +1,173 @@
+// `uplvsm dataset import`: bring your own scene. A photo folder (with a COLMAP text model or a nerfstudio
+// transforms.json when poses are known) becomes one pixelSplat chunk ROOT/SPLIT/<scene>.torch, merged into the
+// split's index.json, optionally into ROOT/evaluation_index.json (the file `eval` and `render` read by default),
+// and, for photos without poses, listed in ROOT/SPLIT/unposed.json so tools needing real poses can refuse it.
+#include <algorithm>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <set>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <nlohmann/json.hpp>
+
+#include "uplvsm/cli/commands.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/eval_index.h"
+#include "uplvsm/data/scene_import.h"
+#include "uplvsm/io/atomic_file.h"
+
+namespace uplvsm::cli {
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct Args {
+  data::SceneImportOptions import;
+  std::string out, split = "test";
+  std::vector<int64_t> context, target;
+  bool force = false;
+};
+
+json read_json(const fs::path& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(fmt::format("dataset import: cannot open {}", path.string()));
+  try {
+    return json::parse(in);
+  } catch (const std::exception& e) {
+    throw std::runtime_error(fmt::format("dataset import: {}: not valid JSON: {}", path.string(), e.what()));
+  }
+}
+
+void write_json(const fs::path& path, const json& j) {
+  const std::string text = j.dump(2) + "\n";
+  io::write_file_atomic(path.string(), text.data(), text.size());
+}
+
+void run_import(const Args& a) {
+  if ((a.context.empty()) != (a.target.empty()))
+    throw std::runtime_error("dataset import: --context and --target go together");
+  auto result = data::import_scene(a.import);
+  const auto& scene = result.scene;
+  const std::string& key = scene.key;
+  const int64_t n = scene.cameras.size(0);
+  for (const auto* list : {&a.context, &a.target})
+    for (int64_t f : *list)
+      if (f < 0 || f >= n)
+        throw std::runtime_error(fmt::format("dataset import: frame {} of --{} is out of range: the scene has {} "
+                                             "frames (0..{})",
+                                             f, list == &a.context ? "context" : "target", n, n - 1));
+
+  // Check every file we are about to change before writing any of them.
+  const fs::path root(a.out), split_dir = root / a.split;
+  const std::string chunk_name = key + ".torch";
+  const fs::path chunk_path = split_dir / chunk_name;
+  std::map<std::string, std::string> index;
+  if (fs::is_directory(split_dir)) index = data::read_chunk_index(split_dir.string());
+  std::vector<std::string> sharing;  // other scenes stored in the file we would overwrite
+  for (const auto& [k, file] : index)
+    if (file == chunk_name && k != key) sharing.push_back(k);
+  if (!sharing.empty())
+    throw std::runtime_error(fmt::format("dataset import: {} holds other scenes ({}); choose another --scene",
+                                         chunk_path.string(), fmt::join(sharing, ", ")));
+  if (!a.force && index.count(key))
+    throw std::runtime_error(fmt::format("dataset import: scene '{}' is already in {} ({}); pass --force to replace "
+                                         "it or --scene to choose another name",
+                                         key, (split_dir / "index.json").string(), index[key]));
+  if (!a.force && fs::exists(chunk_path))
+    throw std::runtime_error(fmt::format("dataset import: {} exists; pass --force to replace it", chunk_path.string()));
+  const fs::path eval_path = root / "evaluation_index.json";
+  json eval_index = json::object();
+  std::string stale_eval;  // an existing evaluation entry that a --force re-import leaves pointing past the end
+  if (fs::exists(eval_path)) {
+    // Merged as raw JSON: read_eval_index (used here to validate, naming the file and key) drops null entries and
+    // unknown fields, which must survive the merge.
+    const auto entries = data::read_eval_index(eval_path.string());
+    eval_index = read_json(eval_path);
+    if (!a.context.empty() && !a.force && eval_index.contains(key))
+      throw std::runtime_error(fmt::format("dataset import: scene '{}' is already in {}; pass --force to replace it",
+                                           key, eval_path.string()));
+    for (const auto& e : entries)
+      if (a.context.empty() && e.key == key)
+        for (const auto* list : {&e.context, &e.target})
+          if (std::any_of(list->begin(), list->end(), [&](int64_t f) { return f >= n; }))
+            stale_eval = fmt::format("{} keeps its entry for '{}', which names frames beyond this scene's {}: "
+                                     "give --context/--target to replace it",
+                                     eval_path.string(), key, n);
+  }
+  const fs::path unposed_path = split_dir / "unposed.json";
+  const auto unposed_list = data::read_unposed_keys(split_dir.string());
+  std::set<std::string> unposed(unposed_list.begin(), unposed_list.end());
+
+  fs::create_directories(split_dir);
+  data::write_chunk(chunk_path.string(), {scene});  // atomic
+  index[key] = chunk_name;
+  data::write_chunk_index(split_dir.string(), index);
+  const bool was_unposed = unposed.count(key) > 0;
+  if (!result.poses_known) unposed.insert(key);
+  else unposed.erase(key);
+  if (!result.poses_known || was_unposed) write_json(unposed_path, json(std::vector<std::string>(unposed.begin(),
+                                                                                                 unposed.end())));
+  if (!a.context.empty()) {
+    eval_index[key] = {{"context", a.context}, {"target", a.target}};
+    write_json(eval_path, eval_index);
+  }
+
+  for (const auto& w : result.warnings) std::cout << "warning: " << w << "\n";
+  if (!stale_eval.empty()) std::cout << "warning: " << stale_eval << "\n";
+  if (!a.context.empty() && !result.poses_known)
+    std::cout << fmt::format("note: '{}' has no poses: the unposed UP-LVSM can be evaluated on it (it estimates "
+                             "target poses from the target images), the posed variants and --target-poses "
+                             "dataset/mapper cannot\n",
+                             key);
+  std::cout << fmt::format("imported '{}': {} frames, intrinsics {}, poses {}, {} warning(s){} -> {}{}\n", key, n,
+                           result.intrinsics_source, result.poses_known ? "known" : "unknown (listed in unposed.json)",
+                           result.warnings.size(),
+                           result.skipped ? fmt::format(", {} image(s) skipped", result.skipped) : "",
+                           chunk_path.string(), a.context.empty() ? "" : " + evaluation_index.json");
+}
+
+}  // namespace
+
+void add_dataset_import_command(CLI::App& dataset) {
+  auto* cmd = dataset.add_subcommand(
+      "import",
+      "Import your own scene: a folder of photos (JPEG/PNG), with a COLMAP text model (--colmap: cameras.txt, "
+      "images.txt) or a nerfstudio transforms.json (--transforms) when the poses are known, into ROOT/SPLIT/"
+      "<scene>.torch + index.json. Intrinsics: from the model, else each JPEG's EXIF focal length, else a --fov "
+      "horizontal field of view. Photos alone get identity poses and are listed in ROOT/SPLIT/unposed.json (usable "
+      "for unposed training, evaluation of the unposed model and rendering). --context/--target add the scene to "
+      "ROOT/evaluation_index.json.");
+  auto a = std::make_shared<Args>();
+  cmd->add_option("--images", a->import.images_dir, "folder of the photos (*.jpg, *.jpeg, *.png)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  auto* colmap = cmd->add_option("--colmap", a->import.colmap_dir,
+                                 "COLMAP text model folder holding cameras.txt and images.txt (e.g. sparse/0)")
+                     ->check(CLI::ExistingDirectory);
+  auto* transforms = cmd->add_option("--transforms", a->import.transforms_path,
+                                     "nerfstudio / instant-NGP transforms.json (file paths relative to its folder)")
+                         ->check(CLI::ExistingFile);
+  colmap->excludes(transforms);
+  cmd->add_option("--fov", a->import.fov_deg,
+                  "horizontal field of view (degrees) for photos with neither a model camera nor an EXIF focal length")
+      ->check(CLI::Range(1.0, 179.0))
+      ->capture_default_str();
+  cmd->add_option("--scene", a->import.scene_name, "scene key (default: the folder's name, or its parent's when the "
+                                                   "folder is called images)");
+  cmd->add_option("--out", a->out, "dataset root (pixelSplat chunks)")->required();
+  cmd->add_option("--split", a->split, "split folder under the root")->capture_default_str();
+  cmd->add_option("--context", a->context, "two context frame indices (in the imported frame order: sorted by name) "
+                                           "for evaluation_index.json")
+      ->expected(2);
+  cmd->add_option("--target", a->target, "target frame indices for evaluation_index.json");
+  cmd->add_flag("--skip-unmatched", a->import.skip_unmatched,
+                "leave out photos the model does not mention and model images without a file (default: refuse)");
+  cmd->add_flag("--force", a->force, "replace a scene of the same key in index.json / evaluation_index.json");
+  cmd->callback([a] { run_import(*a); });
+}
+
+}  // namespace uplvsm::cli
