@@ -4,6 +4,7 @@
 
 #include "train/train_test_util.h"
 #include "uplvsm/data/loader.h"
+#include "uplvsm/data/synthetic/room_scenes.h"
 #include "uplvsm/io/image.h"
 
 using namespace uplvsm;
@@ -29,6 +30,38 @@ TEST(Loader, BatchIsAPureFunctionOfTheStep) {
   EXPECT_EQ(a.frames, b.frames);
   EXPECT_TRUE(torch::equal(a.images, b.images));
   EXPECT_TRUE(torch::equal(a.c2w, b.c2w));
+}
+
+// An epoch visits every scene once, two chunks at a time: samples 4k..4k+3 of this split (2 scenes per chunk) come
+// from one pair of chunks, and the pairs are disjoint, so the chunk cache serves the whole epoch with no re-reads.
+TEST(Loader, EpochGoesThroughTheChunksTwoAtATime) {
+  const auto root = test::temp_dir("loader_chunk_order");
+  data::RoomSceneOptions scene;
+  scene.height = 24, scene.width = 32, scene.frames = 8;
+  data::write_builtin_dataset(root.string(), 12, 0, 3, scene, /*scenes_per_chunk=*/2);
+  data::ChunkDataset dataset(root.string(), "train");
+  ASSERT_EQ(dataset.size(), 12);
+  auto opt = micro_options();
+  opt.batch_size = 1;
+  std::set<std::string> scenes, used_chunks;
+  for (int64_t group = 0; group < 3; ++group) {
+    std::set<std::string> chunks;
+    for (int64_t step = 4 * group; step < 4 * group + 4; ++step) {
+      const auto key = data::make_training_batch(dataset, opt, step).keys.at(0);
+      scenes.insert(key);
+      chunks.insert(dataset.chunk_name(dataset.find(key)));
+    }
+    EXPECT_EQ(chunks.size(), 2u) << "group " << group;
+    for (const auto& c : chunks) EXPECT_TRUE(used_chunks.insert(c).second) << c << " read again in group " << group;
+  }
+  EXPECT_EQ(scenes.size(), 12u);
+  // Another epoch, another order.
+  std::vector<std::string> first, second;
+  for (int64_t step = 0; step < 12; ++step) {
+    first.push_back(data::make_training_batch(dataset, opt, step).keys.at(0));
+    second.push_back(data::make_training_batch(dataset, opt, step + 12).keys.at(0));
+  }
+  EXPECT_NE(first, second);
 }
 
 TEST(Loader, MaxScenesTrainsOnTheFirstScenesOnly) {

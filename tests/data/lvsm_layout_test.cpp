@@ -19,18 +19,6 @@ using namespace uplvsm;
 using namespace uplvsm::data;
 namespace fs = std::filesystem;
 
-namespace {
-std::string expect_error(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const std::runtime_error& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an error";
-  return "";
-}
-}  // namespace
-
 TEST(LvsmLayout, ChunksToLvsmAndBackKeepPixelsAndCameras) {
   const auto dir = test::temp_dir("lvsm_layout");
   const auto chunks = test::fixture("re10k_chunks/root/test");
@@ -86,26 +74,26 @@ TEST(LvsmLayout, BadMetadataNamesTheFileAndField) {
   auto nan = good;
   nan["frames"][1]["w2c"][0][3] = nullptr;  // not a number
   write(nan);
-  auto msg = expect_error([&] { read_lvsm_scene(meta_path); });
+  auto msg = test::error_of([&] { read_lvsm_scene(meta_path); });
   EXPECT_NE(msg.find(meta_path), std::string::npos) << msg;
   EXPECT_NE(msg.find("frames[1].w2c"), std::string::npos) << msg;
 
   auto missing = good;
   missing["frames"][0].erase("fxfycxcy");
   write(missing);
-  msg = expect_error([&] { read_lvsm_scene(meta_path); });
+  msg = test::error_of([&] { read_lvsm_scene(meta_path); });
   EXPECT_NE(msg.find("missing field 'fxfycxcy'"), std::string::npos) << msg;
 
   auto no_image = good;
   no_image["frames"][0]["image_path"] = (dir / "nowhere.png").string();
   write(no_image);
-  msg = expect_error([&] { read_lvsm_scene(meta_path); });
+  msg = test::error_of([&] { read_lvsm_scene(meta_path); });
   EXPECT_NE(msg.find("nowhere.png"), std::string::npos) << msg;
 
   write(good);
   EXPECT_EQ(read_lvsm_scene(meta_path).images.size(), 2u);
   std::ofstream(meta_path) << "{\"frames\": [";
-  msg = expect_error([&] { read_lvsm_scene(meta_path); });
+  msg = test::error_of([&] { read_lvsm_scene(meta_path); });
   EXPECT_NE(msg.find("not valid JSON"), std::string::npos) << msg;
 }
 

@@ -46,6 +46,25 @@ TEST(RoomScenes, DeterministicPerSeed) {
   EXPECT_TRUE(torch::equal(a.timestamps, torch::arange(8, torch::kInt64) * 100000));
 }
 
+// texture_scale changes only the surface patterns: same cameras and geometry, larger (smoother) patterns.
+TEST(RoomScenes, TextureScaleKeepsGeometryAndEnlargesPatterns) {
+  auto opt = small_options();
+  RoomRender base = render_room(21, opt);
+  opt.texture_scale = 3.0;
+  RoomRender coarse = render_room(21, opt);
+  EXPECT_TRUE(torch::equal(base.scene.cameras, coarse.scene.cameras));
+  EXPECT_TRUE(torch::equal(base.depth, coarse.depth));
+  EXPECT_FALSE(torch::equal(base.images, coarse.images));
+  // Mean absolute difference of horizontal neighbours: detail of the texture patterns.
+  auto detail = [](const torch::Tensor& img) {
+    auto f = img.to(torch::kFloat64);
+    return (f.slice(2, 1) - f.slice(2, 0, -1)).abs().mean().item<double>();
+  };
+  EXPECT_LT(detail(coarse.images), detail(base.images));
+  opt.texture_scale = 0;
+  EXPECT_THROW(render_room(21, opt), std::runtime_error);
+}
+
 TEST(RoomScenes, CameraConventions) {
   RoomSceneOptions opt;  // 72x128, 32 frames
   for (uint64_t seed : {1, 2, 3}) {

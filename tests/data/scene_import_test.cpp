@@ -45,15 +45,6 @@ void write_text(const fs::path& path, const std::string& text) {
   std::ofstream(path) << text;
 }
 
-std::string expect_error(const std::function<void()>& fn) {
-  try {
-    fn();
-  } catch (const std::runtime_error& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "expected an error";
-  return "";
-}
 
 // An EXIF entry of the EXIF sub-IFD holding one SHORT or RATIONAL value (libexif's own entries, as cameras write).
 void add_short(ExifData* ed, ExifTag tag, uint16_t v) {
@@ -261,7 +252,7 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   SceneImportOptions opt;
   fs::create_directories(dir / "empty");
   opt.images_dir = (dir / "empty").string();
-  auto msg = expect_error([&] { import_scene(opt); });
+  auto msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find((dir / "empty").string()), std::string::npos) << msg;
 
   // An image the COLMAP model does not mention: refused, or skipped and counted when asked.
@@ -269,7 +260,7 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   write_bytes(project / "images/extra.jpg", jpeg_bytes(48, 64, 9));
   opt.images_dir = (project / "images").string();
   opt.colmap_dir = (project / "sparse/0").string();
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("extra.jpg"), std::string::npos) << msg;
   EXPECT_NE(msg.find("--skip-unmatched"), std::string::npos) << msg;
   opt.skip_unmatched = true;
@@ -282,22 +273,22 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   // Malformed cameras.txt line; unknown model; wrong parameter count; NaN parameter.
   const auto cameras = project / "sparse/0/cameras.txt";
   write_text(cameras, "# c\n1 PINHOLE 64 48 50 52 31 23\n2 PINHOLE 64\n");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find(cameras.string() + ":3"), std::string::npos) << msg;
   EXPECT_NE(msg.find("CAMERA_ID MODEL WIDTH HEIGHT"), std::string::npos) << msg;
   write_text(cameras, "1 PINHOLE 64 48 50 52 31 23\n2 WEIRD 64 48 1 2 3\n");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find(cameras.string() + ":2"), std::string::npos) << msg;
   EXPECT_NE(msg.find("unknown camera model 'WEIRD'"), std::string::npos) << msg;
   write_text(cameras, "1 PINHOLE 64 48 50 52 31\n2 SIMPLE_PINHOLE 64 48 40 32 24\n");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("PINHOLE expects 4 parameters (fx fy cx cy), got 3"), std::string::npos) << msg;
   write_text(cameras, "1 PINHOLE 64 48 50 nan 31 23\n2 SIMPLE_PINHOLE 64 48 40 32 24\n");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("field fy"), std::string::npos) << msg;
   // A camera of another aspect ratio than the image does not describe it.
   write_text(cameras, "1 PINHOLE 64 64 50 52 31 23\n2 SIMPLE_PINHOLE 32 24 20 16 12\n");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("img0.jpg"), std::string::npos) << msg;
   EXPECT_NE(msg.find("aspect"), std::string::npos) << msg;
   // ... while a downscaled one is rescaled (camera 2 is 32x24 for 64x48 images: f 20 -> 40).
@@ -308,7 +299,7 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   // A bad images.txt pose line names the line and field.
   const auto images = project / "sparse/0/images.txt";
   write_text(images, "# x\n1 1 0 0 0 a 0 0 1 img0.jpg\n\n");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find(images.string() + ":2"), std::string::npos) << msg;
   EXPECT_NE(msg.find("field TX"), std::string::npos) << msg;
 
@@ -320,28 +311,28 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   opt.transforms_path = tj.string();
   write_text(tj, R"({"fl_x": 50, "frames": [{"file_path": "images/a.jpg",
       "transform_matrix": [[1, 0, 0, NaN], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find(tj.string()), std::string::npos) << msg;
   EXPECT_NE(msg.find("frames[0].transform_matrix[0][3]"), std::string::npos) << msg;
   EXPECT_NE(msg.find("NaN"), std::string::npos) << msg;
   write_text(tj, R"({"fl_x": 50, "frames": [{"file_path": "images/a.jpg",
       "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 1, 1]]}]})");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("transform_matrix[3]: expected the last row 0 0 0 1"), std::string::npos) << msg;
   write_text(tj, R"({"fl_x": 50, "frames": [{"file_path": "images/a.jpg",
       "transform_matrix": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("not orthonormal"), std::string::npos) << msg;
   write_text(tj, R"({"fl_x": 50, "frames": [{"file_path": "images/gone.jpg",
       "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("gone.jpg"), std::string::npos) << msg;
 
   // An undecodable photo.
   write_text(dir / "bad/x.jpg", "this is not a JPEG");
   opt = SceneImportOptions{};
   opt.images_dir = (dir / "bad").string();
-  msg = expect_error([&] { import_scene(opt); });
+  msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("x.jpg"), std::string::npos) << msg;
 }
 

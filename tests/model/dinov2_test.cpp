@@ -45,3 +45,25 @@ TEST(Dinov2, MatchesMetaForwardSquareAndNonSquare) {
     EXPECT_LE(test::max_abs_diff(f.patch_tokens, io.at(name + ".x_norm_patchtokens")), 1e-4) << name;
   }
 }
+
+// The from-scratch position table: MAE's layout, hand-checked entries, and what a config selects.
+TEST(Dinov2, SincosPosEmbedTableAndConfig) {
+  const int64_t grid = 3, dim = 8;  // 2 frequencies: 1 and 10000^(-1/2) = 0.01
+  auto pe = model::sincos_pos_embed(grid, dim);
+  ASSERT_EQ(pe.sizes(), (std::vector<int64_t>{1, 1 + grid * grid, dim}));
+  EXPECT_EQ(pe[0][0].abs().max().item<float>(), 0.0f);  // class token
+  // Patch (row 1, col 2) is token 1 + 1 * 3 + 2 = 6: [sin 2, sin 0.02, cos 2, cos 0.02, sin 1, sin 0.01, cos 1, cos 0.01].
+  auto row = pe[0][6];
+  const double expected[8] = {std::sin(2.0), std::sin(0.02), std::cos(2.0), std::cos(0.02),
+                              std::sin(1.0), std::sin(0.01), std::cos(1.0), std::cos(0.01)};
+  for (int k = 0; k < 8; ++k) EXPECT_NEAR(row[k].item<double>(), expected[k], 1e-6) << k;
+  // Every patch has its own row.
+  auto patches = pe[0].slice(0, 1);
+  EXPECT_GT(torch::cdist(patches, patches).add(torch::eye(grid * grid) * 10).min().item<float>(), 1e-3);
+
+  Dinov2Config c;
+  c.embed_dim = dim, c.depth = 1, c.num_heads = 2, c.pos_grid = grid, c.num_register_tokens = 0;
+  EXPECT_LT(model::Dinov2(c, 4)->pos_embed.abs().max().item<float>(), 0.05f);  // "normal": N(0, 0.02) clamped
+  c.pos_embed_init = "sincos";
+  EXPECT_TRUE(torch::equal(model::Dinov2(c, 4)->pos_embed.detach(), pe));
+}

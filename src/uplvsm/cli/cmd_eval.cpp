@@ -43,9 +43,10 @@ void add_eval_command(CLI::App& app) {
       ->check(CLI::IsMember({"none", "bf16"}))
       ->capture_default_str();
   cmd->add_option("--target-poses", a->target_poses,
-                  "where target cameras come from: auto (the model's own protocol: estimator for UP-LVSM, dataset "
-                  "cameras for ptlvsm/lvsm), estimator, mapper (dataset cameras through the camera-control mapper) or "
-                  "dataset")
+                  "where target cameras come from: auto (the protocol the model was trained with, its "
+                  "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the mapper "
+                  "after the camera-control stage), estimator, mapper (dataset cameras through the camera-control "
+                  "mapper) or dataset")
       ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
       ->capture_default_str();
   cmd->add_option("--lpips-net", a->lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
@@ -80,7 +81,9 @@ void add_eval_command(CLI::App& app) {
     opt.num_visualised = a->visualise;
     opt.out_dir = a->out;
     opt.bf16 = parse_amp(a->amp);
-    opt.target_poses = model::parse_target_poses(a->target_poses, config.model);
+    // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
+    opt.target_poses = model::parse_target_poses(
+        a->target_poses == "auto" ? config.training.target_poses : a->target_poses, config.model);
     if (comm) {
       opt.shard_rank = comm->rank();
       opt.shard_count = comm->world_size();

@@ -39,6 +39,7 @@ void add_make_dataset_command(CLI::App& app) {
     opt.width = static_cast<int>(c.render_width);
     opt.frames = static_cast<int>(c.frames_per_scene);
     opt.frame_spacing = c.frame_spacing;
+    opt.texture_scale = c.texture_scale;
     opt.eval_gap = static_cast<int>(c.eval_gap);
     auto t0 = std::chrono::steady_clock::now();
     spdlog::info("rendering {} train + {} test scenes of {} frames at {}x{} into {}", c.num_train_scenes,

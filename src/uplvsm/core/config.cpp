@@ -73,6 +73,7 @@ void dinov2_fields(C& c, F&& f) {
   f("interpolate_offset", c.interpolate_offset);
   f("layerscale_init", c.layerscale_init);
   f("imagenet_normalize", c.imagenet_normalize);
+  f("pos_embed_init", c.pos_embed_init);
 }
 
 template <typename C, typename F>
@@ -126,6 +127,7 @@ void dataset_fields(C& c, F&& f) {
   f("render_height", c.render_height);
   f("render_width", c.render_width);
   f("frame_spacing", c.frame_spacing);
+  f("texture_scale", c.texture_scale);
   f("eval_gap", c.eval_gap);
   f("seed", c.seed);
 }
@@ -217,6 +219,10 @@ void validate_config(const Config& c, const std::string& s) {
                       m.dinov2.embed_dim, t.d));
   require(m.dinov2.num_heads > 0 && m.dinov2.embed_dim % m.dinov2.num_heads == 0, s,
           "model.dinov2.embed_dim must be a multiple of num_heads");
+  require(m.dinov2.pos_embed_init == "normal" || m.dinov2.pos_embed_init == "sincos", s,
+          "model.dinov2.pos_embed_init must be 'normal' or 'sincos', got '" + m.dinov2.pos_embed_init + "'");
+  require(m.dinov2.pos_embed_init != "sincos" || m.dinov2.embed_dim % 4 == 0, s,
+          "model.dinov2.pos_embed_init 'sincos' needs embed_dim divisible by 4");
   const auto& tr = c.training;
   require(tr.num_input_views >= 1 && tr.num_target_views >= 1, s, "training: need >= 1 input and target view");
   require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s, "training.num_views must be >= num_input_views and >= 2");

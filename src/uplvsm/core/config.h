@@ -35,6 +35,9 @@ struct Dinov2Config {
   double interpolate_offset = 0.0;
   double layerscale_init = 1.0;
   bool imagenet_normalize = false;  // official UP-LVSM feeds [0,1] images without mean/std
+  // Initial pos_embed of a tokenizer trained from scratch: "normal" (timm's N(0, 0.02); pretrained weights replace
+  // it) or "sincos" (fixed-scale 2-D sine-cosine as MAE: patches tell their position apart from the first step).
+  std::string pos_embed_init = "normal";
 };
 
 struct ModelConfig {
@@ -93,6 +96,8 @@ struct DatasetConfig {
   int64_t render_height = 72;
   int64_t render_width = 128;
   double frame_spacing = 1.0;
+  // Scales the size of every surface pattern (checkers, stripes, dots, floor planks); 1 = the original scenes.
+  double texture_scale = 1.0;
   int64_t eval_gap = 0;  // frames between the two evaluation context views; 0: frames / 2
   int64_t seed = 1;
 };

@@ -5,6 +5,8 @@
 #include <cmath>
 #include <numeric>
 #include <random>
+#include <string>
+#include <unordered_map>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -24,13 +26,37 @@ uint64_t mix(uint64_t a, uint64_t b) {
   return z ^ (z >> 31);
 }
 
-// Scene order of one epoch: a seeded permutation, identical on every rank.
-std::vector<int64_t> epoch_permutation(int64_t n, uint64_t seed, int64_t epoch) {
-  std::vector<int64_t> perm(n);
-  std::iota(perm.begin(), perm.end(), 0);
+template <class T>
+void shuffle(std::vector<T>& v, size_t begin, std::mt19937_64& rng) {
+  for (size_t i = v.size(); i > begin + 1; --i)
+    std::swap(v[i - 1], v[static_cast<size_t>(uniform_int(rng, static_cast<int64_t>(begin), static_cast<int64_t>(i - 1)))]);
+}
+
+// Scene order of one epoch, chunk by chunk as pixelSplat's iterable dataset reads them: chunks in a seeded order,
+// taken kChunksPerShuffle at a time, the scenes of each such group shuffled together. Consecutive samples then
+// come from at most two groups, which the dataset's chunk cache holds; a plain permutation would re-read a random
+// chunk (~100 MB for RealEstate10K) for almost every scene. Identical on every rank.
+constexpr size_t kChunksPerShuffle = 2;
+
+std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_t seed, int64_t epoch) {
+  std::vector<std::vector<int64_t>> chunks;
+  std::unordered_map<std::string, size_t> chunk_of;
+  for (int64_t i = 0; i < n; ++i) {
+    auto [it, fresh] = chunk_of.try_emplace(dataset.chunk_name(i), chunks.size());
+    if (fresh) chunks.emplace_back();
+    chunks[it->second].push_back(i);
+  }
   std::mt19937_64 rng(mix(seed, static_cast<uint64_t>(epoch) + 1));
-  for (int64_t i = n - 1; i > 0; --i) std::swap(perm[i], perm[uniform_int(rng, 0, i)]);
-  return perm;
+  shuffle(chunks, 0, rng);
+  std::vector<int64_t> order;
+  order.reserve(static_cast<size_t>(n));
+  for (size_t g = 0; g < chunks.size(); g += kChunksPerShuffle) {
+    const size_t begin = order.size();
+    for (size_t k = g; k < std::min(g + kChunksPerShuffle, chunks.size()); ++k)
+      order.insert(order.end(), chunks[k].begin(), chunks[k].end());
+    shuffle(order, begin, rng);
+  }
+  return order;
 }
 
 // Annotation noise: every camera's (t, q) encoding plus N(0, variance), decoded back (the quaternion renormalised).
@@ -64,7 +90,7 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
       const int64_t slot = g + attempt * 7919;  // a bad scene is replaced by another one of the order
       const int64_t epoch = slot / n;
       if (epoch != epoch_cached) {
-        perm = epoch_permutation(n, opt.seed, epoch);
+        perm = epoch_order(dataset, n, opt.seed, epoch);
         epoch_cached = epoch;
       }
       const int64_t scene = perm[slot % n];

@@ -1,6 +1,7 @@
 // The training batch loader: for every step a batch that is a pure function of (seed, step, rank), so a resumed
 // run sees exactly the data the uninterrupted run would have seen, and ranks read disjoint shards. Scenes are
-// visited in a seeded permutation per epoch; views follow the official selector; a bad scene (too few frames, a
+// visited in a seeded order per epoch that goes through the chunks two at a time (shuffled within each pair), so
+// the chunk cache serves consecutive samples; views follow the official selector; a bad scene (too few frames, a
 // wrong-size frame) is replaced by the next scene of the permutation and counted. Worker threads decode ahead
 // into a bounded queue.
 #pragma once

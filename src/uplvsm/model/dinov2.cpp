@@ -52,10 +52,24 @@ torch::Tensor DinoBlockImpl::forward(const torch::Tensor& x) {
   return h + ls2(mlp(norm2(h)));
 }
 
+torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
+  // MAE's 2-D table: a quarter of the channels each for sin/cos of x and of y at geometric frequencies; the class
+  // token's row is zero.
+  const int64_t q = dim / 4;
+  auto omega = torch::pow(10000.0, -torch::arange(q, torch::kFloat64) / static_cast<double>(q));
+  auto coord = torch::arange(grid, torch::kFloat64);
+  auto x = coord.repeat({grid}).unsqueeze(1) * omega;                   // column index of patch (row-major order)
+  auto y = coord.repeat_interleave(grid).unsqueeze(1) * omega;          // row index
+  auto table = torch::cat({torch::sin(x), torch::cos(x), torch::sin(y), torch::cos(y)}, 1);
+  return torch::cat({torch::zeros({1, dim}, torch::kFloat64), table}, 0).unsqueeze(0).to(torch::kFloat32);
+}
+
 Dinov2Impl::Dinov2Impl(const Dinov2Config& c, int64_t patch) : config(c), patch_size(patch) {
   const int64_t D = c.embed_dim;
   cls_token = register_parameter("cls_token", torch::randn({1, 1, D}) * 1e-6);
-  pos_embed = register_parameter("pos_embed", torch::randn({1, 1 + c.pos_grid * c.pos_grid, D}).clamp_(-2, 2) * 0.02);
+  pos_embed = register_parameter("pos_embed", c.pos_embed_init == "sincos"
+                                                  ? sincos_pos_embed(c.pos_grid, D)
+                                                  : torch::randn({1, 1 + c.pos_grid * c.pos_grid, D}).clamp_(-2, 2) * 0.02);
   if (c.num_register_tokens > 0)
     register_tokens = register_parameter("register_tokens", torch::randn({1, c.num_register_tokens, D}) * 1e-6);
   auto patch_embed = register_module("patch_embed", std::make_shared<torch::nn::Module>());

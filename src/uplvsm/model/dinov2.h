@@ -49,6 +49,10 @@ struct DinoFeatures {
   torch::Tensor prenorm;      // [N, 1 + R + h*w, D] before the final norm
 };
 
+// MAE's fixed-scale 2-D sine-cosine position table, [1, 1 + grid*grid, dim] in row-major patch order: channels
+// [sin x, cos x, sin y, cos y] at frequencies 10000^(-k/(dim/4)); the class token's row is zero. dim % 4 == 0.
+torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim);
+
 struct Dinov2Impl : torch::nn::Module {
   Dinov2Impl(const Dinov2Config& c, int64_t patch_size);
   // x: [N, 3, H, W] (already normalised as the caller wants). H, W multiples of the patch size.

@@ -251,7 +251,7 @@ double distance_to_path_xz(const std::vector<Camera>& cams, double x, double z) 
 }
 
 // Objects stand on the floor, away from the camera path and from each other; most are put ahead of the camera.
-void place_objects(Rng& rng, Room& room, double base_hue) {
+void place_objects(Rng& rng, Room& room, double base_hue, double texture_scale) {
   int count = static_cast<int>(rng.integer(3, 6));
   const Camera& last = room.cameras.back();
   std::vector<std::pair<Vec3, double>> placed;  // footprint centre, radius
@@ -275,7 +275,8 @@ void place_objects(Rng& rng, Room& room, double base_hue) {
       bool clash = false;
       for (const auto& [c, r] : placed) clash = clash || std::hypot(c.x - x, c.z - z) < r + reach + 0.1;
       if (clash) continue;
-      Texture tex = random_texture(rng, base_hue + rng.uniform(0.2, 0.8), size * 0.6, size * 1.4);
+      Texture tex = random_texture(rng, base_hue + rng.uniform(0.2, 0.8), size * 0.6 * texture_scale,
+                                   size * 1.4 * texture_scale);
       if (sphere) {
         room.spheres.push_back({{x, room.floor_y - size, z}, size, tex});
       } else {
@@ -298,16 +299,17 @@ Room sample_room(uint64_t seed, const RoomSceneOptions& opt) {
   room.floor_y = 1.5;
   room.ceiling_y = room.floor_y - height;
   double hue = rng.uniform();
-  for (auto& wall : room.walls) wall = random_texture(rng, hue + rng.uniform(-0.3, 0.3), 0.8, 2.0);
-  room.ceiling = random_texture(rng, hue, 1.5, 3.0);
+  const double ts = opt.texture_scale;
+  for (auto& wall : room.walls) wall = random_texture(rng, hue + rng.uniform(-0.3, 0.3), 0.8 * ts, 2.0 * ts);
+  room.ceiling = random_texture(rng, hue, 1.5 * ts, 3.0 * ts);
   room.ceiling.a = lerp(room.ceiling.a, {0.95, 0.95, 0.92}, 0.6);
   room.ceiling.b = lerp(room.ceiling.b, {0.9, 0.9, 0.9}, 0.6);
   room.ceiling.strength *= 0.5;
   double wood_hue = rng.uniform(0.04, 0.12);
   room.floor.wood_a = hsv(wood_hue, rng.uniform(0.4, 0.7), rng.uniform(0.45, 0.75));
   room.floor.wood_b = hsv(wood_hue + rng.uniform(-0.03, 0.03), rng.uniform(0.3, 0.7), rng.uniform(0.3, 0.6));
-  room.floor.plank_width = rng.uniform(0.3, 0.55);
-  room.floor.plank_length = rng.uniform(1.0, 2.2);
+  room.floor.plank_width = rng.uniform(0.3, 0.55) * ts;
+  room.floor.plank_length = rng.uniform(1.0, 2.2) * ts;
   room.floor.along_z = rng.integer(0, 1) == 1;
   room.floor.salt = splitmix64(seed ^ 0xF100F100ull);
   room.light_dir = normalize({rng.uniform(-0.6, 0.6), 1.0, rng.uniform(-0.6, 0.6)});
@@ -315,7 +317,7 @@ Room sample_room(uint64_t seed, const RoomSceneOptions& opt) {
   double fov = rng.uniform(55.0, 75.0) * M_PI / 180.0;  // horizontal
   room.fx = opt.width / 2.0 / std::tan(fov / 2);
   room.cameras = sample_path(rng, room, opt.frames, opt.frame_spacing);
-  place_objects(rng, room, hue);
+  place_objects(rng, room, hue, opt.texture_scale);
   return room;
 }
 
@@ -514,11 +516,12 @@ void parallel_for_each(int64_t n, const std::function<void(int64_t)>& fn) {
 }
 
 void check_options(const RoomSceneOptions& opt) {
-  if (opt.height < 2 || opt.width < 2 || opt.frames < 1 || !(opt.frame_spacing > 0) || opt.jpeg_quality < 1 ||
-      opt.jpeg_quality > 100)
+  if (opt.height < 2 || opt.width < 2 || opt.frames < 1 || !(opt.frame_spacing > 0) || !(opt.texture_scale > 0) ||
+      opt.jpeg_quality < 1 || opt.jpeg_quality > 100)
     throw std::runtime_error(fmt::format("room scenes: bad options (height {}, width {}, frames {}, frame_spacing "
-                                         "{}, jpeg_quality {})",
-                                         opt.height, opt.width, opt.frames, opt.frame_spacing, opt.jpeg_quality));
+                                         "{}, texture_scale {}, jpeg_quality {})",
+                                         opt.height, opt.width, opt.frames, opt.frame_spacing, opt.texture_scale,
+                                         opt.jpeg_quality));
 }
 
 }  // namespace

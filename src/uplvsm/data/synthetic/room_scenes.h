@@ -17,6 +17,7 @@ struct RoomSceneOptions {
   int width = 128;
   int frames = 32;
   double frame_spacing = 1.0;  // scales the camera motion (translation and rotation) per frame
+  double texture_scale = 1.0;  // scales every surface pattern's size (periods, planks); colours are unchanged
   int jpeg_quality = 90;
   int eval_gap = 0;            // frames between the two evaluation context views; 0: frames / 2
 };

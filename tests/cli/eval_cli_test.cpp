@@ -1,0 +1,41 @@
+// `uplvsm eval --target-poses auto` evaluates a model with the protocol it was trained with.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+#include "train/train_test_util.h"
+
+using namespace uplvsm;
+namespace fs = std::filesystem;
+
+namespace {
+std::string evaluated_target_poses(const fs::path& out) {
+  std::ifstream in(out / "metrics.json");
+  return nlohmann::json::parse(in).at("target_poses").get<std::string>();
+}
+}  // namespace
+
+// A UP-LVSM trained from dataset cameras (the "SfM target poses" ablation) never trained its estimator: `auto`
+// must score it from dataset cameras, and an explicit protocol still wins.
+TEST(EvalCli, AutoTargetPosesFollowTheTrainingConfig) {
+  const auto dir = test::temp_dir("cli_eval_auto");
+  std::ifstream in(std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny.json");
+  auto config = nlohmann::json::parse(in);
+  config["training"]["target_poses"] = "dataset";
+  std::ofstream((dir / "sfm.json").string()) << config.dump();
+  std::string out;
+  ASSERT_EQ(test::run_cli("train --config " + (dir / "sfm.json").string() + " --data " + test::micro_dataset() +
+                              " --run " + (dir / "run").string() + " --steps 1",
+                          &out),
+            0)
+      << out;
+  const std::string eval = "eval --checkpoint " + (dir / "run").string() + " --data " + test::micro_dataset();
+  ASSERT_EQ(test::run_cli(eval + " --out " + (dir / "auto").string(), &out), 0) << out;
+  EXPECT_EQ(evaluated_target_poses(dir / "auto"), "dataset");
+  ASSERT_EQ(test::run_cli(eval + " --target-poses estimator --out " + (dir / "est").string(), &out), 0) << out;
+  EXPECT_EQ(evaluated_target_poses(dir / "est"), "estimator");
+}
