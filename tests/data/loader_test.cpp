@@ -55,6 +55,7 @@ TEST(Loader, EpochGoesThroughTheChunksTwoAtATime) {
     for (const auto& c : chunks) EXPECT_TRUE(used_chunks.insert(c).second) << c << " read again in group " << group;
   }
   EXPECT_EQ(scenes.size(), 12u);
+  EXPECT_EQ(dataset.chunk_reads(), 6);  // each chunk parsed once in the epoch
   // Another epoch, another order.
   std::vector<std::string> first, second;
   for (int64_t step = 0; step < 12; ++step) {

@@ -354,6 +354,7 @@ std::shared_ptr<const ChunkDataset::LoadedChunk> ChunkDataset::load_chunk(const 
     }
   }
   if (owner) {
+    ++chunk_reads_;
     try {
       auto loaded = std::make_shared<LoadedChunk>();
       if (layout_ == Layout::Lvsm) {

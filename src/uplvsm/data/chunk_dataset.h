@@ -72,6 +72,8 @@ class ChunkDataset {
   bool poses_known(int64_t i) const;
   // The chunk file name (chunks) or metadata JSON path (LVSM) scene i is read from.
   const std::string& chunk_name(int64_t i) const;
+  // Chunk files (LVSM: metadata files) parsed so far, including re-reads of chunks the cache had evicted.
+  int64_t chunk_reads() const { return chunk_reads_.load(); }
 
   int64_t size() const { return static_cast<int64_t>(entries_.size()); }
   const std::string& key(int64_t i) const;
@@ -115,6 +117,7 @@ class ChunkDataset {
   mutable std::mutex mutex_;  // guards cache_ and lru_
   mutable std::map<std::string, std::shared_future<ChunkPtr>> cache_;
   mutable std::list<std::string> lru_;  // most recently used first
+  mutable std::atomic<int64_t> chunk_reads_{0};
 };
 
 }  // namespace uplvsm::data

@@ -337,7 +337,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     if (lead && (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1)) {
       metrics << json{{"step", state.step}, {"loss", loss_value}, {"mse", mse_value}, {"psnr", psnr}, {"lr", lr}, {"grad_norm", grad_norm},
                       {"skipped", skipped}, {"step_seconds", step_seconds}, {"data_wait_seconds", loader.wait_seconds()},
-                      {"train_seconds", state.train_seconds}}
+                      {"chunk_reads", dataset.chunk_reads()}, {"train_seconds", state.train_seconds}}
                      .dump()
               << "\n";
       metrics.flush();
@@ -361,6 +361,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     }
   }
   if (show_progress) bar.finish();
+  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(), dataset.chunk_reads());
   if (comm) {
     check_parameters_in_sync(*comm, net->parameters());
     comm->barrier();  // rank 0's last checkpoint is on disk before any rank returns
