@@ -247,6 +247,27 @@ TEST(ChunkDataset, ScansChunksWithoutIndex) {
   fs::remove_all(dir);
 }
 
+TEST(ChunkDataset, IndexEntriesThatPointNowhereNameTheKeyAndFile) {
+  auto dir = test::temp_dir("chunk_badindex");
+  fs::create_directories(dir / "train");
+  write_chunk((dir / "train" / "000000.torch").string(), {make_scene("ffff000000000001", 2)});
+  write_chunk_index((dir / "train").string(),
+                    {{"ffff000000000001", "000000.torch"}, {"ffff000000000002", "000007.torch"}});
+  auto msg = test::error_of([&] { ChunkDataset(dir.string(), "train"); });
+  EXPECT_NE(msg.find("ffff000000000002"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("missing file 000007.torch"), std::string::npos) << msg;
+
+  // The file exists but does not hold the key: found when the scene is read, not at open.
+  write_chunk_index((dir / "train").string(),
+                    {{"ffff000000000001", "000000.torch"}, {"ffff000000000002", "000000.torch"}});
+  ChunkDataset ds(dir.string(), "train");
+  ASSERT_EQ(ds.size(), 2);
+  EXPECT_EQ(ds.scene(0).key, "ffff000000000001");
+  msg = test::error_of([&] { ds.scene(1); });
+  EXPECT_NE(msg.find("says scene ffff000000000002 is in 000000.torch"), std::string::npos) << msg;
+  fs::remove_all(dir);
+}
+
 TEST(ChunkDataset, ConcurrentLoadsMatchSerial) {
   auto dir = test::temp_dir("chunk_threads");
   fs::create_directories(dir / "train");

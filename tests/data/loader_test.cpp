@@ -65,6 +65,29 @@ TEST(Loader, EpochGoesThroughTheChunksTwoAtATime) {
   EXPECT_NE(first, second);
 }
 
+// Data-parallel sharding: in one epoch two ranks see disjoint scenes that together cover the split.
+TEST(Loader, RanksReadDisjointShardsCoveringTheEpoch) {
+  data::ChunkDataset dataset(test::micro_dataset(), "train");
+  const int64_t n = dataset.size();
+  ASSERT_EQ(n % 2, 0);
+  auto opt = micro_options();
+  opt.batch_size = 1;
+  opt.world_size = 2;
+  std::multiset<std::string> seen;
+  std::set<std::string> rank_keys[2];
+  for (int rank = 0; rank < 2; ++rank) {
+    opt.rank = rank;
+    for (int64_t step = 0; step < n / 2; ++step) {
+      const auto key = data::make_training_batch(dataset, opt, step).keys.at(0);
+      seen.insert(key);
+      rank_keys[rank].insert(key);
+    }
+  }
+  EXPECT_EQ(seen.size(), static_cast<size_t>(n));
+  EXPECT_EQ(std::set<std::string>(seen.begin(), seen.end()).size(), static_cast<size_t>(n));  // each exactly once
+  EXPECT_EQ(rank_keys[0].size() + rank_keys[1].size(), static_cast<size_t>(n));
+}
+
 TEST(Loader, MaxScenesTrainsOnTheFirstScenesOnly) {
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   ASSERT_GT(dataset.size(), 2);
