@@ -45,7 +45,6 @@ void write_text(const fs::path& path, const std::string& text) {
   std::ofstream(path) << text;
 }
 
-
 // An EXIF entry of the EXIF sub-IFD holding one SHORT or RATIONAL value (libexif's own entries, as cameras write).
 void add_short(ExifData* ed, ExifTag tag, uint16_t v) {
   ExifEntry* e = exif_entry_new();

@@ -5,8 +5,7 @@
 #include <cmath>
 #include <numeric>
 #include <random>
-#include <string>
-#include <unordered_map>
+#include <utility>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -39,13 +38,11 @@ void shuffle(std::vector<T>& v, size_t begin, std::mt19937_64& rng) {
 constexpr size_t kChunksPerShuffle = 2;
 
 std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_t seed, int64_t epoch) {
-  std::vector<std::vector<int64_t>> chunks;
-  std::unordered_map<std::string, size_t> chunk_of;
-  for (int64_t i = 0; i < n; ++i) {
-    auto [it, fresh] = chunk_of.try_emplace(dataset.chunk_name(i), chunks.size());
-    if (fresh) chunks.emplace_back();
-    chunks[it->second].push_back(i);
-  }
+  // The dataset orders scenes by chunk file, so each chunk is a contiguous range [begin, end) of scene indices.
+  std::vector<std::pair<int64_t, int64_t>> chunks;
+  for (int64_t i = 0; i < n; ++i)
+    if (i == 0 || dataset.chunk_name(i) != dataset.chunk_name(i - 1)) chunks.emplace_back(i, i);
+  for (size_t c = 0; c < chunks.size(); ++c) chunks[c].second = c + 1 < chunks.size() ? chunks[c + 1].first : n;
   std::mt19937_64 rng(mix(seed, static_cast<uint64_t>(epoch) + 1));
   shuffle(chunks, 0, rng);
   std::vector<int64_t> order;
@@ -53,7 +50,7 @@ std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_
   for (size_t g = 0; g < chunks.size(); g += kChunksPerShuffle) {
     const size_t begin = order.size();
     for (size_t k = g; k < std::min(g + kChunksPerShuffle, chunks.size()); ++k)
-      order.insert(order.end(), chunks[k].begin(), chunks[k].end());
+      for (int64_t i = chunks[k].first; i < chunks[k].second; ++i) order.push_back(i);
     shuffle(order, begin, rng);
   }
   return order;
