@@ -46,6 +46,20 @@ TEST(Config, InconsistentSizesAreRejected) {
   EXPECT_THROW(config_from_json(t, "bad.json"), std::runtime_error);
 }
 
+TEST(Config, TokenizerAndDatasetKnobsAreValidated) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  auto msg = message({{"model", {{"dinov2", {{"pos_embed_init", "random"}}}}}});
+  EXPECT_NE(msg.find("pos_embed_init must be 'normal' or 'sincos', got 'random'"), std::string::npos) << msg;
+  nlohmann::json narrow;
+  narrow["model"]["transformer"] = {{"d", 6}, {"d_head", 3}};
+  narrow["model"]["dinov2"] = {{"embed_dim", 6}, {"num_heads", 2}, {"pos_embed_init", "sincos"}};
+  msg = message(narrow);
+  EXPECT_NE(msg.find("needs embed_dim divisible by 4"), std::string::npos) << msg;
+  msg = message({{"dataset", {{"texture_scale", 0}}}});
+  EXPECT_NE(msg.find("dataset.texture_scale must be > 0"), std::string::npos) << msg;
+  EXPECT_NO_THROW(config_from_json({{"model", {{"dinov2", {{"pos_embed_init", "sincos"}}}}}}, "ok.json"));
+}
+
 TEST(Config, MissingOrInvalidFile) {
   EXPECT_THROW(load_config("/nonexistent/config.json"), std::runtime_error);
   auto dir = test::temp_dir("config");

@@ -242,6 +242,7 @@ void validate_config(const Config& c, const std::string& s) {
           "training.pose_noise_variance must be a finite number >= 0");
   require(tr.train_steps >= 1 && tr.warmup >= 0, s, "training.train_steps must be >= 1 and warmup >= 0");
   require(c.dataset.frames_per_scene >= tr.num_views, s, "dataset.frames_per_scene must be >= training.num_views");
+  require(c.dataset.texture_scale > 0, s, "dataset.texture_scale must be > 0");
 }
 
 json config_to_json(const Config& c) {
