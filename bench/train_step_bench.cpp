@@ -22,7 +22,7 @@ namespace {
 
 using namespace uplvsm;
 using bench::bench_config, bench::matmul_flops_per_second, bench::peak_rss_gib;
-constexpr int64_t kInputViews = 2, kTargetViews = 6;
+constexpr int64_t kTrainInputViews = 2, kTrainTargetViews = 6;
 
 void BM_MatmulPeak(benchmark::State& state) {
   const bool bf16 = state.range(0) != 0;
@@ -45,12 +45,12 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
   net->train();
   net->set_grad_checkpoint_every(checkpoint_every);
   auto optimizer = train::make_optimizer(*net, config.training);
-  const int64_t S = config.model.image_size, v = kInputViews + kTargetViews;
+  const int64_t S = config.model.image_size, v = kTrainInputViews + kTrainTargetViews;
   auto images = torch::rand({1, v, 3, S, S});
   auto fxfycxcy = torch::tensor({0.9 * S, 0.9 * S, 0.5 * S, 0.5 * S}).expand({1, v, 4}).contiguous();
   using torch::indexing::Slice;
-  auto inputs = images.index({Slice(), Slice(0, kInputViews)}), targets = images.index({Slice(), Slice(kInputViews)});
-  auto in_k = fxfycxcy.index({Slice(), Slice(0, kInputViews)}), tgt_k = fxfycxcy.index({Slice(), Slice(kInputViews)});
+  auto inputs = images.index({Slice(), Slice(0, kTrainInputViews)}), targets = images.index({Slice(), Slice(kTrainInputViews)});
+  auto in_k = fxfycxcy.index({Slice(), Slice(0, kTrainInputViews)}), tgt_k = fxfycxcy.index({Slice(), Slice(kTrainInputViews)});
   auto step = [&] {
     optimizer->zero_grad();
     torch::Tensor loss;
@@ -67,7 +67,7 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) benchmark::DoNotOptimize(step());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double step_flops = 3.0 * model::forward_flops(config.model, 1, kInputViews, kTargetViews).total();
+  const double step_flops = 3.0 * model::forward_flops(config.model, 1, kTrainInputViews, kTrainTargetViews).total();
   state.SetItemsProcessed(state.iterations());
   state.counters["TFLOP/s"] =
       benchmark::Counter(step_flops * 1e-12 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);

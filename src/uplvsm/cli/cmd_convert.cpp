@@ -19,7 +19,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Args {
+struct ConvertArgs {
   CommonOptions common;
   std::string input, output, config;
   bool verify = false;
@@ -85,7 +85,7 @@ void verify(const std::string& output, const model::UPLVSMImpl& converted, const
                            expected.size(), s, s, seconds, out.render.mean().item<double>(), fmt::join(pose7, " "));
 }
 
-void run_convert(const Args& a) {
+void run_convert(const ConvertArgs& a) {
   apply_common_options(a.common);
   auto w = model::read_pretrained_weights(a.input);
   Config config;
@@ -127,7 +127,7 @@ void add_convert_command(CLI::App& app) {
       "convert", "Convert weights to a uplvsm checkpoint (safetensors + config): the authors' UP-LVSM checkpoint "
                  "(.pt training checkpoint or .safetensors; dimensions inferred unless --config), or DINOv2 weights "
                  "(Meta .pth or HuggingFace safetensors; needs --config) placed in a freshly initialised UP-LVSM.");
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<ConvertArgs>();
   add_common_options(cmd, a->common);
   cmd->add_option("--input", a->input, "weights file: .pt / .pth / .safetensors")->required()->check(CLI::ExistingFile);
   cmd->add_option("--output", a->output, "checkpoint to write (.safetensors)")->required();

@@ -25,7 +25,7 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-struct Args {
+struct ImportArgs {
   data::SceneImportOptions import;
   std::string out, split = "test";
   std::vector<int64_t> context, target;
@@ -47,7 +47,7 @@ void write_json(const fs::path& path, const json& j) {
   io::write_file_atomic(path.string(), text.data(), text.size());
 }
 
-void run_import(const Args& a) {
+void run_import(const ImportArgs& a) {
   if ((a.context.empty()) != (a.target.empty()))
     throw std::runtime_error("dataset import: --context and --target go together");
   auto result = data::import_scene(a.import);
@@ -141,7 +141,7 @@ void add_dataset_import_command(CLI::App& dataset) {
       "horizontal field of view. Photos alone get identity poses and are listed in ROOT/SPLIT/unposed.json (usable "
       "for unposed training, evaluation of the unposed model and rendering). --context/--target add the scene to "
       "ROOT/evaluation_index.json.");
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<ImportArgs>();
   cmd->add_option("--images", a->import.images_dir, "folder of the photos (*.jpg, *.jpeg, *.png)")
       ->required()
       ->check(CLI::ExistingDirectory);

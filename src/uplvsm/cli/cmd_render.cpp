@@ -27,7 +27,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Args {
+struct RenderArgs {
   CommonOptions common;
   ModelSource model;
   std::string data, split = "test", index, out, amp = "none", trajectory = "interpolate";
@@ -41,7 +41,7 @@ struct Args {
 // The camera path of the video in camera-control units and its pixel intrinsics, or undefined poses for the latent
 // interpolation (unposed inputs and no way to place real cameras).
 std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const data::Views& views, bool posed,
-                                                    const Args& a) {
+                                                    const RenderArgs& a) {
   const int64_t H = views.images.size(2), W = views.images.size(3);
   auto k0 = views.fxfycxcy[0].to(torch::kFloat64);
   auto repeat_k = [&](int64_t n) { return k0.unsqueeze(0).expand({n, 4}).contiguous(); };
@@ -65,7 +65,7 @@ std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const da
   return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W)};
 }
 
-void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const std::string& dir, const Args& a,
+void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const std::string& dir, const RenderArgs& a,
                 nlohmann::json& listing, const std::string& name) {
   auto [poses, intrinsics] = camera_path(net, views, posed, a);
   torch::Tensor frames, key_poses;
@@ -103,7 +103,7 @@ void add_render_command(CLI::App& app) {
                 "mapper or a posed variant when the inputs have cameras; orbit/spiral/dolly presets or a camera-path "
                 "JSON: real cameras relative to the first input view (units: the input baseline), which need a "
                 "camera mapper (`train --stage mapper`) or a posed variant.");
-  auto a = std::make_shared<Args>();
+  auto a = std::make_shared<RenderArgs>();
   add_common_options(cmd, a->common);
   add_model_options(cmd, a->model);
   cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks)");
