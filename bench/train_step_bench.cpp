@@ -49,8 +49,10 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
   auto images = torch::rand({1, v, 3, S, S});
   auto fxfycxcy = torch::tensor({0.9 * S, 0.9 * S, 0.5 * S, 0.5 * S}).expand({1, v, 4}).contiguous();
   using torch::indexing::Slice;
-  auto inputs = images.index({Slice(), Slice(0, kTrainInputViews)}), targets = images.index({Slice(), Slice(kTrainInputViews)});
-  auto in_k = fxfycxcy.index({Slice(), Slice(0, kTrainInputViews)}), tgt_k = fxfycxcy.index({Slice(), Slice(kTrainInputViews)});
+  auto inputs = images.index({Slice(), Slice(0, kTrainInputViews)});
+  auto targets = images.index({Slice(), Slice(kTrainInputViews)});
+  auto in_k = fxfycxcy.index({Slice(), Slice(0, kTrainInputViews)});
+  auto tgt_k = fxfycxcy.index({Slice(), Slice(kTrainInputViews)});
   auto step = [&] {
     optimizer->zero_grad();
     torch::Tensor loss;
