@@ -268,6 +268,22 @@ TEST(ChunkDataset, IndexEntriesThatPointNowhereNameTheKeyAndFile) {
   fs::remove_all(dir);
 }
 
+TEST(ChunkDataset, ChunkStartsMarkEachChunksContiguousRange) {
+  auto dir = test::temp_dir("chunk_starts");
+  fs::create_directories(dir / "train");
+  write_chunk((dir / "train" / "000001.torch").string(), {make_scene("bb00000000000001", 2)});
+  write_chunk((dir / "train" / "000000.torch").string(),
+              {make_scene("aa00000000000002", 2), make_scene("aa00000000000001", 2)});
+  ChunkDataset ds(dir.string(), "train");
+  ASSERT_EQ(ds.size(), 3);
+  EXPECT_EQ(ds.chunk_starts(), (std::vector<int64_t>{0, 2}));
+  for (int64_t i = 0; i < ds.size(); ++i)
+    EXPECT_EQ(ds.chunk_name(i), i < 2 ? "000000.torch" : "000001.torch");
+  ds.keep_only({"aa00000000000002", "bb00000000000001"});  // the starts follow the subset
+  EXPECT_EQ(ds.chunk_starts(), (std::vector<int64_t>{0, 1}));
+  fs::remove_all(dir);
+}
+
 TEST(ChunkDataset, ConcurrentLoadsMatchSerial) {
   auto dir = test::temp_dir("chunk_threads");
   fs::create_directories(dir / "train");

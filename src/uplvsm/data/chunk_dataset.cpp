@@ -282,9 +282,11 @@ ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks
 void ChunkDataset::rebuild_lookup() {
   num_frames_ = std::make_unique<std::atomic<int64_t>[]>(entries_.size());
   by_key_.clear();
+  chunk_starts_.clear();
   for (size_t i = 0; i < entries_.size(); ++i) {
     by_key_[entries_[i].key] = static_cast<int64_t>(i);
     num_frames_[i].store(-1);
+    if (i == 0 || entries_[i].chunk != entries_[i - 1].chunk) chunk_starts_.push_back(static_cast<int64_t>(i));
   }
 }
 

@@ -72,6 +72,9 @@ class ChunkDataset {
   bool poses_known(int64_t i) const;
   // The chunk file name (chunks) or metadata JSON path (LVSM) scene i is read from.
   const std::string& chunk_name(int64_t i) const;
+  // Scenes are ordered by chunk, so each chunk is a contiguous range of indices: the first index of every chunk,
+  // ascending (the loader shuffles whole chunks without comparing names per batch).
+  const std::vector<int64_t>& chunk_starts() const { return chunk_starts_; }
   // Chunk files (LVSM: metadata files) parsed so far, including re-reads of chunks the cache had evicted.
   int64_t chunk_reads() const { return chunk_reads_.load(); }
 
@@ -113,6 +116,7 @@ class ChunkDataset {
   std::vector<Entry> entries_;  // sorted by (chunk file, key): deterministic without reading the chunks
   std::unordered_map<std::string, int64_t> by_key_;
   std::unique_ptr<std::atomic<int64_t>[]> num_frames_;  // -1 until the scene's chunk was read
+  std::vector<int64_t> chunk_starts_;
 
   mutable std::mutex mutex_;  // guards cache_ and lru_
   mutable std::map<std::string, std::shared_future<ChunkPtr>> cache_;

@@ -38,11 +38,11 @@ void shuffle(std::vector<T>& v, size_t begin, std::mt19937_64& rng) {
 constexpr size_t kChunksPerShuffle = 2;
 
 std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_t seed, int64_t epoch) {
-  // The dataset orders scenes by chunk file, so each chunk is a contiguous range [begin, end) of scene indices.
+  // Each chunk is a contiguous range [begin, end) of scene indices; training may use only the first n scenes.
   std::vector<std::pair<int64_t, int64_t>> chunks;
-  for (int64_t i = 0; i < n; ++i)
-    if (i == 0 || dataset.chunk_name(i) != dataset.chunk_name(i - 1)) chunks.emplace_back(i, i);
-  for (size_t c = 0; c < chunks.size(); ++c) chunks[c].second = c + 1 < chunks.size() ? chunks[c + 1].first : n;
+  const auto& starts = dataset.chunk_starts();
+  for (size_t c = 0; c < starts.size() && starts[c] < n; ++c)
+    chunks.emplace_back(starts[c], c + 1 < starts.size() ? std::min(starts[c + 1], n) : n);
   std::mt19937_64 rng(mix(seed, static_cast<uint64_t>(epoch) + 1));
   shuffle(chunks, 0, rng);
   std::vector<int64_t> order;
