@@ -55,7 +55,7 @@ TEST(Report, WritesIndexWithExistingAssets) {
   in.metrics_json = (src / "metrics.json").string();
   in.train_log_jsonl = (src / "train.jsonl").string();
   in.scene_grids = {(src / "tiny.png").string(), (src / "absent.png").string()};
-  in.video_gif = (src / "absent.gif").string();
+  in.videos = {{"interpolation", "", (src / "absent.gif").string()}};
   in.runtime_info = "torch 1.13.1";
   in.train_seconds = 3725;
   const auto index = write_report(out.string(), in);
@@ -64,12 +64,12 @@ TEST(Report, WritesIndexWithExistingAssets) {
   for (const char* file : {"index.html", "training_curve.png", "metrics.json", "per_scene.csv", "scenes/tiny.png",
                            "config.json", "train_log.jsonl"})
     EXPECT_TRUE(fs::is_regular_file(out / file)) << file;
-  EXPECT_FALSE(fs::exists(out / "video.gif"));
+  EXPECT_FALSE(fs::exists(out / "video_0.gif"));
   const auto html = read(index);
   EXPECT_NE(html.find("src=\"training_curve.png\""), std::string::npos);
   EXPECT_NE(html.find("src=\"scenes/tiny.png\""), std::string::npos);
   EXPECT_EQ(html.find("src=\"scenes/absent.png\""), std::string::npos);
-  EXPECT_EQ(html.find("video.gif"), std::string::npos);
+  EXPECT_EQ(html.find("video_0.gif"), std::string::npos);
   EXPECT_EQ(html.find("<video"), std::string::npos);
   EXPECT_NE(html.find("Test &lt;run&gt;"), std::string::npos);
   EXPECT_NE(html.find("UP-LVSM (ours)"), std::string::npos);
@@ -97,10 +97,12 @@ TEST(Report, VideoAndPlainTable) {
   write(src / "v.mp4", "not really a video");
   ReportInputs in;
   in.metrics_json = (src / "metrics.json").string();
-  in.video_mp4 = (src / "v.mp4").string();
+  in.videos = {{"latent interpolation", (src / "v.mp4").string(), ""}, {"orbit", (src / "v.mp4").string(), ""}};
   const auto html = read(write_report(out.string(), in));
-  EXPECT_TRUE(fs::is_regular_file(out / "video.mp4"));
-  EXPECT_NE(html.find("<video src=\"video.mp4\" controls loop autoplay muted"), std::string::npos);
+  EXPECT_TRUE(fs::is_regular_file(out / "video_0.mp4"));
+  EXPECT_TRUE(fs::is_regular_file(out / "video_1.mp4"));
+  EXPECT_NE(html.find("<video src=\"video_0.mp4\" controls loop autoplay muted"), std::string::npos);
+  EXPECT_NE(html.find("<figcaption>orbit</figcaption>"), std::string::npos);
   EXPECT_EQ(html.find("Large"), std::string::npos);
   EXPECT_NE(html.find("Test set (3 scenes)"), std::string::npos);
   EXPECT_FALSE(fs::exists(out / "training_curve.png"));

@@ -2,6 +2,7 @@
 // weights, fp32): DINOv2 reg4 + QK-norm tokenizer, canonical marker, latents, encoder, estimator, decoder.
 #include <gtest/gtest.h>
 
+#include "official_fixture.h"
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/state_dict.h"
@@ -10,27 +11,9 @@
 using namespace uplvsm;
 using torch::indexing::Slice;
 
-namespace {
-ModelConfig fixture_config() {
-  ModelConfig c;
-  c.image_size = 126;
-  c.patch_size = 14;
-  c.transformer.d = 64;
-  c.transformer.d_head = 32;
-  c.transformer.encoder_n_layer = 2;
-  c.transformer.estimator_n_layer = 1;
-  c.transformer.decoder_n_layer = 2;
-  c.transformer.n_latent_vectors = 24;
-  c.dinov2.embed_dim = 64;
-  c.dinov2.depth = 2;
-  c.dinov2.num_heads = 4;
-  c.dinov2.num_register_tokens = 4;
-  return c;
-}
-}  // namespace
 
 TEST(OfficialParity, ForwardMatchesOfficialUplvsm) {
-  model::UPLVSM net(fixture_config());
+  model::UPLVSM net(test::official_fixture_model_config());
   auto weights = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
   auto report = model::load_state_dict(*net, weights, "official_uplvsm/model.safetensors");
   EXPECT_EQ(report.loaded, 93);

@@ -87,7 +87,7 @@ void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const 
   io::write_png((fs::path(dir) / "input_1.png").string(), io::to_u8_hwc(views.images[1]));
   nlohmann::json entry = {{"name", name},          {"dir", dir},
                           {"mp4", files.mp4},      {"gif", files.gif},
-                          {"frames", frames.size(0)}, {"trajectory", poses.defined() ? a.trajectory : "latent interpolation"}};
+                          {"frames", frames.size(0)}, {"width", frames.size(3)}, {"height", frames.size(2)}, {"trajectory", poses.defined() ? a.trajectory : "latent interpolation"}};
   if (key_poses.defined())
     entry["key_poses"] = std::vector<float>(key_poses.data_ptr<float>(), key_poses.data_ptr<float>() + key_poses.numel());
   listing.push_back(entry);

@@ -30,7 +30,8 @@ const std::vector<std::pair<std::string, std::string>> kBuckets = {
 const char* kCss = R"(body{font-family:system-ui,sans-serif;max-width:1200px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em}h2{font-size:1.25em;border-bottom:1px solid #ddd;padding-bottom:.2em;margin-top:1.6em}
 table{border-collapse:collapse;margin:.5em 0}th,td{border:1px solid #ccc;padding:.3em .7em;text-align:center}
-th{background:#f3f3f3}td:first-child{text-align:left}img,video{max-width:100%;border:1px solid #ddd}
+th{background:#f3f3f3}td:first-child{text-align:left}img,video{max-width:100%;height:auto;border:1px solid #ddd;
+image-rendering:pixelated}
 pre{background:#f7f7f7;padding:.8em;overflow-x:auto;font-size:.85em}figure{margin:1em 0}
 figcaption{font-size:.85em;color:#555}.note{color:#a00}.caption{font-size:.9em;color:#555})";
 
@@ -168,10 +169,18 @@ std::string metrics_section(const ReportInputs& in, const fs::path& out, std::ve
 
 std::string video_section(const ReportInputs& in, const fs::path& out, std::vector<std::string>& missing) {
   std::string body;
-  if (auto mp4 = copy_asset(in.video_mp4, out, "video.mp4", missing))
-    body += "<video src=\"" + *mp4 + "\" controls loop autoplay muted playsinline></video>\n";
-  if (auto gif = copy_asset(in.video_gif, out, "video.gif", missing))
-    body += "<p><img src=\"" + *gif + "\" alt=\"rendered video (GIF)\"></p>\n";
+  for (size_t i = 0; i < in.videos.size(); ++i) {
+    const auto& v = in.videos[i];
+    std::string media;
+    if (auto mp4 = copy_asset(v.mp4, out, fmt::format("video_{}.mp4", i), missing))
+      media += "<video src=\"" + *mp4 + "\"" + pixel_width_attr(v.width, 576) +
+               " controls loop autoplay muted playsinline></video>\n";
+    if (auto gif = copy_asset(v.gif, out, fmt::format("video_{}.gif", i), missing))
+      media += "<p><img src=\"" + *gif + "\"" + pixel_width_attr(v.width, 576) + " alt=\"rendered video (GIF)\"></p>\n";
+    if (media.empty()) continue;
+    body += "<figure>" + media + (v.label.empty() ? "" : "<figcaption>" + html_escape(v.label) + "</figcaption>") +
+            "</figure>\n";
+  }
   return body.empty() ? "" : section("Video", body);
 }
 
@@ -184,7 +193,8 @@ std::string grids_section(const ReportInputs& in, const fs::path& out, std::vect
     auto rel = copy_asset(in.scene_grids[i], out, "scenes/" + name, missing);
     if (!rel) continue;
     used.push_back(name);
-    body += "<figure><img src=\"" + html_escape(*rel) + "\" alt=\"" + html_escape(name) + "\"><figcaption>" +
+    body += "<figure><img src=\"" + html_escape(*rel) + "\"" + pixel_width_attr(png_width(in.scene_grids[i]), 960) +
+            " alt=\"" + html_escape(name) + "\"><figcaption>" +
             html_escape(fs::path(name).stem().string()) + "</figcaption></figure>\n";
   }
   if (body.empty()) return "";
@@ -205,6 +215,22 @@ std::string info_section(const ReportInputs& in, const fs::path& out) {
 }
 
 }  // namespace
+
+std::string pixel_width_attr(int64_t native_width, int64_t target_width) {
+  if (native_width <= 0) return "";
+  return fmt::format(" width=\"{}\"", native_width * std::max<int64_t>(1, target_width / native_width));
+}
+
+int64_t png_width(const std::string& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) return 0;
+  try {
+    const auto bytes = io::read_file(path);
+    return io::image_size(bytes.data(), bytes.size(), path).second;
+  } catch (const std::exception&) {
+    return 0;  // not an image we can size: shown at its own size
+  }
+}
 
 std::string html_escape(const std::string& text) {
   std::string out;

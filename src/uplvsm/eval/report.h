@@ -13,18 +13,25 @@
 
 namespace uplvsm::eval {
 
+// One rendered video of a report (an MP4 and/or a GIF of the same frames).
+struct VideoAsset {
+  std::string label;           // e.g. "latent interpolation", "orbit (camera mapper)"
+  std::string mp4, gif;        // may be empty
+  int64_t width = 0;           // frame width in pixels (0: unknown), to upscale small videos without blurring
+};
+
 struct ReportInputs {
   std::string title;
   nlohmann::json config;              // shown pretty-printed and saved as config.json (null: omitted)
   std::string metrics_json;           // evaluate()'s metrics.json; its per_scene.csv / per_view.csv come along
   std::string train_log_jsonl;        // lines {"step":..,"loss":..,"psnr":..,"lr":..}; may be empty
   std::vector<std::string> scene_grids;
-  std::string video_mp4, video_gif;   // may be empty
+  std::vector<VideoAsset> videos;
   std::string runtime_info;
   double train_seconds = 0;
 };
 
-// Writes out_dir/index.html (creating out_dir), copying the assets under it (scenes/, video.mp4, video.gif,
+// Writes out_dir/index.html (creating out_dir), copying the assets under it (scenes/, video_N.mp4, video_N.gif,
 // metrics.json, ...) and rendering training_curve.png from the log. Empty paths are omitted; paths that do not
 // exist are logged, omitted and listed on the page, so a failed video never costs the rest of the report. Throws
 // std::runtime_error naming the file for a metrics.json that is not valid JSON or has no "table" object.
@@ -47,5 +54,11 @@ torch::Tensor training_curve(const std::vector<TrainPoint>& points);
 std::string results_table_html(const nlohmann::json& metrics);
 
 std::string html_escape(const std::string& text);
+
+// ` width="k w"` for an image/video `native_width` px wide, k the largest integer with k w <= target (at least 1),
+// so small renders are shown large and (with CSS image-rendering: pixelated) never blurred; "" for an unknown width.
+std::string pixel_width_attr(int64_t native_width, int64_t target_width);
+// Width of a PNG/JPEG file from its header; 0 when it cannot be read.
+int64_t png_width(const std::string& path);
 
 }  // namespace uplvsm::eval

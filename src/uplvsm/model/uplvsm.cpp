@@ -24,6 +24,10 @@ std::string to_string(TargetPoses source) {
   return "?";
 }
 
+bool reads_training_cameras(const ModelConfig& config, const std::string& target_poses) {
+  return config.variant != "uplvsm" || parse_target_poses(target_poses, config) != TargetPoses::Estimator;
+}
+
 UPLVSMImpl::UPLVSMImpl(const ModelConfig& c) : config(c) {
   const auto& t = c.transformer;
   const int64_t p = c.patch_size;

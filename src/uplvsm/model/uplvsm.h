@@ -56,6 +56,8 @@ enum class TargetPoses {
 // "estimator", "mapper", "dataset", or "auto" (the variant's own: estimator for uplvsm, dataset for the others).
 TargetPoses parse_target_poses(const std::string& name, const ModelConfig& config);
 std::string to_string(TargetPoses source);
+// Whether training this model with these target poses (training.target_poses) reads the dataset's cameras.
+bool reads_training_cameras(const ModelConfig& config, const std::string& target_poses);
 
 struct UPLVSMImpl : torch::nn::Module {
   explicit UPLVSMImpl(const ModelConfig& config);

@@ -20,6 +20,7 @@
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/perceptual_loss.h"
+#include "uplvsm/train/train_step.h"
 
 namespace uplvsm::train {
 
@@ -169,6 +170,143 @@ void run_periodic_eval(const TrainOptions& opt, const Config& config, model::UPL
   if (opt.comm) opt.comm->barrier();
 }
 
+// The run directory's files; the lead rank writes config.json.
+struct RunFiles {
+  std::string checkpoint_dir, metrics;
+};
+
+RunFiles prepare_run_dir(const Config& config, const TrainOptions& opt, bool lead) {
+  fs::create_directories(opt.run_dir);
+  auto cfg_text = config_to_json(config).dump(2) + "\n";
+  if (lead) io::write_file_atomic((fs::path(opt.run_dir) / "config.json").string(), cfg_text.data(), cfg_text.size());
+  return {(fs::path(opt.run_dir) / "checkpoints").string(), (fs::path(opt.run_dir) / "metrics.jsonl").string()};
+}
+
+// The checkpoint to resume from: the latest in the run for "auto" (none on a new run), a given file, or none.
+std::string resume_source(const TrainOptions& opt, const std::string& checkpoint_dir) {
+  if (opt.resume == "none") return "";
+  if (opt.resume != "auto") return model::resolve_checkpoint(opt.resume);
+  if (!fs::exists(checkpoint_dir)) return "";
+  try {
+    return model::resolve_checkpoint(checkpoint_dir);
+  } catch (const std::runtime_error&) {
+    return "";
+  }
+}
+
+// Restores weights, optimiser and training state from a checkpoint, or initialises a new run (optionally from
+// weights). Returns the state to continue from.
+TrainState resume_or_initialise(model::UPLVSMImpl& net, torch::optim::AdamW& optimizer, const Config& config,
+                                const TrainOptions& opt, const std::string& checkpoint_dir) {
+  const std::string resume_from = resume_source(opt, checkpoint_dir);
+  if (!resume_from.empty()) {
+    auto ckpt = model::read_checkpoint(resume_from);
+    check_same_model(config, ckpt.config, resume_from);
+    model::load_state_dict(net, ckpt.model, resume_from);
+    restore_optimizer_state(optimizer, net, ckpt.optimizer, resume_from);
+    auto state = TrainState::from_json(ckpt.state);
+    spdlog::info("resumed from {} at step {}", resume_from, state.step);
+    return state;
+  }
+  if (!opt.init_weights.empty() && init_from_weights(net, opt.init_weights)) calibrate_pose_mapper(net, config, opt);
+  return {};
+}
+
+// Restricts the train split to the configured subset and checks it can serve this run (cameras, scene count).
+void prepare_training_data(data::ChunkDataset& dataset, const Config& config, const TrainOptions& opt) {
+  const auto& tc = config.training;
+  if (!tc.subset.empty()) {
+    const auto subset = data::read_subset_manifest(tc.subset);
+    dataset.keep_only(subset.scenes);
+    spdlog::info("subset {} ({}): {} scenes{}", subset.name, tc.subset, dataset.size(),
+                 subset.chunks.empty() ? "" : fmt::format(" in {} chunks", subset.chunks.size()));
+  }
+  const bool reads_cameras = model::reads_training_cameras(config.model, tc.target_poses);
+  for (int64_t i = 0; reads_cameras && i < dataset.size(); ++i)
+    if (!dataset.poses_known(i))
+      throw std::runtime_error(fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
+                                           "(imported without poses, listed in train/unposed.json)",
+                                           config.model.variant, dataset.key(i), opt.data_root));
+  if (tc.max_train_scenes > dataset.size())
+    throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
+                                         tc.max_train_scenes, opt.data_root, dataset.size()));
+  if (tc.pose_noise_variance > 0)
+    spdlog::info("pose noise: N(0, {}) on the (t, q) of every training camera{}", tc.pose_noise_variance,
+                 reads_cameras ? "" : " (this UP-LVSM run never reads them)");
+}
+
+// Everything a step needs besides its batches.
+StepContext make_step_context(model::UPLVSMImpl& net, torch::optim::Optimizer& optimizer, const Config& config,
+                              const TrainOptions& opt) {
+  const auto& tc = config.training;
+  StepContext ctx;
+  ctx.net = &net;
+  ctx.optimizer = &optimizer;
+  ctx.params = trainable_parameters(net);
+  ctx.training = tc;
+  ctx.target_poses = model::parse_target_poses(tc.target_poses, config.model);
+  ctx.perceptual = make_perceptual_loss(tc, opt);
+  ctx.bf16 = parse_amp(tc.amp);
+  ctx.comm = opt.comm.get();
+  if (ctx.bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
+  spdlog::info("{} variant, target poses from {}", config.model.variant, model::to_string(ctx.target_poses));
+  net.set_grad_checkpoint_every(tc.grad_checkpoint_every);
+  if (tc.grad_checkpoint_every > 0)
+    spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
+  return ctx;
+}
+
+// The next grad_accum_steps micro-batches of the stream, on the device.
+std::vector<MicroBatch> next_micro_batches(data::TrainingLoader& loader, const TrainingConfig& tc,
+                                           torch::Device device) {
+  std::vector<MicroBatch> micro;
+  const int64_t vi = tc.num_input_views;
+  auto dev = [&](const torch::Tensor& t) { return t.to(device); };
+  for (int64_t i = 0; i < tc.grad_accum_steps; ++i) {
+    auto batch = loader.next();
+    micro.push_back({{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))},
+                     {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())}});
+  }
+  return micro;
+}
+
+// Smoothed loss/PSNR for the progress bar.
+struct RunningMeans {
+  double loss = -1, mse = -1;
+  void add(const StepResult& r) {
+    if (!std::isfinite(r.loss)) return;
+    loss = loss < 0 ? r.loss : 0.95 * loss + 0.05 * r.loss;
+    mse = mse < 0 ? r.mse : 0.95 * mse + 0.05 * r.mse;
+  }
+};
+
+void log_step(std::ofstream& metrics, const TrainState& state, const StepResult& r, double step_seconds,
+              const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
+  metrics << json{{"step", state.step},           {"loss", r.loss},
+                  {"mse", r.mse},                 {"psnr", psnr_from_mse(r.mse)},
+                  {"lr", r.lr},                   {"grad_norm", r.grad_norm},
+                  {"skipped", r.skipped},         {"step_seconds", step_seconds},
+                  {"data_wait_seconds", loader.wait_seconds()}, {"chunk_reads", dataset.chunk_reads()},
+                  {"train_seconds", state.train_seconds}}
+                 .dump()
+          << "\n";
+  metrics.flush();
+}
+
+// End of run: the loader's share, data-parallel consistency, and skipped updates.
+void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator* comm, model::UPLVSMImpl& net,
+                const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
+  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(), dataset.chunk_reads());
+  if (comm) {
+    check_parameters_in_sync(*comm, net.parameters());
+    comm->barrier();  // rank 0's last checkpoint is on disk before any rank returns
+    spdlog::info("rank {}: parameters identical on all {} ranks", comm->rank(), comm->world_size());
+  }
+  if (state.skipped_nonfinite + state.skipped_gradnorm > 0)
+    spdlog::warn("skipped updates: {} non-finite losses, {} gradient norms above {} x clip", state.skipped_nonfinite,
+                 state.skipped_gradnorm, tc.allowed_gradnorm_factor);
+}
+
 }  // namespace
 
 double psnr_from_mse(double mse) { return -10.0 * std::log10(std::max(mse, 1e-10)); }
@@ -178,200 +316,75 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   Communicator* comm = opt.comm.get();
   const bool lead = !comm || comm->rank() == 0;  // the rank that writes files and shows progress
-  fs::create_directories(opt.run_dir);
-  const std::string ckpt_dir = (fs::path(opt.run_dir) / "checkpoints").string();
-  const std::string metrics_path = (fs::path(opt.run_dir) / "metrics.jsonl").string();
-  auto cfg_text = config_to_json(config).dump(2) + "\n";
-  if (lead) io::write_file_atomic((fs::path(opt.run_dir) / "config.json").string(), cfg_text.data(), cfg_text.size());
+  const auto files = prepare_run_dir(config, opt, lead);
 
   torch::manual_seed(static_cast<uint64_t>(tc.seed));
   model::UPLVSM net(config.model);
   net->to(opt.device);
   net->train();
   auto optimizer = make_optimizer(*net, tc);
-  TrainState state;
-
-  std::string resume_from;
-  if (opt.resume == "auto") {
-    if (fs::exists(ckpt_dir)) {
-      try {
-        resume_from = model::resolve_checkpoint(ckpt_dir);
-      } catch (const std::runtime_error&) {
-      }
-    }
-  } else if (opt.resume != "none") {
-    resume_from = model::resolve_checkpoint(opt.resume);
-  }
-  if (!resume_from.empty()) {
-    auto ckpt = model::read_checkpoint(resume_from);
-    check_same_model(config, ckpt.config, resume_from);
-    model::load_state_dict(*net, ckpt.model, resume_from);
-    restore_optimizer_state(*optimizer, *net, ckpt.optimizer, resume_from);
-    state = TrainState::from_json(ckpt.state);
-    spdlog::info("resumed from {} at step {}", resume_from, state.step);
-  } else if (!opt.init_weights.empty()) {
-    if (init_from_weights(*net, opt.init_weights)) calibrate_pose_mapper(*net, config, opt);
-  }
-  if (lead) truncate_metrics(metrics_path, state.step);
-  std::vector<torch::Tensor> params;
-  for (const auto& p : net->parameters())
-    if (p.requires_grad()) params.push_back(p);
+  TrainState state = resume_or_initialise(*net, *optimizer, config, opt, files.checkpoint_dir);
+  if (lead) truncate_metrics(files.metrics, state.step);
   if (comm) {
     comm->broadcast(net->parameters());  // every rank starts from rank 0's weights
     spdlog::info("data parallel: rank {} of {} ({}), {} scenes per rank and step", comm->rank(), comm->world_size(),
                  comm->backend(), tc.batch_size);
   }
-
   TrainResult result;
   result.step = state.step;
   if (state.step >= tc.train_steps) {
     spdlog::info("run {} already finished ({} of {} steps)", opt.run_dir, state.step, tc.train_steps);
     return result;
   }
+
   data::ChunkDataset dataset(opt.data_root, "train");
-  if (!tc.subset.empty()) {
-    const auto subset = data::read_subset_manifest(tc.subset);
-    dataset.keep_only(subset.scenes);
-    spdlog::info("subset {} ({}): {} scenes{}", subset.name, tc.subset, dataset.size(),
-                 subset.chunks.empty() ? "" : fmt::format(" in {} chunks", subset.chunks.size()));
-  }
-  const bool reads_cameras = !(config.model.variant == "uplvsm" && model::parse_target_poses(tc.target_poses,
-                                                                                               config.model) ==
-                                                                        model::TargetPoses::Estimator);
-  for (int64_t i = 0; reads_cameras && i < dataset.size(); ++i)
-    if (!dataset.poses_known(i))
-      throw std::runtime_error(fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
-                                           "(imported without poses, listed in train/unposed.json)",
-                                           config.model.variant, dataset.key(i), opt.data_root));
-  if (tc.max_train_scenes > dataset.size())
-    throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
-                                         tc.max_train_scenes, opt.data_root, dataset.size()));
+  prepare_training_data(dataset, config, opt);
   const int64_t scenes = tc.max_train_scenes > 0 ? tc.max_train_scenes : dataset.size();
   spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, net->parameter_count(),
                scenes, opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
                state.step, tc.train_steps);
-  if (tc.pose_noise_variance > 0)
-    spdlog::info("pose noise: N(0, {}) on the (t, q) of every training camera{}", tc.pose_noise_variance,
-                 reads_cameras ? "" : " (this UP-LVSM run never reads them)");
   data::TrainingLoader loader(dataset, loader_options(config, comm), state.step);
-  PerceptualLoss perceptual = make_perceptual_loss(tc, opt);
-  const bool use_bf16 = parse_amp(tc.amp);
-  if (use_bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
-  const auto target_poses = model::parse_target_poses(tc.target_poses, config.model);
-  spdlog::info("{} variant, target poses from {}", config.model.variant, model::to_string(target_poses));
-  net->set_grad_checkpoint_every(tc.grad_checkpoint_every);
-  if (tc.grad_checkpoint_every > 0)
-    spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
+  StepContext ctx = make_step_context(*net, *optimizer, config, opt);
 
   SignalScope signals;
   std::ofstream metrics;
-  if (lead) metrics.open(metrics_path, std::ios::app);
+  if (lead) metrics.open(files.metrics, std::ios::app);
   const bool show_progress = opt.progress && lead;
   ProgressBar bar("train", tc.train_steps, "step", state.step);
-  double loss_ema = -1, mse_ema = -1;
+  RunningMeans means;
   const int64_t first_step = state.step;
   while (state.step < tc.train_steps) {
-    auto t0 = std::chrono::steady_clock::now();
-    optimizer->zero_grad();
-    double loss_value = 0, mse_value = 0;
-    for (int64_t micro = 0; micro < tc.grad_accum_steps; ++micro) {
-      auto batch = loader.next();
-      auto dev = [&](const torch::Tensor& t) { return t.to(opt.device); };
-      auto target = dev(batch.target_images());
-      torch::Tensor mse, loss;
-      {
-        // Forward and losses under autocast as the official step; MSE on fp32 (autocast's policy for losses).
-        AutocastGuard amp(opt.device, use_bf16);
-        const int64_t vi = tc.num_input_views;
-        model::Views inputs{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))};
-        model::Views targets{target, dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
-        auto out = net->forward(inputs, targets, target_poses);
-        mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
-        loss = tc.l2_loss_weight * mse;
-        if (perceptual) loss = loss + tc.perceptual_loss_weight * perceptual->forward(out.render, target);
-      }
-      (loss / static_cast<double>(tc.grad_accum_steps)).backward();
-      loss_value += loss.item<double>() / static_cast<double>(tc.grad_accum_steps);
-      mse_value += mse.item<double>() / static_cast<double>(tc.grad_accum_steps);
-    }
-    bool stop_signal = g_signal != 0;
-    if (comm) {
-      // Same decisions on every rank: averaged gradients and losses, and a stop when any rank got a signal.
-      average_gradients(*comm, params);
-      auto shared = torch::tensor({loss_value, mse_value, stop_signal ? 1.0 : 0.0}, torch::kFloat64);
-      comm->allreduce_sum({shared});
-      loss_value = shared[0].item<double>() / comm->world_size();
-      mse_value = shared[1].item<double>() / comm->world_size();
-      stop_signal = shared[2].item<double>() > 0;
-    }
-    const double lr = tc.lr * lr_lambda(state.scheduler_step, tc.warmup, tc.train_steps);
-    double grad_norm = 0;
-    bool skipped = false;
-    if (!std::isfinite(loss_value)) {
-      ++state.skipped_nonfinite;  // official: no optimiser step, no scheduler step
-      skipped = true;
-    } else {
-      for (auto& p : params)
-        if (p.grad().defined()) p.grad().nan_to_num_(0.0, 1e-6, -1e-6);
-      grad_norm = torch::nn::utils::clip_grad_norm_(params, tc.grad_clip_norm);
-      if (grad_norm > tc.grad_clip_norm * tc.allowed_gradnorm_factor) {
-        ++state.skipped_gradnorm;  // official: skip the update, still advance the schedule
-        skipped = true;
-      } else {
-        set_learning_rate(*optimizer, lr);
-        optimizer->step();
-        ++state.param_update_step;
-      }
-      ++state.scheduler_step;
-    }
-    ++state.step;
+    const auto t0 = std::chrono::steady_clock::now();
+    const auto r = train_step(ctx, state, next_micro_batches(loader, tc, opt.device), g_signal != 0);
     const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     state.train_seconds += step_seconds;
-    const double psnr = psnr_from_mse(mse_value);
-    if (std::isfinite(loss_value)) {
-      loss_ema = loss_ema < 0 ? loss_value : 0.95 * loss_ema + 0.05 * loss_value;
-      mse_ema = mse_ema < 0 ? mse_value : 0.95 * mse_ema + 0.05 * mse_value;
-    }
-    result.last_loss = loss_value;
-    result.last_psnr = psnr;
-    if (lead && (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1)) {
-      metrics << json{{"step", state.step}, {"loss", loss_value}, {"mse", mse_value}, {"psnr", psnr}, {"lr", lr}, {"grad_norm", grad_norm},
-                      {"skipped", skipped}, {"step_seconds", step_seconds}, {"data_wait_seconds", loader.wait_seconds()},
-                      {"chunk_reads", dataset.chunk_reads()}, {"train_seconds", state.train_seconds}}
-                     .dump()
-              << "\n";
-      metrics.flush();
-    }
+    means.add(r);
+    result.last_loss = r.loss;
+    result.last_psnr = psnr_from_mse(r.mse);
+    if (lead && (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1))
+      log_step(metrics, state, r, step_seconds, loader, dataset);
     if (show_progress)
-      bar.update(state.step, {{"loss", fmt::format("{:.4f}", loss_ema)},
-                              {"psnr", fmt::format("{:.2f}", psnr_from_mse(mse_ema))},
-                              {"lr", fmt::format("{:.2e}", lr)}});
-    const bool stop_now = stop_signal || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
+      bar.update(state.step, {{"loss", fmt::format("{:.4f}", means.loss)},
+                              {"psnr", fmt::format("{:.2f}", psnr_from_mse(means.mse))},
+                              {"lr", fmt::format("{:.2e}", r.lr)}});
+    const bool stop_now = r.stop || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
     // Evaluation first, so the checkpoint of this step carries its best-so-far record.
-    const bool eval_now = opt.periodic_eval && tc.eval_every > 0 &&
-                          (state.step % tc.eval_every == 0 || state.step == tc.train_steps);
-    if (eval_now) run_periodic_eval(opt, config, net, state, lead, metrics, ckpt_dir);
-    if (lead && (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now)) {
-      result.last_checkpoint = save_training_checkpoint(ckpt_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
-    }
+    if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || state.step == tc.train_steps))
+      run_periodic_eval(opt, config, net, state, lead, metrics, files.checkpoint_dir);
+    if (lead && (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now))
+      result.last_checkpoint =
+          save_training_checkpoint(files.checkpoint_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
     if (stop_now) {
-      result.interrupted = stop_signal;
-      if (result.interrupted) spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);
+      result.interrupted = r.stop;
+      if (result.interrupted)
+        spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);
       break;
     }
   }
   if (show_progress) bar.finish();
-  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(), dataset.chunk_reads());
-  if (comm) {
-    check_parameters_in_sync(*comm, net->parameters());
-    comm->barrier();  // rank 0's last checkpoint is on disk before any rank returns
-    spdlog::info("rank {}: parameters identical on all {} ranks", comm->rank(), comm->world_size());
-  }
+  finish_run(state, tc, comm, *net, loader, dataset);
   result.step = state.step;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  if (state.skipped_nonfinite + state.skipped_gradnorm > 0)
-    spdlog::warn("skipped updates: {} non-finite losses, {} gradient norms above {} x clip", state.skipped_nonfinite,
-                 state.skipped_gradnorm, tc.allowed_gradnorm_factor);
   return result;
 }
 

@@ -1,0 +1,94 @@
+#include "uplvsm/train/train_step.h"
+
+#include <cmath>
+
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/train/optimizer.h"
+
+namespace uplvsm::train {
+
+namespace {
+
+struct Losses {
+  double loss = 0, mse = 0;
+};
+
+// Forward and losses under autocast, as the official step; the MSE on fp32 (autocast's policy for losses).
+Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum) {
+  const auto& tc = ctx.training;
+  const auto& target = batch.targets.images;
+  torch::Tensor mse, loss;
+  {
+    AutocastGuard amp(target.device(), ctx.bf16);
+    auto out = ctx.net->forward(batch.inputs, batch.targets, ctx.target_poses);
+    mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
+    loss = tc.l2_loss_weight * mse;
+    if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
+  }
+  (loss / accum).backward();
+  return {loss.item<double>() / accum, mse.item<double>() / accum};
+}
+
+// Data parallel: every rank takes the same decisions from averaged gradients and losses, and stops when any rank
+// got a signal.
+void agree_across_ranks(Communicator& comm, const std::vector<torch::Tensor>& params, StepResult& r) {
+  average_gradients(comm, params);
+  auto shared = torch::tensor({r.loss, r.mse, r.stop ? 1.0 : 0.0}, torch::kFloat64);
+  comm.allreduce_sum({shared});
+  r.loss = shared[0].item<double>() / comm.world_size();
+  r.mse = shared[1].item<double>() / comm.world_size();
+  r.stop = shared[2].item<double>() > 0;
+}
+
+// The official skip rules around AdamW (see the header).
+void apply_update(StepContext& ctx, TrainState& state, StepResult& r) {
+  const auto& tc = ctx.training;
+  if (!std::isfinite(r.loss)) {
+    ++state.skipped_nonfinite;  // official: no optimiser step, no scheduler step
+    r.skipped = true;
+    return;
+  }
+  for (auto& p : ctx.params)
+    if (p.grad().defined()) p.grad().nan_to_num_(0.0, 1e-6, -1e-6);
+  r.grad_norm = torch::nn::utils::clip_grad_norm_(ctx.params, tc.grad_clip_norm);
+  if (r.grad_norm > tc.grad_clip_norm * tc.allowed_gradnorm_factor) {
+    ++state.skipped_gradnorm;  // official: skip the update, still advance the schedule
+    r.skipped = true;
+  } else {
+    set_learning_rate(*ctx.optimizer, r.lr);
+    ctx.optimizer->step();
+    ++state.param_update_step;
+  }
+  ++state.scheduler_step;
+}
+
+}  // namespace
+
+std::vector<torch::Tensor> trainable_parameters(const torch::nn::Module& module) {
+  std::vector<torch::Tensor> params;
+  for (const auto& p : module.parameters())
+    if (p.requires_grad()) params.push_back(p);
+  return params;
+}
+
+StepResult train_step(StepContext& ctx, TrainState& state, const std::vector<MicroBatch>& micro_batches,
+                      bool stop_requested) {
+  TORCH_CHECK(!micro_batches.empty(), "train_step: no micro-batches");
+  const auto& tc = ctx.training;
+  StepResult r;
+  r.stop = stop_requested;
+  ctx.optimizer->zero_grad();
+  const auto accum = static_cast<double>(micro_batches.size());
+  for (const auto& batch : micro_batches) {
+    const auto losses = forward_backward(ctx, batch, accum);
+    r.loss += losses.loss;
+    r.mse += losses.mse;
+  }
+  if (ctx.comm) agree_across_ranks(*ctx.comm, ctx.params, r);
+  r.lr = tc.lr * lr_lambda(state.scheduler_step, tc.warmup, tc.train_steps);
+  apply_update(ctx, state, r);
+  ++state.step;
+  return r;
+}
+
+}  // namespace uplvsm::train

@@ -1,0 +1,53 @@
+// One optimiser step of the official training loop (Less3Depend `src/train.py`), as a function of its own so the
+// loop in trainer.cpp reads as named steps and tests can replay the official steps through this very code:
+//   per micro-batch: forward (autocast) -> loss = w_l2 MSE (+ w_p perceptual) -> backward(loss / accum)
+//   [data parallel: average gradients and losses]
+//   non-finite loss: no update, schedule does not move; else nan_to_num(grads) -> clip (norm returned BEFORE
+//   clipping) -> skip the update when norm > clip x factor -> AdamW at the scheduled LR; the schedule moves.
+#pragma once
+#include <torch/torch.h>
+
+#include <vector>
+
+#include "uplvsm/core/config.h"
+#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/checkpoint.h"
+#include "uplvsm/train/distributed.h"
+#include "uplvsm/train/perceptual_loss.h"
+
+namespace uplvsm::train {
+
+// The views of one micro-batch, already on the training device.
+struct MicroBatch {
+  model::Views inputs;
+  model::Views targets;
+};
+
+// What a step needs besides its batches; built once per run.
+struct StepContext {
+  model::UPLVSMImpl* net = nullptr;
+  torch::optim::Optimizer* optimizer = nullptr;
+  std::vector<torch::Tensor> params;  // trainable parameters (clipped together, as the official loop)
+  TrainingConfig training;
+  model::TargetPoses target_poses = model::TargetPoses::Estimator;
+  PerceptualLoss perceptual{nullptr};  // null: MSE only
+  bool bf16 = false;
+  Communicator* comm = nullptr;        // null: one process
+};
+
+struct StepResult {
+  double loss = 0, mse = 0;  // averaged over micro-batches (and ranks)
+  double lr = 0;             // the learning rate this step used (scheduled; also when the update was skipped)
+  double grad_norm = 0;      // total norm before clipping (0 on a non-finite loss)
+  bool skipped = false;      // no parameter update (non-finite loss, or gradient norm above clip x factor)
+  bool stop = false;         // some rank asked to stop (a signal); agreed by every rank
+};
+
+// The trainable parameters of a module, in registration order.
+std::vector<torch::Tensor> trainable_parameters(const torch::nn::Module& module);
+
+// Runs one step over `micro_batches` (grad_accum_steps of them) and advances `state` (step, scheduler, skip counts).
+StepResult train_step(StepContext& ctx, TrainState& state, const std::vector<MicroBatch>& micro_batches,
+                      bool stop_requested = false);
+
+}  // namespace uplvsm::train

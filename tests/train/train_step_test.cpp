@@ -1,0 +1,101 @@
+// The trainer's own step (train::train_step) against the official training loop
+// (../shared/fixtures/official_uplvsm_train: optimiser steps of Less3Depend `src/train.py` in fp32 from the weights
+// of ../official_uplvsm): per-step losses, gradient norms before clipping, learning rates, skip flags and the final
+// weights, with the tolerances of the fixture's README. The model and training values come from the fixture's
+// files (config.json, the weights' shapes), so a fixture of other sizes or step counts is replayed the same way.
+#include <gtest/gtest.h>
+
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "test_util.h"
+#include "uplvsm/io/safetensors.h"
+#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/state_dict.h"
+#include "uplvsm/train/optimizer.h"
+#include "uplvsm/train/train_step.h"
+
+using namespace uplvsm;
+
+namespace {
+
+nlohmann::json fixture_parameters() {
+  std::ifstream in(test::fixture("official_uplvsm_train/config.json"));
+  return nlohmann::json::parse(in).at("parameters");
+}
+
+// The official YAML training values the step uses.
+TrainingConfig official_training_config(const nlohmann::json& t) {
+  TrainingConfig tc;
+  tc.lr = t.at("lr");
+  tc.beta1 = t.at("beta1");
+  tc.beta2 = t.at("beta2");
+  tc.weight_decay = t.at("weight_decay");
+  tc.warmup = t.at("warmup");
+  tc.train_steps = t.at("train_steps");
+  tc.grad_clip_norm = t.at("grad_clip_norm");
+  tc.allowed_gradnorm_factor = t.at("allowed_gradnorm_factor");
+  tc.l2_loss_weight = t.at("l2_loss_weight");
+  tc.perceptual_loss_weight = t.at("perceptual_loss_weight");
+  tc.grad_accum_steps = t.at("grad_accum_steps");
+  return tc;
+}
+
+model::Views fixture_views(const model::NamedTensors& steps, int k, const std::string& which) {
+  const std::string prefix = "step" + std::to_string(k) + "." + which + ".";
+  return {steps.at(prefix + "images"), steps.at(prefix + "fxfycxcy"), {}};
+}
+
+double scalar(const model::NamedTensors& steps, int k, const std::string& name) {
+  return steps.at("step" + std::to_string(k) + "." + name).to(torch::kFloat64).item<double>();
+}
+
+}  // namespace
+
+TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
+  const auto params = fixture_parameters();
+  ASSERT_EQ(params.at("training").at("perceptual_loss_weight").get<double>(), 0.0);
+  const auto initial = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
+  ModelConfig base;
+  base.image_size = params.at("model").at("image_tokenizer").at("image_size");
+  model::UPLVSM net(model::infer_model_config(initial, base));
+  model::load_state_dict(*net, initial, "official_uplvsm/model.safetensors");
+  net->train();
+
+  const auto tc = official_training_config(params.at("training"));
+  auto optimizer = train::make_optimizer(*net, tc);
+  train::StepContext ctx;
+  ctx.net = net.get();
+  ctx.optimizer = optimizer.get();
+  ctx.params = train::trainable_parameters(*net);
+  ctx.training = tc;
+  train::TrainState state;
+
+  const auto steps = io::read_safetensors(test::fixture("official_uplvsm_train/steps.safetensors")).tensors;
+  int k = 0;
+  for (; steps.count("step" + std::to_string(k) + ".loss"); ++k) {
+    SCOPED_TRACE("step " + std::to_string(k));
+    const auto r = train::train_step(ctx, state, {{fixture_views(steps, k, "input"), fixture_views(steps, k, "target")}});
+    const double loss = scalar(steps, k, "loss"), grad_norm = scalar(steps, k, "grad_norm");
+    EXPECT_NEAR(r.loss, loss, 1e-5 * std::abs(loss));
+    EXPECT_NEAR(r.grad_norm, grad_norm, 1e-5 * std::abs(grad_norm));
+    EXPECT_NEAR(r.lr, scalar(steps, k, "lr"), 1e-12);
+    EXPECT_EQ(r.skipped, scalar(steps, k, "skipped") != 0);
+  }
+  ASSERT_GE(k, 2) << "official_uplvsm_train/steps.safetensors holds no steps";
+  EXPECT_EQ(state.step, k);
+
+  const auto final_weights = io::read_safetensors(test::fixture("official_uplvsm_train/final_model.safetensors")).tensors;
+  const auto ours = model::state_dict(*net);
+  int64_t elements = 0, close = 0;
+  for (const auto& [name, expected] : final_weights) {
+    ASSERT_TRUE(ours.count(name)) << name;
+    const auto diff = (ours.at(name).detach() - expected).abs();
+    EXPECT_LE(diff.max().item<double>(), 2e-3) << name;
+    elements += diff.numel();
+    close += diff.le(1e-5).sum().item<int64_t>();
+  }
+  EXPECT_EQ(ours.size(), final_weights.size());
+  EXPECT_GE(static_cast<double>(close) / static_cast<double>(elements), 0.999);
+}
