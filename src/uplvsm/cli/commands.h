@@ -41,6 +41,7 @@ void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
+void add_export_command(CLI::App& app);
 void add_study_command(CLI::App& app);
 // study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
 void add_study_grid_commands(CLI::App& study);

@@ -22,6 +22,7 @@ int main(int argc, char** argv) {
   uplvsm::cli::add_render_command(app);
   uplvsm::cli::add_report_command(app);
   uplvsm::cli::add_convert_command(app);
+  uplvsm::cli::add_export_command(app);
   uplvsm::cli::add_study_command(app);
   try {
     app.parse(argc, argv);

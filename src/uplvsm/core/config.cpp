@@ -116,10 +116,12 @@ void training_fields(C& c, F&& f) {
   f("max_train_scenes", c.max_train_scenes);
   f("subset", c.subset);
   f("pose_noise_variance", c.pose_noise_variance);
+  f("view_sampler", c.view_sampler);
 }
 
 template <typename C, typename F>
 void dataset_fields(C& c, F&& f) {
+  f("kind", c.kind);
   f("square_crop", c.square_crop);
   f("num_train_scenes", c.num_train_scenes);
   f("num_test_scenes", c.num_test_scenes);
@@ -243,6 +245,10 @@ void validate_config(const Config& c, const std::string& s) {
   require(tr.train_steps >= 1 && tr.warmup >= 0, s, "training.train_steps must be >= 1 and warmup >= 0");
   require(c.dataset.frames_per_scene >= tr.num_views, s, "dataset.frames_per_scene must be >= training.num_views");
   require(c.dataset.texture_scale > 0, s, "dataset.texture_scale must be > 0");
+  require(tr.view_sampler == "auto" || tr.view_sampler == "ordered" || tr.view_sampler == "unordered", s,
+          "training.view_sampler must be 'auto', 'ordered' or 'unordered', got '" + tr.view_sampler + "'");
+  require(c.dataset.kind == "rooms" || c.dataset.kind == "objects", s,
+          "dataset.kind must be 'rooms' or 'objects', got '" + c.dataset.kind + "'");
 }
 
 json config_to_json(const Config& c) {

@@ -85,11 +85,17 @@ struct TrainingConfig {
   // The pose-noise study: N(0, variance) added to the 7-D (t, q) encoding of every training camera (the official
   // `noise_scale` knob); 0: clean cameras. Only variants that read training cameras are affected.
   double pose_noise_variance = 0;
+  // How training views are drawn from a scene: "ordered" (the official selector: two context frames min..max
+  // frame_dist apart, targets between them; video datasets), "unordered" (any distinct frames; object renders
+  // whose frames have no order), or "auto" (the dataset's dataset.json view_order; ordered without one).
+  std::string view_sampler = "auto";
 };
 
 struct DatasetConfig {
   bool square_crop = true;
-  // Built-in room walkthroughs (uplvsm make-dataset).
+  // Built-in data (uplvsm make-dataset): "rooms" (walkthroughs, ordered frames) or "objects" (one object seen
+  // from frames_per_scene random cameras on a sphere, unordered).
+  std::string kind = "rooms";
   int64_t num_train_scenes = 400;
   int64_t num_test_scenes = 64;
   int64_t frames_per_scene = 32;

@@ -56,6 +56,7 @@ struct Loaded {
 
 // Where the results of one run go while batches finish in group order (main thread only).
 struct RunState {
+  bool ordered_views = true;  // the dataset's frames follow a path: copy-nearest by frame index, else by direction
   std::vector<std::optional<SceneResult>> results;  // by Job::position
   std::vector<std::string> grids;
   int64_t bad_frames = 0, done = 0;
@@ -204,7 +205,8 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
     pred = net->forward(inputs, targets, opt.target_poses).render;
   }
   pred = pred.to(torch::kFloat32);
-  auto copy = copy_nearest_input(in_img, in_frames, tgt_frames);
+  auto copy = state.ordered_views ? copy_nearest_input(in_img, in_frames, tgt_frames)
+                                  : copy_nearest_direction(in_img, c2w.narrow(1, 0, vi), c2w.narrow(1, vi, vt));
   auto mean = mean_colour(gt);
   auto lp = [&](const torch::Tensor& x) {
     return opt.lpips ? lpips_of(opt.lpips, x, gt, opt.lpips_chunk).to(torch::kFloat64)
@@ -363,7 +365,8 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
       {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
       {"spans", "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
                 "scene mean over its targets of each kind, then mean over the scenes that have such targets"},
-      {"copy_nearest", "each target predicted by the input view nearest in frame index"},
+      {"copy_nearest", "each target predicted by the input view nearest in frame index (ordered views) or in "
+                       "viewing direction (unordered views: dataset.json view_order)"},
       {"mean_colour", "oracle: each target predicted by its own per-channel mean colour"}};
   return j;
 }
@@ -409,6 +412,7 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
   for (const auto& job : all_jobs)
     if (static_cast<int>(job.position % static_cast<size_t>(opt.shard_count)) == opt.shard_rank) jobs.push_back(job);
   RunState state;
+  state.ordered_views = dataset.info().ordered_views;
   state.results.resize(all_jobs.size());
   {
     EvalModeGuard mode(net);

@@ -13,6 +13,7 @@
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
+#include "uplvsm/data/view_sampler.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/pretrained_weights.h"
@@ -46,9 +47,10 @@ struct SignalScope {
   void (*old_term)(int);
 };
 
-data::LoaderOptions loader_options(const Config& c, const Communicator* comm) {
+data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& dataset, const Communicator* comm) {
   const auto& t = c.training;
   data::LoaderOptions o;
+  o.ordered_views = data::uses_ordered_views(t.view_sampler, dataset.info());
   o.batch_size = t.batch_size;
   o.num_views = static_cast<int>(t.num_views);
   o.num_input_views = static_cast<int>(t.num_input_views);
@@ -111,7 +113,7 @@ bool init_from_weights(model::UPLVSMImpl& net, const std::string& path) {
 // estimator gives them, on calibration batches drawn apart from the training stream (another seed).
 void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const TrainOptions& opt) {
   data::ChunkDataset dataset(opt.data_root, "train");
-  auto lo = loader_options(config, nullptr);
+  auto lo = loader_options(config, dataset, nullptr);
   lo.seed += 1000003;
   const int64_t batches = std::max<int64_t>(1, (64 + lo.batch_size - 1) / lo.batch_size);
   torch::NoGradGuard no_grad;
@@ -343,7 +345,9 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, net->parameter_count(),
                scenes, opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
                state.step, tc.train_steps);
-  data::TrainingLoader loader(dataset, loader_options(config, comm), state.step);
+  const auto loader_opt = loader_options(config, dataset, comm);
+  if (!loader_opt.ordered_views) spdlog::info("views: unordered (any {} distinct frames per scene)", tc.num_views);
+  data::TrainingLoader loader(dataset, loader_opt, state.step);
   StepContext ctx = make_step_context(*net, *optimizer, config, opt);
 
   SignalScope signals;
