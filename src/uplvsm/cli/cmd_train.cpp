@@ -65,6 +65,7 @@ void add_train_command(CLI::App& app) {
   struct Args {
     CommonOptions common;
     std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
+    std::vector<std::string> set;
     int64_t steps = -1, stop_after = -1;
   };
   auto a = std::make_shared<Args>();
@@ -96,6 +97,9 @@ void add_train_command(CLI::App& app) {
                   "(configs/*_mapper.json)")
       ->check(CLI::IsMember({"main", "mapper"}))
       ->capture_default_str();
+  cmd->add_option("--set", a->set,
+                  "override a config field, section.field=value (repeatable), e.g. --set training.warmup=500 --set "
+                  "model.transformer.n_latent_vectors=64; the run's config.json records the result");
   cmd->add_option("--steps", a->steps, "override training.train_steps");
   cmd->add_option("--stop-after", a->stop_after, "stop after this many steps of this invocation (checkpointed)");
   cmd->add_option("--subset", a->subset,
@@ -103,7 +107,7 @@ void add_train_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->callback([a] {
     apply_common_options(a->common);
-    auto config = load_config(a->config);
+    auto config = apply_config_overrides(load_config(a->config), a->set, a->config);
     if (a->steps > 0) config.training.train_steps = a->steps;
     if (!a->amp.empty()) config.training.amp = a->amp;
     // Absolute, so a resume from another working directory reads the same manifest from the run's config.

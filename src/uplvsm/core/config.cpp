@@ -188,6 +188,33 @@ Config config_from_json(const json& j, const std::string& source) {
   return c;
 }
 
+Config apply_config_overrides(const Config& c, const std::vector<std::string>& assignments,
+                              const std::string& source) {
+  if (assignments.empty()) return c;
+  json j = config_to_json(c);
+  for (const auto& a : assignments) {
+    const auto eq = a.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw std::runtime_error(fmt::format("--set '{}': expected section.field=value (e.g. training.lr=3e-4)", a));
+    const std::string path = a.substr(0, eq), text = a.substr(eq + 1);
+    json* node = &j;
+    for (size_t start = 0;;) {
+      const size_t dot = path.find('.', start);
+      const std::string key = path.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
+      if (!node->is_object() || !node->contains(key))
+        throw std::runtime_error(fmt::format("--set '{}': the config has no field '{}'", a, path));
+      node = &(*node)[key];
+      if (dot == std::string::npos) break;
+      start = dot + 1;
+    }
+    if (node->is_object()) throw std::runtime_error(fmt::format("--set '{}': '{}' is a section, not a field", a, path));
+    // JSON values (numbers, true/false, quoted strings) as written; anything else is a string (auto, bf16, ...).
+    json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    *node = value.is_discarded() ? json(text) : value;
+  }
+  return config_from_json(j, source + " (with --set)");
+}
+
 Config load_config(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(fmt::format("config {}: cannot open file", path));

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace uplvsm {
 
@@ -122,6 +123,9 @@ struct Config {
 };
 
 Config load_config(const std::string& path);
+// Command-line overrides "section.field=value" (e.g. training.lr=3e-4, model.transformer.n_latent_vectors=64),
+// applied in order, then validated like a file. Throws naming the assignment for an unknown field.
+Config apply_config_overrides(const Config& c, const std::vector<std::string>& assignments, const std::string& source);
 Config config_from_json(const nlohmann::json& j, const std::string& source = "<json>");
 nlohmann::json config_to_json(const Config& c);
 // Throws with a clear message when the combination is inconsistent (sizes not divisible, d != dino width, ...).
