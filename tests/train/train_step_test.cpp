@@ -11,8 +11,9 @@
 
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/state_dict.h"
+#include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/train_step.h"
 

@@ -18,6 +18,7 @@
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
 #include "uplvsm/render/trajectory.h"
 
@@ -39,14 +40,14 @@ struct RenderArgs {
 };
 
 // The camera path of the video in camera-control units and its pixel intrinsics, or undefined poses for the latent
-// interpolation (unposed inputs and no way to place real cameras).
-std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const data::Views& views, bool posed,
+// interpolation (unposed inputs, or a model without camera control).
+std::pair<torch::Tensor, torch::Tensor> camera_path(model::NovelViewModel& net, const data::Views& views, bool posed,
                                                     const RenderArgs& a) {
   const int64_t H = views.images.size(2), W = views.images.size(3);
   auto k0 = views.fxfycxcy[0].to(torch::kFloat64);
   auto repeat_k = [&](int64_t n) { return k0.unsqueeze(0).expand({n, 4}).contiguous(); };
   if (a.trajectory == "interpolate") {
-    if (!posed || (!net->posed_variant() && !net->pose_mapper)) return {};
+    if (!posed || !net->has_camera_control()) return {};
     // SE(3) interpolation from the first input view (identity) to the second, in camera-control units.
     auto real = model::camera_control_poses(views.c2w.unsqueeze(0), views.c2w.unsqueeze(0))[0].to(torch::kFloat64);
     return {render::interpolate_poses(real.slice(0, 0, 2), a.frames),
@@ -65,8 +66,8 @@ std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const da
   return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W)};
 }
 
-void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const std::string& dir, const RenderArgs& a,
-                nlohmann::json& listing, const std::string& name) {
+void render_one(model::NovelViewModel& net, const data::Views& views, bool posed, const std::string& dir,
+                const RenderArgs& a, nlohmann::json& listing, const std::string& name) {
   auto [poses, intrinsics] = camera_path(net, views, posed, a);
   torch::Tensor frames, key_poses;
   {
@@ -75,7 +76,8 @@ void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const 
       model::Views inputs{views.images, views.fxfycxcy, posed ? views.c2w : torch::Tensor()};
       frames = render::render_camera_path(net, inputs, poses, intrinsics);
     } else {
-      auto video = render::render_interpolation(net, views.images, views.fxfycxcy, a.frames);
+      auto up = model::require_uplvsm(net, "render: the latent interpolation of inputs without cameras");
+      auto video = render::render_interpolation(up, views.images, views.fxfycxcy, a.frames);
       frames = video.frames;
       key_poses = video.key_poses.to(torch::kFloat32).contiguous();
     }

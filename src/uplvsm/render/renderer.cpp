@@ -5,7 +5,6 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "uplvsm/geometry/camera.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/video.h"
 #include "uplvsm/render/trajectory.h"
@@ -21,8 +20,6 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   TORCH_CHECK(num_frames >= 2, "render_interpolation: need at least 2 frames");
   torch::NoGradGuard no_grad;
   net->eval();
-  TORCH_CHECK(!net->posed_variant(), "render_interpolation: the ", net->config.variant,
-              " variant needs cameras: use render_camera_path");
   auto device = model_device(*net);
   auto inputs = images.unsqueeze(0).to(device);
   auto k = fxfycxcy.unsqueeze(0).to(device);
@@ -46,7 +43,7 @@ torch::Device model_device(const torch::nn::Module& net) {
   return params.empty() ? torch::Device(torch::kCPU) : params.front().device();
 }
 
-torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs, const torch::Tensor& poses,
+torch::Tensor render_camera_path(model::NovelViewModel& net, const model::Views& inputs, const torch::Tensor& poses,
                                  const torch::Tensor& fxfycxcy, int64_t chunk) {
   TORCH_CHECK(inputs.images.dim() == 4 && inputs.images.size(1) == 3,
               "render_camera_path: expected input images [v, 3, H, W], got ", inputs.images.sizes());
@@ -59,34 +56,12 @@ torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs,
   const int64_t H = inputs.images.size(2), W = inputs.images.size(3);
   model::Views in{inputs.images.unsqueeze(0).to(device), inputs.fxfycxcy.unsqueeze(0).to(device),
                   inputs.c2w.defined() ? inputs.c2w.unsqueeze(0).to(device) : torch::Tensor()};
-  torch::Tensor latents, world_c2w;
-  if (net->posed_variant()) {
-    TORCH_CHECK(in.c2w.defined(), "the ", net->config.variant,
-                " variant renders from cameras: it needs the input views' c2w (dataset scenes)");
-    // Camera-control units back to the world: first input view's frame, translations times the baseline.
-    auto c2w = in.c2w[0].to(torch::kFloat64);
-    auto baseline = (c2w[1].slice(0, 0, 3).select(1, 3) - c2w[0].slice(0, 0, 3).select(1, 3)).norm();
-    auto p = poses.to(device, torch::kFloat64).clone();
-    p.slice(1, 0, 3).mul_(torch::where(baseline > 1e-9, baseline, torch::ones_like(baseline)));
-    world_c2w = torch::matmul(c2w[0], geometry::pose_encoding_to_c2w(p)).to(torch::kFloat32);
-  } else {
-    TORCH_CHECK(net->pose_mapper, "rendering a camera path needs a camera mapper: fine-tune one with `uplvsm train "
-                                  "--stage mapper` (or render the latent interpolation between the inputs)");
-    latents = net->encode_scene(in.images, in.fxfycxcy);
-  }
+  auto render_at = net->camera_control(in);
   std::vector<torch::Tensor> out;
   for (int64_t s = 0; s < poses.size(0); s += chunk) {
     const int64_t n = std::min(chunk, poses.size(0) - s);
     auto k = fxfycxcy.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32);
-    torch::Tensor frames;
-    if (net->posed_variant()) {
-      model::Views targets{torch::zeros({1, 1, 1, 1, 1}, k.options()).expand({1, n, 3, H, W}), k,
-                           world_c2w.slice(0, s, s + n).unsqueeze(0)};
-      frames = net->render_posed(in, targets, nullptr, /*normalise_with_targets=*/false);
-    } else {
-      auto latent = net->pose_mapper(poses.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32));
-      frames = net->render_views(latents, latent, k, H, W);
-    }
+    auto frames = render_at(poses.slice(0, s, s + n).unsqueeze(0), k, H, W);
     out.push_back(frames[0].to(torch::kFloat32).cpu());
   }
   return torch::cat(out);
