@@ -30,7 +30,7 @@ const Plot = (() => {
     if (!data || !data.keys) return;
     const poses = [data.keys[0], data.keys[1], data.current].concat(data.path || []).filter(Boolean);
     const centre = [0, 1, 2].map((i) => poses.reduce((s, p) => s + p[i], 0) / poses.length);
-    const size = Math.max(0.15 * data.unit, 1e-3);
+    const size = Math.max(0.25 * data.unit, 1e-3);
     const frusta = [[data.keys[0], 'in0'], [data.keys[1], 'in1'], [data.current, 'cur']]
       .filter(([p]) => p).map(([p, k]) => [frustum(p, size), k]);
     const pts = [];
@@ -44,7 +44,7 @@ const Plot = (() => {
     // ground grid through the centre, for depth cues
     ctx.strokeStyle = 'rgba(255,255,255,0.07)';
     ctx.lineWidth = 1;
-    const g = ext * 1.2;
+    const g = ext;
     for (let i = -4; i <= 4; i++) {
       const a = g * i / 4;
       line(ctx, px([centre[0] + a, centre[1], centre[2] - g]), px([centre[0] + a, centre[1], centre[2] + g]));
