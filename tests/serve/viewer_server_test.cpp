@@ -276,6 +276,10 @@ TEST_F(ViewerServerTest, NewestFrameWinsStaleOnesAreDropped) {
   for (auto& t : threads) t.join();
   EXPECT_EQ(status, (std::vector<int>{204, 204, 200}));
   EXPECT_EQ(server_->server->stats().superseded - before.superseded, 2);
+  // A request without a sequence number (a script, curl) is always rendered.
+  auto plain = frame(sid, {{"pose", {0, 0, 0, 0, 0, 0, 1}}});
+  ASSERT_TRUE(plain);
+  EXPECT_EQ(plain->status, 200);
 }
 
 TEST_F(ViewerServerTest, RecordedPathBecomesAnMp4AndPresetsArePoses) {

@@ -54,14 +54,16 @@ void ViewerServer::frame(const httplib::Request& req, httplib::Response& res) {
   if (!body.contains("pose")) throw HttpError(400, "pose: missing (7 numbers tx ty tz qx qy qz qw)");
   auto pose = read_pose(body["pose"], "pose").unsqueeze(0);
   const auto space = space_of(body, model_);
+  // Without "seq" (e.g. a script) a request is always rendered; with one, a newer request of the session wins.
+  const bool ordered = body.contains("seq");
   const auto seq = static_cast<uint64_t>(read_number(body, "seq", 0, 0, 9e15));
   const bool png = read_choice(body, "format", "jpeg", {"jpeg", "png"}) == "png";
   const int quality = static_cast<int>(read_number(body, "quality", options_.jpeg_quality, 1, 100));
-  session->note_request(seq);
+  if (ordered) session->note_request(seq);
   ++waiting_;
   std::unique_lock<std::mutex> lock(model_mutex_);
   --waiting_;
-  if (session->stale(seq)) {  // a newer frame of this session arrived while this one waited
+  if (ordered && session->stale(seq)) {  // a newer frame of this session arrived while this one waited
     ++superseded_;
     res.status = 204;
     res.set_header("X-Superseded", "1");
