@@ -265,7 +265,7 @@ Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::T
 Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
                        const std::string& what) {
   if (!(fov_deg > 0 && fov_deg < 180))
-    throw std::runtime_error(what + ": field of view must be in (0, 180) degrees, got " + std::to_string(fov_deg));
+    throw std::runtime_error(fmt::format("{}: field of view must be in (0, 180) degrees, got {:g}", what, fov_deg));
   const double W = static_cast<double>(hwc_u8.size(1)), H = static_cast<double>(hwc_u8.size(0));
   const double fx_norm = 0.5 / std::tan(fov_deg * M_PI / 360.0);
   auto cam = torch::zeros({1, 18});
