@@ -92,8 +92,14 @@ const waitFrames = async (before, more, what) => {
     before + more, { timeout: 60000 }).catch(() => {});
   return check((await framesShown()) >= before + more, what);
 };
-// The canvas's pixels, to compare frames.
-const pixels = () => page.$eval('#frame', (c) => Array.from(c.getContext('2d').getImageData(0, 0, c.width, c.height).data));
+// The canvas's pixels at 96x96, to compare frames (small enough to pass through the DevTools protocol quickly).
+const pixels = () => page.$eval('#frame', (c) => {
+  const small = document.createElement('canvas');
+  small.width = small.height = 96;
+  const ctx = small.getContext('2d');
+  ctx.drawImage(c, 0, 0, 96, 96);
+  return Array.from(ctx.getImageData(0, 0, 96, 96).data);
+});
 const meanDiff = (a, b) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
 
 try {
