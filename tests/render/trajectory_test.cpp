@@ -94,6 +94,24 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
             std::string::npos);
   EXPECT_NE(error(R"({"frames": []})").find("frames"), std::string::npos);
   EXPECT_NE(error("{").find("invalid JSON"), std::string::npos);
+  EXPECT_NE(error(R"({"units": "metres", "frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}]})").find("latent"),
+            std::string::npos);
+  EXPECT_FALSE(path.latent);
+  EXPECT_TRUE(render::read_camera_path(write("latent.json", R"({"units": "latent", "scene": "x",
+                                                                "frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}]})"))
+                  .latent);
+}
+
+// A camera path in latent units (recorded in the viewer) renders exactly the frames of the same latent poses in
+// the interpolation video.
+TEST(RenderLatentPath, MatchesTheInterpolationAtTheSamePoses) {
+  torch::manual_seed(0);
+  auto images = torch::rand({2, 3, 32, 32});
+  auto k = torch::tensor({30.0, 30.0, 16.0, 16.0}).expand({2, 4}).contiguous();
+  model::UPLVSM up(test::micro_model("uplvsm"));
+  auto video = render::render_interpolation(up, images, k, 5);
+  auto frames = render::render_latent_path(up, images, k, video.poses, k[0].expand({5, 4}), 2);
+  EXPECT_LE(test::max_abs_diff(frames, video.frames), 1e-5);
 }
 
 namespace {

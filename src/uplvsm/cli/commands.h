@@ -39,6 +39,7 @@ void add_dataset_import_command(CLI::App& dataset);
 void add_train_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
+void add_serve_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
 void add_export_command(CLI::App& app);

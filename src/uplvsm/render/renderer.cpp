@@ -13,6 +13,23 @@ namespace uplvsm::render {
 
 namespace fs = std::filesystem;
 
+namespace {
+// The decoder over a path of latent poses [F, 7] and intrinsics [F, 4], `chunk` frames at a time.
+torch::Tensor decode_path(model::UPLVSM& net, const torch::Tensor& latents, const torch::Tensor& poses,
+                          const torch::Tensor& intrinsics, int64_t H, int64_t W, int64_t chunk) {
+  const auto device = latents.device();
+  std::vector<torch::Tensor> out;
+  for (int64_t s = 0; s < poses.size(0); s += chunk) {
+    const int64_t n = std::min(chunk, poses.size(0) - s);
+    out.push_back(net->render_views(latents, poses.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32),
+                                    intrinsics.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32), H, W)[0]
+                      .to(torch::kFloat32)
+                      .cpu());
+  }
+  return torch::cat(out);
+}
+}  // namespace
+
 InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t num_frames, int64_t chunk) {
   TORCH_CHECK(images.dim() == 4 && images.size(0) == 2 && images.size(1) == 3,
@@ -28,14 +45,23 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   auto key_poses = net->estimate_poses(inputs, latents)[0];  // [2, 7]
   auto poses = interpolate_poses(key_poses, num_frames);
   auto intrinsics = interpolate_intrinsics(k[0], num_frames);
-  std::vector<torch::Tensor> out;
-  for (int64_t s = 0; s < poses.size(0); s += chunk) {
-    const int64_t n = std::min(chunk, poses.size(0) - s);
-    out.push_back(net->render_views(latents, poses.slice(0, s, s + n).unsqueeze(0),
-                                    intrinsics.slice(0, s, s + n).unsqueeze(0), H, W)[0]
-                      .cpu());
-  }
-  return {torch::cat(out), poses.cpu(), key_poses.cpu()};
+  return {decode_path(net, latents, poses, intrinsics, H, W, chunk), poses.cpu(), key_poses.cpu()};
+}
+
+torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
+                                 const torch::Tensor& poses, const torch::Tensor& intrinsics, int64_t chunk) {
+  TORCH_CHECK(images.dim() == 4 && images.size(0) == 2 && images.size(1) == 3,
+              "render_latent_path: expected two images [2, 3, H, W], got ", images.sizes());
+  TORCH_CHECK(poses.dim() == 2 && poses.size(1) == 7 && intrinsics.dim() == 2 && intrinsics.size(0) == poses.size(0),
+              "render_latent_path: expected poses [F, 7] and intrinsics [F, 4], got ", poses.sizes(), " and ",
+              intrinsics.sizes());
+  TORCH_CHECK(!net->posed_variant(), "latent camera paths need an UP-LVSM model, not the ", net->config.variant,
+              " variant");
+  torch::NoGradGuard no_grad;
+  net->eval();
+  auto device = model_device(*net);
+  auto latents = net->encode_scene(images.unsqueeze(0).to(device), fxfycxcy.unsqueeze(0).to(device));
+  return decode_path(net, latents, poses, intrinsics, images.size(2), images.size(3), chunk);
 }
 
 torch::Device model_device(const torch::nn::Module& net) {

@@ -24,6 +24,11 @@ struct InterpolationVideo {
 InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t num_frames, int64_t chunk = 4);
 
+// Latent poses [F, 7] given directly (a camera path recorded in latent units), intrinsics [F, 4] pixels; images
+// [2, 3, H, W], fxfycxcy [2, 4]. UP-LVSM only. Returns frames [F, 3, H, W] on the CPU.
+torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
+                                 const torch::Tensor& poses, const torch::Tensor& intrinsics, int64_t chunk = 4);
+
 // poses [F, 7] camera-control units, fxfycxcy [F, 4] pixels of the inputs' size; inputs: images [2, 3, H, W],
 // fxfycxcy [2, 4], c2w [2, 4, 4] (needed by the posed models; may be undefined for UP-LVSM with a mapper).
 // Returns frames [F, 3, H, W] on the CPU.
