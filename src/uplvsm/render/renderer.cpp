@@ -55,8 +55,6 @@ torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images
   TORCH_CHECK(poses.dim() == 2 && poses.size(1) == 7 && intrinsics.dim() == 2 && intrinsics.size(0) == poses.size(0),
               "render_latent_path: expected poses [F, 7] and intrinsics [F, 4], got ", poses.sizes(), " and ",
               intrinsics.sizes());
-  TORCH_CHECK(!net->posed_variant(), "latent camera paths need an UP-LVSM model, not the ", net->config.variant,
-              " variant");
   torch::NoGradGuard no_grad;
   net->eval();
   auto device = model_device(*net);
