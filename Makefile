@@ -5,7 +5,7 @@ JOBS ?= $(shell nproc)
 DEMO ?= out/demo
 CONFIG ?= configs/tiny.json
 # The model `make demo` ends by offering to open in the viewer (`uplvsm serve`).
-SERVE_CHECKPOINT ?= $(DEMO)/run
+SERVE_CHECKPOINT ?= $(DEMO_MAPPER_MODEL)
 UPLVSM = $(BUILD)/uplvsm
 export CCACHE_SLOPPINESS = pch_defines,time_macros,include_file_mtime,include_file_ctime
 export CCACHE_DIR ?= $(HOME)/.cache/ccache
@@ -24,7 +24,7 @@ FUZZ_APT_PACKAGES = clang libclang-rt-14-dev
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 60
 
-.PHONY: all deps browser-deps build build-cli test test-unit test-slow bench demo fuzz clean
+.PHONY: all deps browser-deps build build-cli test test-unit test-slow bench demo demo-model fuzz clean
 
 all: build
 
@@ -76,14 +76,41 @@ fuzz:
 	    -rss_limit_mb=4096 -max_len=65536 -print_final_stats=1 corpus/$${t%%:*} $(CURDIR)/fuzz/corpus/$${t%%:*} || exit 1; \
 	done
 
+# The shipped demo models (models/, trained by `uplvsm train` with configs/demo.json, then configs/demo_mapper.json for
+# camera control: see README "The shipped demo model") are evaluated and rendered on held-out scenes at their
+# resolution; the `tiny` config is trained from scratch beside them (proof that training works on this machine); one
+# report shows them side by side.
+DEMO_MODEL ?= models/demo.safetensors
+DEMO_MAPPER_MODEL ?= models/demo_mapper.safetensors
+DEMO_MODEL_CONFIG ?= configs/demo.json
+DEMO_RENDER = --data $(DEMO)/dataset_demo --split test --scenes 3 --frames 48 --side-by-side
 demo: build-cli
 	$(UPLVSM) info
+	test -f $(DEMO)/dataset_demo/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --train-scenes 0 --out $(DEMO)/dataset_demo
+	$(UPLVSM) eval --checkpoint $(DEMO_MODEL) --data $(DEMO)/dataset_demo --split test --out $(DEMO)/shipped/eval
+	$(UPLVSM) render --checkpoint $(DEMO_MODEL) $(DEMO_RENDER) --out $(DEMO)/shipped/interpolation
+	$(UPLVSM) eval --checkpoint $(DEMO_MAPPER_MODEL) --data $(DEMO)/dataset_demo --split test --target-poses mapper --out $(DEMO)/shipped_mapper/eval
+	$(UPLVSM) render --checkpoint $(DEMO_MAPPER_MODEL) $(DEMO_RENDER) --trajectory orbit --out $(DEMO)/shipped_mapper/orbit
 	test -f $(DEMO)/dataset/evaluation_index.json || $(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
 	$(UPLVSM) train --config $(CONFIG) --data $(DEMO)/dataset --run $(DEMO)/run --resume auto
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
-	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/video
-	$(UPLVSM) report --run $(DEMO)/run --eval $(DEMO)/eval --video $(DEMO)/video --out $(DEMO)/report
-	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset  (then open http://127.0.0.1:8080/)"
+	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
+	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
+	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo.json) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; video: interpolation between the two inputs' latent poses; held-out scenes" \
+	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
+	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
+	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
+
+# Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the main training
+# (configs/demo.json), the camera-mapper fine-tune (configs/demo_mapper.json), then the weights-only exports. Hours on
+# 2 cores; every step resumes, so run it again after an interruption. Runs are deterministic for a given thread count.
+DEMO_MODEL_WORK ?= out/demo_model
+demo-model: build-cli
+	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
+	$(UPLVSM) train --config $(DEMO_MODEL_CONFIG) --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/main --resume auto
+	$(UPLVSM) train --stage mapper --config configs/demo_mapper.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/mapper --resume auto
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/main --out $(DEMO_MODEL)
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
 
 clean:
 	rm -rf $(BUILD) $(FUZZ_BUILD)
