@@ -1,10 +1,7 @@
-#include <cmath>
-
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/io/image.h"
 #include "uplvsm/model/pretrained_weights.h"
 
 namespace uplvsm::cli {
@@ -36,20 +33,6 @@ model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Co
   if (src.config.empty()) return model::load_model(src.checkpoint, device, config_out);
   Config hint = load_config(src.config);
   return model::load_model(src.checkpoint, device, config_out, &hint);
-}
-
-// A user's photo: pinhole camera with the principal point at the centre and the given horizontal field of view.
-data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep) {
-  auto img = io::read_image(path);
-  const double W = static_cast<double>(img.size(1)), H = static_cast<double>(img.size(0));
-  const double fx_norm = 0.5 / std::tan(fov_deg * M_PI / 360.0);
-  auto cam = torch::zeros({1, 18});
-  cam[0][0] = fx_norm;
-  cam[0][1] = fx_norm * W / H;  // square pixels
-  cam[0][2] = 0.5;
-  cam[0][3] = 0.5;
-  for (int i = 0; i < 3; ++i) cam[0][6 + 5 * i] = 1.0;  // identity w2c: unused by the unposed model
-  return data::preprocess({img}, cam, prep, path);
 }
 
 }  // namespace uplvsm::cli

@@ -1,0 +1,17 @@
+// Users' own photos as views of a scene: read (JPEG/PNG), resized and centre-cropped like the training data, with a
+// pinhole camera of a given horizontal field of view (principal point at the centre) and an identity pose, which the
+// unposed model never reads. What `uplvsm render --images`, the Python module and the C++ example feed the model.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "uplvsm/data/preprocess.h"
+#include "uplvsm/data/scene.h"
+
+namespace uplvsm::data {
+
+// One view per path, in order: images [V, 3, H, W], fxfycxcy [V, 4] pixels, c2w [V, 4, 4] identity, frames 0..V-1.
+// Errors name the file (unreadable, not JPEG/PNG) or the photo whose preprocessed size differs from the first's.
+Views load_photos(const std::vector<std::string>& paths, double fov_degrees, const PreprocessOptions& opt);
+
+}  // namespace uplvsm::data
