@@ -11,14 +11,15 @@ export CCACHE_DIR ?= $(HOME)/.cache/ccache
 # Why each package is there: README.md, "Dependencies".
 APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp libgloo-dev libcli11-dev \
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
-  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev
+  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev python3-dev python3-pybind11 python3-torch \
+  python3-pytest
 
 # The fuzz targets need clang and its libFuzzer runtime (only `make fuzz` installs them).
 FUZZ_APT_PACKAGES = clang libclang-rt-14-dev
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 60
 
-.PHONY: all deps build build-cli test test-unit test-slow bench demo fuzz clean
+.PHONY: all deps build build-cli python install test test-unit test-slow bench demo fuzz clean
 
 all: build
 
@@ -39,6 +40,15 @@ build: deps $(BUILD)/CMakeCache.txt
 # The demo needs only the binary, not the test programs.
 build-cli: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS) --target uplvsm_cli
+
+# The Python module alone (also part of `build`): import it with PYTHONPATH=$(BUILD)/python.
+python: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS) --target uplvsm_python
+
+# The binary, libuplvsm.so, headers, configs, the CMake package and the Python module under PREFIX (docs/cpp.md).
+PREFIX ?= /usr/local
+install: build
+	cmake --install $(BUILD) --prefix $(PREFIX)
 
 test: build
 	cd $(BUILD) && ctest --output-on-failure --timeout 1800
