@@ -30,7 +30,7 @@ grep -q "openblas" "$work/info.txt" || { echo "installed uplvsm does not use Ope
 
 # Two photos: frames 1 and 13 of a RealEstate10K-like fixture scene, as PNG files (the LVSM layout).
 "$prefix/bin/uplvsm" dataset convert --from chunks --input "$fixtures/re10k_chunks/root/test" --output "$work/lvsm" \
-  > /dev/null
+  > "$work/convert.log" 2>&1 || { cat "$work/convert.log"; exit 1; }
 photo_a=$work/lvsm/images/20e408dd375292a1/00001.png photo_b=$work/lvsm/images/20e408dd375292a1/00013.png
 checkpoint=$fixtures/official_uplvsm/checkpoint.pt
 
