@@ -4,6 +4,8 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 DEMO ?= out/demo
 CONFIG ?= configs/tiny.json
+# The model `make demo` ends by offering to open in the viewer (`uplvsm serve`).
+SERVE_CHECKPOINT ?= $(DEMO)/run
 UPLVSM = $(BUILD)/uplvsm
 export CCACHE_SLOPPINESS = pch_defines,time_macros,include_file_mtime,include_file_ctime
 export CCACHE_DIR ?= $(HOME)/.cache/ccache
@@ -11,15 +13,19 @@ export CCACHE_DIR ?= $(HOME)/.cache/ccache
 # Why each package is there: README.md, "Dependencies".
 APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp libgloo-dev libcli11-dev \
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
-  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev python3-dev python3-pybind11 python3-torch \
-  python3-pytest
+  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev libcpp-httplib-dev python3-dev \
+  python3-pybind11 python3-torch python3-pytest
+
+# The viewer's browser test (tests/browser) drives Debian's chromium from Node.js (installed from Debian when the
+# machine has no node/npm) with playwright-core from the committed lock file; only `make test` installs them.
+BROWSER_APT_PACKAGES = chromium $(shell command -v npm >/dev/null || echo nodejs npm)
 
 # The fuzz targets need clang and its libFuzzer runtime (only `make fuzz` installs them).
 FUZZ_APT_PACKAGES = clang libclang-rt-14-dev
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 60
 
-.PHONY: all deps build build-cli python install test test-unit test-slow bench demo fuzz clean
+.PHONY: all deps browser-deps build build-cli python install test test-unit test-slow bench demo fuzz clean
 
 all: build
 
@@ -50,13 +56,17 @@ PREFIX ?= /usr/local
 install: build
 	cmake --install $(BUILD) --prefix $(PREFIX)
 
-test: build
+browser-deps:
+	$(MAKE) deps EXTRA_APT_PACKAGES="$(BROWSER_APT_PACKAGES)"
+	cd tests/browser && npm ci --no-audit --no-fund
+
+test: build browser-deps
 	cd $(BUILD) && ctest --output-on-failure --timeout 1800
 
 test-unit: build
 	cd $(BUILD) && ctest --output-on-failure -L unit
 
-test-slow: build
+test-slow: build browser-deps
 	cd $(BUILD) && ctest --output-on-failure -L slow
 
 # Benchmarks, as the environment is and without this machine's OPENBLAS_* overrides (see README, Performance).
@@ -83,6 +93,7 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/video
 	$(UPLVSM) report --run $(DEMO)/run --eval $(DEMO)/eval --video $(DEMO)/video --out $(DEMO)/report
+	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset  (then open http://127.0.0.1:8080/)"
 
 clean:
 	rm -rf $(BUILD) $(FUZZ_BUILD)

@@ -5,7 +5,8 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-# The public API: the model (load any weight file, forward pieces), views, metrics, datasets, rendering, readers.
+# The public API: the model family (load any weight file, UP-LVSM's pieces), views, metrics, datasets, rendering,
+# readers.
 # Installed with every uplvsm header they include (model internals such as the transformer blocks, which the model
 # classes hold as members); everything else (cli, train, study, eval's evaluator and reports, the loader, the
 # fused attention kernels, the PCH) stays private. tests/install checks the set is closed under #include.
@@ -15,9 +16,9 @@ set(UPLVSM_PUBLIC_HEADERS
     io/safetensors.h io/torch_file.h io/torch_pickle.h io/image.h io/video.h
     geometry/camera.h
     data/scene.h data/preprocess.h data/photo.h data/chunk_dataset.h data/dataset_info.h data/lvsm_layout.h
-    model/uplvsm.h model/pretrained_weights.h model/checkpoint_io.h model/state_dict.h model/dinov2.h
-    model/transformer.h model/latent_plucker_learner.h model/pose_mapper.h model/pose_tokenizer.h
-    model/vgg_features.h
+    model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h model/pretrained_weights.h
+    model/checkpoint_io.h model/state_dict.h model/flops.h model/dinov2.h model/transformer.h model/rgb_head.h
+    model/latent_plucker_learner.h model/pose_mapper.h model/pose_tokenizer.h model/vgg_features.h
     eval/metrics.h eval/lpips.h
     render/renderer.h render/trajectory.h)
 foreach(header ${UPLVSM_PUBLIC_HEADERS})

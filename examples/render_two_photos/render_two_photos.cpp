@@ -12,7 +12,7 @@ int main(int argc, char** argv) {
   try {
     uplvsm::init_runtime();  // threads and allocator as the uplvsm binary sets them
     uplvsm::Config config;
-    auto model = uplvsm::model::load_model(argv[1], torch::kCPU, &config);
+    auto model = uplvsm::model::require_uplvsm(uplvsm::model::load_model(argv[1], torch::kCPU, &config), argv[1]);
     uplvsm::data::PreprocessOptions size{int(config.model.image_size), int(config.model.patch_size), true};
     auto photos = uplvsm::data::load_photos({argv[2], argv[3]}, /*fov_degrees=*/60.0, size);
     auto video = uplvsm::render::render_interpolation(model, photos.images, photos.fxfycxcy, /*num_frames=*/24);

@@ -70,6 +70,8 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
       .def_property_readonly("device", &Model::device)
       .def_property_readonly("variant", [](const Model& s) { return s.config().model.variant; },
                              "\"uplvsm\", \"ptlvsm\" or \"lvsm\".")
+      .def_property_readonly("name", &Model::name,
+                             "The paper's name of the model: \"UP-LVSM\", \"PT-LVSM\" or \"LVSM\".")
       .def("parameter_count", &Model::parameter_count, "Number of parameters.")
       .def("state_dict", [](const Model& s) { return tensor_dict(s.state_dict()); },
            "Parameters and buffers by checkpoint name, sharing the model's memory (an in-place change is the "
@@ -82,7 +84,8 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
             return s.encode_scene(images, fxfycxcy, amp);
           },
           py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("amp") = "none",
-          "Scene latents [b, L, d] from unposed input views [b, v, 3, H, W] and their intrinsics [b, v, 4].")
+          "Scene latents [b, L, d] from unposed input views [b, v, 3, H, W] and their intrinsics [b, v, 4]. UP-LVSM "
+          "only (ValueError for a posed model).")
       .def(
           "estimate_poses",
           [](Model& s, const torch::Tensor& images, const torch::Tensor& latents, const std::string& amp) {
@@ -92,7 +95,8 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
             return s.estimate_poses(images, latents, amp);
           },
           py::arg("target_images"), py::arg("scene_latents"), py::arg("amp") = "none",
-          "Latent poses [b, v, 7] of target images given the scene latents (the Latent Plücker Learner).")
+          "Latent poses [b, v, 7] of target images given the scene latents (the Latent Plücker Learner). UP-LVSM "
+          "only.")
       .def(
           "render_views",
           [](Model& s, const torch::Tensor& latents, const torch::Tensor& poses, const torch::Tensor& fxfycxcy,
@@ -105,7 +109,8 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
             return s.render_views(latents, poses, fxfycxcy, height, width, amp);
           },
           py::arg("scene_latents"), py::arg("poses"), py::arg("fxfycxcy"), py::arg("height"), py::arg("width"),
-          py::arg("amp") = "none", "Renders [b, v, 3, H, W] from scene latents, latent poses and intrinsics.")
+          py::arg("amp") = "none",
+          "Renders [b, v, 3, H, W] from scene latents, latent poses and intrinsics. UP-LVSM only.")
       .def("forward", &forward, py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("target_images"),
            py::arg("target_fxfycxcy"), py::arg("target_poses") = "auto", py::arg("input_c2w") = py::none(),
            py::arg("target_c2w") = py::none(), py::arg("amp") = "none",
@@ -139,7 +144,7 @@ model's own protocol: the estimator reads the target images for UP-LVSM, dataset
           py::arg("amp") = "none",
           R"(A video between two unposed photos (images [2, 3, H, W], fxfycxcy [2, 4]): the estimator's latent poses of
 the two inputs, interpolated (slerp + linear) over num_frames frames, rendered chunk frames at a time, without
-gradients. Returns {"frames": [F, 3, H, W] CPU, "poses": [F, 7], "key_poses": [2, 7]}.)")
+gradients; UP-LVSM only. Returns {"frames": [F, 3, H, W] CPU, "poses": [F, 7], "key_poses": [2, 7]}.)")
       .def(
           "render_camera_path",
           [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, const torch::Tensor& poses,

@@ -3,7 +3,7 @@
 #include <stdexcept>
 
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::python {
 
@@ -32,11 +32,13 @@ std::vector<std::pair<std::string, torch::Tensor>> ModelAdapter::state_dict() co
   return out;
 }
 
-void ModelAdapter::require_unposed(const char* what) const {
-  if (net_->posed_variant())
-    throw std::invalid_argument(std::string(what) + ": the " + config_.model.variant +
-                                " model has no scene latents or latent poses (UP-LVSM only); use forward or "
-                                "render_camera_path");
+model::UPLVSM ModelAdapter::unposed(const char* what) const {
+  try {
+    return model::require_uplvsm(net_, what);
+  } catch (const c10::Error& e) {  // the caller asked the wrong model: an argument error (ValueError in Python)
+    throw std::invalid_argument(std::string(e.what_without_backtrace()) + "; a " + net_->name() +
+                                " model renders through forward or render_camera_path");
+  }
 }
 
 torch::Tensor ModelAdapter::on_device(const torch::Tensor& t) const {
@@ -45,42 +47,42 @@ torch::Tensor ModelAdapter::on_device(const torch::Tensor& t) const {
 
 torch::Tensor ModelAdapter::encode_scene(const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                          const std::string& amp) {
-  require_unposed("encode_scene");
+  auto net = unposed("encode_scene");
   AutocastGuard guard(device_, amp_enabled(amp));
-  return net_->encode_scene(on_device(images), on_device(fxfycxcy));
+  return net->encode_scene(on_device(images), on_device(fxfycxcy));
 }
 
 torch::Tensor ModelAdapter::estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                            const std::string& amp) {
-  require_unposed("estimate_poses");
+  auto net = unposed("estimate_poses");
   AutocastGuard guard(device_, amp_enabled(amp));
-  return net_->estimate_poses(on_device(target_images), scene_latents.to(device_));
+  return net->estimate_poses(on_device(target_images), scene_latents.to(device_));
 }
 
 torch::Tensor ModelAdapter::render_views(const torch::Tensor& scene_latents, const torch::Tensor& poses,
                                          const torch::Tensor& fxfycxcy, int64_t height, int64_t width,
                                          const std::string& amp) {
-  require_unposed("render_views");
+  auto net = unposed("render_views");
   AutocastGuard guard(device_, amp_enabled(amp));
-  return net_->render_views(scene_latents.to(device_), on_device(poses), on_device(fxfycxcy), height, width);
+  return net->render_views(scene_latents.to(device_), on_device(poses), on_device(fxfycxcy), height, width);
 }
 
 ForwardResult ModelAdapter::forward(const model::Views& inputs, const model::Views& targets,
                                     const std::string& target_poses, const std::string& amp) {
-  const auto source = model::parse_target_poses(target_poses, config_.model);
+  const auto source = model::parse_target_poses(target_poses, *net_);
   model::Views in{on_device(inputs.images), on_device(inputs.fxfycxcy), on_device(inputs.c2w)};
   model::Views out{on_device(targets.images), on_device(targets.fxfycxcy), on_device(targets.c2w)};
   AutocastGuard guard(device_, amp_enabled(amp));
-  auto result = net_->forward(in, out, source);
+  auto result = net_->render(in, out, source);
   return {result.render, result.pose_enc};
 }
 
 render::InterpolationVideo ModelAdapter::render_interpolation(const torch::Tensor& images,
                                                               const torch::Tensor& fxfycxcy, int64_t num_frames,
                                                               int64_t chunk, const std::string& amp) {
-  require_unposed("render_interpolation");
+  auto net = unposed("render_interpolation");
   AutocastGuard guard(device_, amp_enabled(amp));
-  return render::render_interpolation(net_, images, fxfycxcy, num_frames, chunk);
+  return render::render_interpolation(net, images, fxfycxcy, num_frames, chunk);
 }
 
 torch::Tensor ModelAdapter::render_camera_path(const model::Views& inputs, const torch::Tensor& poses,

@@ -1,5 +1,7 @@
 // The Python module's one view of the model classes: everything `uplvsm.Model` does goes through this adapter, so a
-// change in the model family (model/uplvsm.h) touches this file and model_adapter.cpp only. Tensors in and out are
+// change in the model family (model/novel_view_model.h, model/uplvsm.h) touches this file and model_adapter.cpp
+// only. The family's interface renders targets from inputs for any model; scene latents and latent poses are
+// UP-LVSM's (model::require_uplvsm names the model when asked of another). Tensors in and out are
 // the callers' own (no copies on the model's device); the methods never touch Python objects, so the bindings run
 // them with the GIL released.
 #pragma once
@@ -9,6 +11,7 @@
 #include <string>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
 
@@ -26,6 +29,7 @@ class ModelAdapter {
 
   const Config& config() const { return config_; }
   torch::Device device() const { return device_; }
+  std::string name() const { return net_->name(); }  // "UP-LVSM", "PT-LVSM", "LVSM"
   int64_t parameter_count() const;
   // Parameters and buffers under their checkpoint names, detached but sharing the model's memory.
   std::vector<std::pair<std::string, torch::Tensor>> state_dict() const;
@@ -44,13 +48,13 @@ class ModelAdapter {
                                    const torch::Tensor& fxfycxcy, int64_t chunk, const std::string& amp);
 
  private:
-  // The UP-LVSM-only capabilities (scene latents, latent poses): an error naming `what` for the posed variants.
-  void require_unposed(const char* what) const;
+  // UP-LVSM's own capabilities (scene latents, latent poses): an error naming `what` for the other models.
+  model::UPLVSM unposed(const char* what) const;
   torch::Tensor on_device(const torch::Tensor& t) const;
 
   Config config_;
   torch::Device device_;
-  model::UPLVSM net_{nullptr};
+  model::NovelViewModel net_{nullptr};
 };
 
 }  // namespace uplvsm::python

@@ -20,16 +20,16 @@ namespace {
 
 // Held-out evaluation during training (training.eval_every): the test split's evaluation index, at most
 // eval.max_scenes scenes (default 16), with the run's target-pose protocol; results in <run>/eval/step_NNNNNNN/.
-std::function<nlohmann::json(model::UPLVSM&, int64_t)> periodic_evaluation(const Config& config,
-                                                                           const std::string& data,
-                                                                           const std::string& run,
-                                                                           torch::Device device) {
+std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluation(const Config& config,
+                                                                                   const std::string& data,
+                                                                                   const std::string& run,
+                                                                                   torch::Device device) {
   const auto index = std::filesystem::path(data) / "evaluation_index.json";
   if (!std::filesystem::exists(index)) {
     spdlog::warn("training.eval_every is set but {} does not exist: no periodic evaluation", index.string());
     return {};
   }
-  return [=](model::UPLVSM& net, int64_t step) {
+  return [=](model::NovelViewModel& net, int64_t step) {
     data::ChunkDataset dataset(data, "test");
     data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
                                  config.dataset.square_crop};
@@ -39,7 +39,7 @@ std::function<nlohmann::json(model::UPLVSM&, int64_t)> periodic_evaluation(const
     opt.device = device;
     opt.num_visualised = 2;
     opt.bf16 = parse_amp(config.training.amp);
-    opt.target_poses = model::parse_target_poses(config.training.target_poses, config.model);
+    opt.target_poses = model::parse_target_poses(config.training.target_poses, *net);
     opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& model_row = summary.table.at("model");

@@ -7,7 +7,7 @@
 
 #include "uplvsm/core/config.h"
 #include "uplvsm/data/preprocess.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/novel_view_model.h"
 
 namespace uplvsm::cli {
 
@@ -25,7 +25,7 @@ struct ModelSource {
   std::string checkpoint, config;
 };
 void add_model_options(CLI::App* cmd, ModelSource& src);
-model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
+model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
 
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
@@ -35,6 +35,7 @@ void add_dataset_import_command(CLI::App& dataset);
 void add_train_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
+void add_serve_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
 void add_export_command(CLI::App& app);

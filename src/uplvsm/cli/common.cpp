@@ -2,7 +2,7 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::cli {
 
@@ -29,7 +29,7 @@ void add_model_options(CLI::App* cmd, ModelSource& src) {
       ->check(CLI::ExistingFile);
 }
 
-model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out) {
+model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out) {
   if (src.config.empty()) return model::load_model(src.checkpoint, device, config_out);
   Config hint = load_config(src.config);
   return model::load_model(src.checkpoint, device, config_out, &hint);

@@ -1,6 +1,6 @@
-// Users' own photos as views of a scene: read (JPEG/PNG), resized and centre-cropped like the training data, with a
-// pinhole camera of a given horizontal field of view (principal point at the centre) and an identity pose, which the
-// unposed model never reads. What `uplvsm render --images`, the Python module and the C++ example feed the model.
+// Users' own photo files as views of one scene: read (JPEG/PNG) and made views by data::preprocess_photo (resized and
+// centre-cropped like the training data, a pinhole camera of the given horizontal field of view, identity pose).
+// What `uplvsm render --images`, `study --images`, the Python module and the C++ example feed the model.
 #pragma once
 #include <string>
 #include <vector>
@@ -11,7 +11,8 @@
 namespace uplvsm::data {
 
 // One view per path, in order: images [V, 3, H, W], fxfycxcy [V, 4] pixels, c2w [V, 4, 4] identity, frames 0..V-1.
-// Errors name the file (unreadable, not JPEG/PNG) or the photo whose preprocessed size differs from the first's.
+// Errors name the file (unreadable, not JPEG/PNG, field of view outside (0, 180)) or the photo whose preprocessed size
+// differs from the first's.
 Views load_photos(const std::vector<std::string>& paths, double fov_degrees, const PreprocessOptions& opt);
 
 }  // namespace uplvsm::data

@@ -65,9 +65,9 @@ struct RunState {
 
 // Eval mode for the run; the previous mode comes back even when an exception escapes.
 struct EvalModeGuard {
-  explicit EvalModeGuard(model::UPLVSM& n) : net(n), was_training(n->is_training()) { net->eval(); }
+  explicit EvalModeGuard(model::NovelViewModel& n) : net(n), was_training(n->is_training()) { net->eval(); }
   ~EvalModeGuard() { net->train(was_training); }
-  model::UPLVSM& net;
+  model::NovelViewModel& net;
   bool was_training;
 };
 
@@ -180,7 +180,7 @@ torch::Tensor lpips_of(Lpips lpips, const torch::Tensor& pred, const torch::Tens
 }
 
 // One forward for scenes of equal view counts and image size; scores the model and the baselines per target.
-void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, const EvalOptions& opt,
+void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& scenes, const EvalOptions& opt,
                RunState& state) {
   const int64_t vi = static_cast<int64_t>(scenes[0]->job->entry.context.size());
   const int64_t vt = static_cast<int64_t>(scenes[0]->job->entry.target.size());
@@ -202,7 +202,7 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
     AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
     model::Views inputs{in_img, k.narrow(1, 0, vi), c2w.narrow(1, 0, vi)};
     model::Views targets{gt, k.narrow(1, vi, vt), c2w.narrow(1, vi, vt)};
-    pred = net->forward(inputs, targets, opt.target_poses).render;
+    pred = net->render(inputs, targets, opt.target_poses).render;
   }
   pred = pred.to(torch::kFloat32);
   auto copy = state.ordered_views ? copy_nearest_input(in_img, in_frames, tgt_frames)
@@ -229,7 +229,8 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
   }
 }
 
-void run_loaded(model::UPLVSM& net, const std::vector<Loaded>& loaded, const EvalOptions& opt, RunState& state) {
+void run_loaded(model::NovelViewModel& net, const std::vector<Loaded>& loaded, const EvalOptions& opt,
+                RunState& state) {
   // Scenes of another aspect ratio preprocess to another size (square_crop off): one forward per image size.
   std::map<std::vector<int64_t>, std::vector<const Loaded*>> by_size;
   for (const auto& l : loaded) by_size[l.views.images.sizes().vec()].push_back(&l);
@@ -399,7 +400,7 @@ static void merge_shards(const EvalOptions& opt, RunState& state) {
   }
 }
 
-EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string index_path =
