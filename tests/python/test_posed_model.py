@@ -34,6 +34,11 @@ def test_posed_model_renders_and_refuses_the_unposed_methods(posed_run):
         path = torch.tensor([[0.0, 0, 0, 0, 0, 0, 1], [0.5, 0, 0, 0, 0, 0, 1]])
         frames = m.render_camera_path(images[:2], fxfycxcy[:2], path, fxfycxcy[:1].expand(2, 4), c2w=c2w[:2])
         assert frames.shape == (2, 3, 48, 48) and not torch.equal(frames[0], frames[1])
+        for poses in ("estimator", "mapper"):  # UP-LVSM's latent poses: a posed model has neither
+            expected = f"PT-LVSM renders from dataset cameras only; target poses '{poses}'"
+            with pytest.raises(RuntimeError, match=expected):
+                m.forward(images[None, :2], fxfycxcy[None, :2], images[None, 2:], fxfycxcy[None, 2:],
+                          target_poses=poses, input_c2w=c2w[None, :2], target_c2w=c2w[None, 2:])
 
     latents = torch.zeros(1, 32, 96)
     unposed_only = {
