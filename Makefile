@@ -13,7 +13,8 @@ export CCACHE_DIR ?= $(HOME)/.cache/ccache
 # Why each package is there: README.md, "Dependencies".
 APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp libgloo-dev libcli11-dev \
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
-  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev libcpp-httplib-dev
+  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev libcpp-httplib-dev python3-dev \
+  python3-pybind11 python3-torch python3-pytest
 
 # The viewer's browser test (tests/browser) drives Debian's chromium from Node.js (installed from Debian when the
 # machine has no node/npm) with playwright-core from the committed lock file; only `make test` installs them.
@@ -24,7 +25,7 @@ FUZZ_APT_PACKAGES = clang libclang-rt-14-dev
 FUZZ_BUILD ?= build-fuzz
 FUZZ_SECONDS ?= 60
 
-.PHONY: all deps browser-deps build build-cli test test-unit test-slow bench demo demo-model fuzz clean
+.PHONY: all deps browser-deps build build-cli python install test test-unit test-slow bench demo demo-model fuzz clean
 
 all: build
 
@@ -45,6 +46,15 @@ build: deps $(BUILD)/CMakeCache.txt
 # The demo needs only the binary, not the test programs.
 build-cli: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS) --target uplvsm_cli
+
+# The Python module alone (also part of `build`): import it with PYTHONPATH=$(BUILD)/python.
+python: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS) --target uplvsm_python
+
+# The binary, libuplvsm.so, headers, configs, the CMake package and the Python module under PREFIX (docs/cpp.md).
+PREFIX ?= /usr/local
+install: build
+	cmake --install $(BUILD) --prefix $(PREFIX)
 
 browser-deps:
 	$(MAKE) deps EXTRA_APT_PACKAGES="$(BROWSER_APT_PACKAGES)"

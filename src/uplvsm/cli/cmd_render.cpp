@@ -14,6 +14,7 @@
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/eval_index.h"
+#include "uplvsm/data/photo.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
@@ -149,10 +150,7 @@ void add_render_command(CLI::App& app) {
                                  true};
     nlohmann::json listing = nlohmann::json::array();
     if (!a->images.empty()) {
-      auto v0 = load_user_image(a->images[0], a->fov, prep), v1 = load_user_image(a->images[1], a->fov, prep);
-      data::Views views{torch::cat({v0.images, v1.images}), torch::cat({v0.fxfycxcy, v1.fxfycxcy}),
-                        torch::cat({v0.c2w, v1.c2w}), {0, 1}};
-      render_one(net, views, false, a->out, *a, listing, "images");
+      render_one(net, data::load_photos(a->images, a->fov, prep), false, a->out, *a, listing, "images");
     } else {
       data::ChunkDataset dataset(a->data, a->split);
       auto index = a->index.empty() ? (fs::path(a->data) / "evaluation_index.json").string() : a->index;

@@ -13,6 +13,7 @@
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/data/eval_index.h"
+#include "uplvsm/data/photo.h"
 #include "uplvsm/study/attention_map.h"
 #include "uplvsm/study/pose_probe.h"
 #include "uplvsm/study/tsne.h"
@@ -203,10 +204,7 @@ void add_attention(CLI::App& study) {
                                  config.dataset.square_crop};
     std::vector<std::pair<std::string, data::Views>> pairs;
     if (!a->images.empty()) {
-      auto v0 = load_user_image(a->images[0], a->fov, prep), v1 = load_user_image(a->images[1], a->fov, prep);
-      pairs.emplace_back("images", data::Views{torch::cat({v0.images, v1.images}),
-                                               torch::cat({v0.fxfycxcy, v1.fxfycxcy}), torch::cat({v0.c2w, v1.c2w}),
-                                               {0, 1}});
+      pairs.emplace_back("images", data::load_photos(a->images, a->fov, prep));
     } else {
       data::ChunkDataset dataset(a->data, a->split);
       for (const auto& e : data::read_eval_index((fs::path(a->data) / "evaluation_index.json").string())) {

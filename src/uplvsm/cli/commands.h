@@ -27,10 +27,6 @@ struct ModelSource {
 void add_model_options(CLI::App* cmd, ModelSource& src);
 model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
 
-// A user's photo (JPEG/PNG) as one view: a pinhole camera with the principal point at the centre and the given
-// horizontal field of view, identity pose (unused by the unposed model).
-data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep);
-
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
 void add_dataset_command(CLI::App& app);

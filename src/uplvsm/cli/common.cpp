@@ -2,7 +2,6 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/io/image.h"
 #include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::cli {
@@ -34,10 +33,6 @@ model::NovelViewModel load_model(const ModelSource& src, const torch::Device& de
   if (src.config.empty()) return model::load_model(src.checkpoint, device, config_out);
   Config hint = load_config(src.config);
   return model::load_model(src.checkpoint, device, config_out, &hint);
-}
-
-data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep) {
-  return data::preprocess_photo(io::read_image(path), fov_deg, prep, path);
 }
 
 }  // namespace uplvsm::cli

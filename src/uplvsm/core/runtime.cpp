@@ -93,10 +93,14 @@ std::string tune_allocator() {
   return "glibc malloc, default thresholds (mallopt refused)";
 }
 
-// Once per process; the description for `uplvsm info`.
-const std::string& configure_allocator() {
-  static const std::string description = tune_allocator();
+// What init_runtime did to the allocator, for `uplvsm info` (tuned once per process; reading it changes nothing).
+std::string& allocator_description() {
+  static std::string description = "glibc malloc, default thresholds";
   return description;
+}
+void configure_allocator() {
+  static const bool done = (allocator_description() = tune_allocator(), true);
+  (void)done;
 }
 }  // namespace
 
@@ -135,7 +139,7 @@ RuntimeInfo runtime_info() {
   info.interop_threads = torch::get_num_interop_threads();
   const char* policy = std::getenv("OMP_WAIT_POLICY");
   info.omp_wait_policy = policy ? policy : "(unset: libgomp default, active spinning)";
-  info.allocator = configure_allocator();
+  info.allocator = allocator_description();  // reporting only: the Python module's runtime_info() changes nothing
   info.cuda_available = torch::cuda::is_available();
   info.cuda_devices = info.cuda_available ? static_cast<int>(torch::cuda::device_count()) : 0;
   return info;

@@ -116,9 +116,30 @@ PyPtr rebuild_tensor(const PyObject& args) {
   return t;
 }
 
+// The bytes a latin-1 text stands for (the unpickler holds text as UTF-8): code points 0..255, one byte each.
+std::string latin1_bytes(const std::string& utf8) {
+  std::string out;
+  for (size_t i = 0; i < utf8.size(); ++i) {
+    const auto c = static_cast<unsigned char>(utf8[i]);
+    if (c < 0x80) {
+      out.push_back(static_cast<char>(c));
+    } else if ((c & 0xFE) == 0xC2 && i + 1 < utf8.size() && (static_cast<unsigned char>(utf8[i + 1]) & 0xC0) == 0x80) {
+      out.push_back(static_cast<char>(((c & 0x03) << 6) | (static_cast<unsigned char>(utf8[++i]) & 0x3F)));
+    } else {
+      throw std::runtime_error("_codecs.encode: text is not latin-1 (a character beyond U+00FF or bad UTF-8)");
+    }
+  }
+  return out;
+}
+
 // What REDUCE/NEWOBJ build: the few callables torch.save uses become real values, everything else stays opaque.
 PyPtr call(const PyPtr& callee, const PyPtr& args) {
   const std::string name = callee->kind == Kind::Global ? callee->text : "";
+  // Protocol 2 has no bytes opcode for Python 3 bytes: they arrive as _codecs.encode(<latin-1 text>, "latin1").
+  if (name == "_codecs.encode" && args->kind == Kind::Tuple && args->items.size() == 2 &&
+      args->items[0]->kind == Kind::Str && args->items[1]->kind == Kind::Str &&
+      (args->items[1]->text == "latin1" || args->items[1]->text == "latin-1"))
+    return make_text(Kind::Bytes, latin1_bytes(args->items[0]->text));
   if (name == "collections.OrderedDict" || name == "builtins.dict" || name == "__builtin__.dict") {
     auto dict = make(Kind::Dict);
     // Old files call OrderedDict([[key, value], ...]); newer ones fill it with SETITEMS afterwards.
