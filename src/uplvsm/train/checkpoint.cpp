@@ -5,6 +5,7 @@
 #include <type_traits>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "uplvsm/train/optimizer.h"
 
@@ -90,14 +91,40 @@ std::string save_training_checkpoint(const std::string& dir, const Config& confi
   fs::create_directories(dir);
   auto path = (fs::path(dir) / checkpoint_name(state.step)).string();
   model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), optimizer_state(opt, module));
-  std::vector<std::string> all;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    auto name = e.path().filename().string();
-    if (name.rfind("ckpt_", 0) == 0 && e.path().extension() == ".safetensors") all.push_back(e.path().string());
-  }
-  std::sort(all.begin(), all.end());
+  const auto all = training_checkpoints(dir);
   for (size_t i = 0; keep > 0 && i + static_cast<size_t>(keep) < all.size(); ++i) fs::remove(all[i]);
   return path;
+}
+
+std::vector<std::string> training_checkpoints(const std::string& dir) {
+  std::vector<std::string> all;
+  if (!fs::is_directory(dir)) return all;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    auto name = e.path().filename().string();
+    if (e.is_regular_file() && name.rfind("ckpt_", 0) == 0 && e.path().extension() == ".safetensors")
+      all.push_back(e.path().string());
+  }
+  std::sort(all.begin(), all.end());  // zero-padded steps: name order is step order
+  return all;
+}
+
+std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::string& dir) {
+  const auto all = training_checkpoints(dir);
+  std::string reasons;
+  for (auto it = all.rbegin(); it != all.rend(); ++it) {
+    try {
+      auto ckpt = model::read_checkpoint(*it);
+      TrainState::from_json(ckpt.state);
+      return ckpt;
+    } catch (const std::exception& e) {
+      spdlog::warn("checkpoint {} does not read ({}); trying the previous one", *it, e.what());
+      reasons += fmt::format("\n  {}: {}", *it, e.what());
+    }
+  }
+  if (all.empty()) return std::nullopt;
+  throw std::runtime_error(fmt::format("--resume auto: none of the {} checkpoints in {} reads (pass --resume none to "
+                                       "start over):{}",
+                                       all.size(), dir, reasons));
 }
 
 std::string save_best_checkpoint(const std::string& dir, const Config& config, const TrainState& state,

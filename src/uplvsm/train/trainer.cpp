@@ -5,6 +5,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -182,29 +183,24 @@ RunFiles prepare_run_dir(const Config& config, const TrainOptions& opt, bool lea
   return {(fs::path(opt.run_dir) / "checkpoints").string(), (fs::path(opt.run_dir) / "metrics.jsonl").string()};
 }
 
-// The checkpoint to resume from: the latest in the run for "auto" (none on a new run), a given file, or none.
-std::string resume_source(const TrainOptions& opt, const std::string& checkpoint_dir) {
-  if (opt.resume == "none") return "";
-  if (opt.resume != "auto") return model::resolve_checkpoint(opt.resume);
-  if (!fs::exists(checkpoint_dir)) return "";
-  try {
-    return model::resolve_checkpoint(checkpoint_dir);
-  } catch (const std::runtime_error&) {
-    return "";
-  }
+// The checkpoint to resume from: for "auto" the newest in the run that reads (none on a new run; a damaged newer
+// one is skipped with a warning), a given file (damaged: an error), or none.
+std::optional<model::CheckpointFile> resume_checkpoint(const TrainOptions& opt, const std::string& checkpoint_dir) {
+  if (opt.resume == "none") return std::nullopt;
+  if (opt.resume != "auto") return model::read_checkpoint(opt.resume);
+  return read_newest_valid_checkpoint(checkpoint_dir);
 }
 
 // Restores weights, optimiser and training state from a checkpoint, or initialises a new run (optionally from
 // weights). Returns the state to continue from.
 TrainState resume_or_initialise(model::UPLVSMImpl& net, torch::optim::AdamW& optimizer, const Config& config,
                                 const TrainOptions& opt, const std::string& checkpoint_dir) {
-  const std::string resume_from = resume_source(opt, checkpoint_dir);
-  if (!resume_from.empty()) {
-    auto ckpt = model::read_checkpoint(resume_from);
-    check_same_model(config, ckpt.config, resume_from);
-    model::load_state_dict(net, ckpt.model, resume_from);
-    restore_optimizer_state(optimizer, net, ckpt.optimizer, resume_from);
-    auto state = TrainState::from_json(ckpt.state);
+  if (auto ckpt = resume_checkpoint(opt, checkpoint_dir)) {
+    const std::string& resume_from = ckpt->path;
+    check_same_model(config, ckpt->config, resume_from);
+    model::load_state_dict(net, ckpt->model, resume_from);
+    restore_optimizer_state(optimizer, net, ckpt->optimizer, resume_from);
+    auto state = TrainState::from_json(ckpt->state);
     spdlog::info("resumed from {} at step {}", resume_from, state.step);
     return state;
   }
