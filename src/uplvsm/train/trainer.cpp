@@ -15,7 +15,9 @@
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
 #include "uplvsm/io/atomic_file.h"
+#include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/memory_estimate.h"
 #include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
@@ -171,6 +173,20 @@ void run_periodic_eval(const TrainOptions& opt, const Config& config, model::UPL
   if (opt.comm) opt.comm->barrier();
 }
 
+// Refuses, before anything is allocated, a config whose training state and activations (a lower bound) exceed the
+// memory the device has free: one line with both numbers instead of LibTorch's failed allocation.
+void check_memory_fits(const Config& config, torch::Device device) {
+  const auto need = model::training_memory(config);
+  const auto available = available_memory(device);
+  if (!available || need.total() <= static_cast<double>(available->bytes)) return;
+  throw std::runtime_error(fmt::format(
+      "config {}: training needs at least {} ({} parameters: {} for weights, gradients and AdamW state, {} of "
+      "activations for a batch of {}), but only {} is available ({}); reduce model dimensions or training.batch_size",
+      config.name, format_bytes(need.total()), need.parameters, format_bytes(need.state_bytes),
+      format_bytes(need.activation_bytes), config.training.batch_size, format_bytes(double(available->bytes)),
+      available->source));
+}
+
 // The run directory's files; the lead rank writes config.json.
 struct RunFiles {
   std::string checkpoint_dir, metrics;
@@ -312,6 +328,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   Communicator* comm = opt.comm.get();
   const bool lead = !comm || comm->rank() == 0;  // the rank that writes files and shows progress
+  check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
 
   torch::manual_seed(static_cast<uint64_t>(tc.seed));
