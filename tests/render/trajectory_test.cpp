@@ -93,6 +93,10 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
             std::string::npos);
   EXPECT_NE(error(R"({"frames": []})").find("frames"), std::string::npos);
   EXPECT_NE(error("{").find("invalid JSON"), std::string::npos);
+  // A path longer than any video may be is refused before a pose is read.
+  std::string many = R"({"frames": [)";
+  for (int64_t i = 0; i <= render::kMaxVideoFrames; ++i) many += i ? ",{}" : "{}";
+  EXPECT_NE(error(many + "]}").find("100001 frames, more than the 100000"), std::string::npos);
 }
 
 namespace {

@@ -31,6 +31,10 @@ model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Co
 // horizontal field of view, identity pose (unused by the unposed model).
 data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep);
 
+// What the CLI prints for an uncaught error: its message, without LibTorch's C++ backtrace ("Exception raised
+// from ... frame #0 ...") unless `verbose`, also when another error's message embeds a LibTorch one.
+std::string error_message(const std::exception& e, bool verbose);
+
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
 void add_dataset_command(CLI::App& app);

@@ -115,6 +115,9 @@ CameraPath read_camera_path(const std::string& path) {
   }
   if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].empty())
     throw std::runtime_error("camera path " + path + ": expected an object with a non-empty \"frames\" list");
+  if (j["frames"].size() > static_cast<size_t>(kMaxVideoFrames))
+    throw std::runtime_error("camera path " + path + ": " + std::to_string(j["frames"].size()) + " frames, more than " +
+                             "the " + std::to_string(kMaxVideoFrames) + " a video may have");
   const std::string units = j.value("units", "baseline");
   if (units != "baseline")
     throw std::runtime_error("camera path " + path + ": \"units\" must be \"baseline\" (translations in input baselines)");
