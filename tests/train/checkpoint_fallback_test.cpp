@@ -103,3 +103,24 @@ TEST(CheckpointFallback, ResumeAutoContinuesFromThePreviousCheckpointAndAnExplic
   EXPECT_NE(log.text.str().find("resumed from " + all[1] + " at step 4"), std::string::npos) << log.text.str();
   EXPECT_EQ(train::read_newest_valid_checkpoint((fs::path(run) / "checkpoints").string())->path, all[2]);
 }
+
+// A checkpoint's training state is read from the file: a step that is no int64 (a float-to-int cast was undefined
+// behaviour, found by fuzzing the checkpoint reader) or a missing one is an error naming the field.
+TEST(CheckpointFallback, TrainingStateTakesIntegersOnly) {
+  const auto good = nlohmann::json{{"step", 4}, {"scheduler_step", 4}, {"param_update_step", 4}};
+  EXPECT_EQ(train::TrainState::from_json(good).step, 4);
+  EXPECT_EQ(train::TrainState::from_json(good).skipped_gradnorm, 0);
+  auto bad = good;
+  bad["step"] = 4.4e24;
+  auto msg = test::error_of([&] { train::TrainState::from_json(bad); });
+  EXPECT_NE(msg.find("training state step: expected an integer, got 4.4e+24"), std::string::npos) << msg;
+  bad = good;
+  bad["skipped_nonfinite"] = nlohmann::json::array({1});
+  msg = test::error_of([&] { train::TrainState::from_json(bad); });
+  EXPECT_NE(msg.find("training state skipped_nonfinite: expected an integer, got an array of 1"), std::string::npos)
+      << msg;
+  bad = good;
+  bad.erase("scheduler_step");
+  msg = test::error_of([&] { train::TrainState::from_json(bad); });
+  EXPECT_NE(msg.find("training state: missing field 'scheduler_step'"), std::string::npos) << msg;
+}

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/train/optimizer.h"
 
 namespace uplvsm::train {
@@ -20,12 +21,19 @@ nlohmann::json TrainState::to_json() const {
 }
 
 TrainState TrainState::from_json(const nlohmann::json& j) {
+  auto integer = [&](const char* key, bool required) -> int64_t {
+    if (!j.contains(key)) {
+      if (!required) return 0;
+      throw std::runtime_error(std::string("training state: missing field '") + key + "'");
+    }
+    return json_integer(j.at(key), std::string("training state ") + key);
+  };
   TrainState s;
-  s.step = j.at("step").get<int64_t>();
-  s.scheduler_step = j.at("scheduler_step").get<int64_t>();
-  s.param_update_step = j.at("param_update_step").get<int64_t>();
-  s.skipped_nonfinite = j.value("skipped_nonfinite", int64_t{0});
-  s.skipped_gradnorm = j.value("skipped_gradnorm", int64_t{0});
+  s.step = integer("step", true);
+  s.scheduler_step = integer("scheduler_step", true);
+  s.param_update_step = integer("param_update_step", true);
+  s.skipped_nonfinite = integer("skipped_nonfinite", false);
+  s.skipped_gradnorm = integer("skipped_gradnorm", false);
   s.train_seconds = j.value("train_seconds", 0.0);
   s.best_eval_psnr = j.value("best_eval_psnr", -1.0);
   return s;
