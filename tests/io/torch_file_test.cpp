@@ -204,3 +204,16 @@ TEST(TorchFile, StridedViewCopiesAreBoundedByTheFileSize) {
   EXPECT_EQ(sd.at("head.weight").sizes(), (std::vector<int64_t>{4, 3}));
   EXPECT_TRUE(sd.at("head.weight").is_contiguous());
 }
+
+// A pickle nests one level per opcode byte (TUPLE1): a million levels must parse and be released without
+// recursing (the recursive release overflowed the stack; found by reasoning, confirmed under AddressSanitizer).
+TEST(TorchFile, DeeplyNestedPickleIsReleasedWithoutRecursion) {
+  std::string data = "\x80\x02]" + std::string(1000000, '\x85') + ".";
+  size_t pos = 0;
+  io::PersistentLoad none = [](const io::PyObject&) -> io::PyPtr { throw std::runtime_error("no storages"); };
+  auto root = io::unpickle(reinterpret_cast<const uint8_t*>(data.data()), data.size(), &pos, none, "deep");
+  ASSERT_TRUE(root->is(Kind::Tuple));
+  EXPECT_EQ(pos, data.size());
+  root.reset();  // the check: no stack overflow here
+  SUCCEED();
+}

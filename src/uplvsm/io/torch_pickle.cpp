@@ -10,6 +10,25 @@ namespace uplvsm::io {
 
 using Kind = PyObject::Kind;
 
+PyObject::~PyObject() {
+  std::vector<PyPtr> pending;
+  auto adopt_children = [&pending](PyObject& o) {
+    for (auto& item : o.items) pending.push_back(std::move(item));
+    for (auto& [k, v] : o.dict) {
+      pending.push_back(std::move(k));
+      pending.push_back(std::move(v));
+    }
+    o.items.clear();
+    o.dict.clear();
+  };
+  adopt_children(*this);
+  while (!pending.empty()) {
+    PyPtr p = std::move(pending.back());
+    pending.pop_back();
+    if (p && p.use_count() == 1) adopt_children(*p);  // p's last owner: it is destroyed childless below
+  }
+}
+
 const PyObject* PyObject::get(const std::string& key) const {
   if (kind != Kind::Dict) return nullptr;
   for (const auto& [k, v] : dict)
