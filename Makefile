@@ -4,6 +4,8 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 DEMO ?= out/demo
 CONFIG ?= configs/tiny.json
+# The model `make demo` ends by offering to open in the viewer (`uplvsm serve`).
+SERVE_CHECKPOINT ?= $(DEMO)/run
 UPLVSM = $(BUILD)/uplvsm
 export CCACHE_SLOPPINESS = pch_defines,time_macros,include_file_mtime,include_file_ctime
 export CCACHE_DIR ?= $(HOME)/.cache/ccache
@@ -11,7 +13,11 @@ export CCACHE_DIR ?= $(HOME)/.cache/ccache
 # Why each package is there: README.md, "Dependencies".
 APT_PACKAGES = cmake make g++ pkg-config ccache libtorch-dev libopenblas0-openmp libgloo-dev libcli11-dev \
   nlohmann-json3-dev libspdlog-dev libfmt-dev libjpeg62-turbo-dev libpng-dev libavcodec-dev libavformat-dev \
-  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev
+  libavutil-dev libswscale-dev libexif-dev libgtest-dev libbenchmark-dev libcpp-httplib-dev
+
+# The viewer's browser test (tests/browser) drives Debian's chromium from Node.js (installed from Debian when the
+# machine has no node/npm) with playwright-core from the committed lock file; only `make test` installs them.
+BROWSER_APT_PACKAGES = chromium $(shell command -v npm >/dev/null || echo nodejs npm)
 
 # The fuzz targets need clang and its libFuzzer runtime (only `make fuzz` installs them).
 FUZZ_APT_PACKAGES = clang libclang-rt-14-dev
@@ -20,11 +26,11 @@ FUZZ_SECONDS ?= 60
 
 # The sanitizer build (README "Robustness"): library, CLI and unit tests with AddressSanitizer + UBSan.
 SAN_BUILD ?= build-sanitize
-SAN_LAYERS ?= core io geometry data render cli
+SAN_LAYERS ?= core io geometry data render serve cli
 export ASAN_OPTIONS ?= detect_leaks=0:alloc_dealloc_mismatch=0:abort_on_error=0:strict_string_checks=1
 export UBSAN_OPTIONS ?= print_stacktrace=1:halt_on_error=1
 
-.PHONY: all deps build build-cli test test-unit test-slow bench demo fuzz sanitize clean
+.PHONY: all deps browser-deps build build-cli test test-unit test-slow bench demo fuzz sanitize clean
 
 all: build
 
@@ -46,13 +52,17 @@ build: deps $(BUILD)/CMakeCache.txt
 build-cli: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS) --target uplvsm_cli
 
-test: build
+browser-deps:
+	$(MAKE) deps EXTRA_APT_PACKAGES="$(BROWSER_APT_PACKAGES)"
+	cd tests/browser && npm ci --no-audit --no-fund
+
+test: build browser-deps
 	cd $(BUILD) && ctest --output-on-failure --timeout 1800
 
 test-unit: build
 	cd $(BUILD) && ctest --output-on-failure -L unit
 
-test-slow: build
+test-slow: build browser-deps
 	cd $(BUILD) && ctest --output-on-failure -L slow
 
 # Benchmarks, as the environment is and without this machine's OPENBLAS_* overrides (see README, Performance).
@@ -86,7 +96,7 @@ fuzz:
 
 # A second build of the unit tests of SAN_LAYERS with -fsanitize=address,undefined (-O1 -g); any report fails
 # its test. The model/train/eval/study layers are left out for CI's time: their tests are LibTorch compute, which
-# the sanitizers do not instrument; the readers of untrusted files are all in the layers above.
+# the sanitizers do not instrument; the readers of untrusted files and the HTTP server are in the layers above.
 sanitize: deps
 	test -f $(SAN_BUILD)/CMakeCache.txt || cmake -S . -B $(SAN_BUILD) -DCMAKE_BUILD_TYPE=RelWithDebInfo \
 	  -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O1 -g" -DUPLVSM_SANITIZE=address,undefined,float-cast-overflow \
@@ -102,6 +112,7 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/video
 	$(UPLVSM) report --run $(DEMO)/run --eval $(DEMO)/eval --video $(DEMO)/video --out $(DEMO)/report
+	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset  (then open http://127.0.0.1:8080/)"
 
 clean:
-	rm -rf $(BUILD) $(FUZZ_BUILD)
+	rm -rf $(BUILD) $(FUZZ_BUILD) $(SAN_BUILD)

@@ -14,7 +14,7 @@
 #include "bench_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/flops.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/optimizer.h"
 

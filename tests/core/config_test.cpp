@@ -32,6 +32,32 @@ TEST(Config, UnknownFieldIsAnErrorNamingThePath) {
   }
 }
 
+TEST(Config, CommandLineOverridesSetFieldsAndNameTheirMistakes) {
+  const auto tiny = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny.json");
+  auto c = apply_config_overrides(tiny, {"training.warmup=500", "model.transformer.n_latent_vectors=64",
+                                         "training.amp=bf16", "dataset.square_crop=false", "training.lr=3e-4"},
+                                  "tiny.json");
+  EXPECT_EQ(c.training.warmup, 500);
+  EXPECT_EQ(c.model.transformer.n_latent_vectors, 64);
+  EXPECT_EQ(c.training.amp, "bf16");
+  EXPECT_FALSE(c.dataset.square_crop);
+  EXPECT_DOUBLE_EQ(c.training.lr, 3e-4);
+  EXPECT_EQ(c.training.batch_size, tiny.training.batch_size);  // untouched
+  auto expect_error = [&](const std::string& assignment, const std::string& needle) {
+    try {
+      apply_config_overrides(tiny, {assignment}, "tiny.json");
+      FAIL() << assignment;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  expect_error("training.warmpu=5", "no field 'training.warmpu'");
+  expect_error("training", "expected section.field=value");
+  expect_error("model.transformer=3", "is a section");
+  expect_error("training.amp=fp8", "training.amp must be");
+  expect_error("training.warmup=lots", "training");  // a string where a number is expected
+}
+
 TEST(Config, InconsistentSizesAreRejected) {
   nlohmann::json j = {{"model", {{"image_size", 100}, {"patch_size", 14}}}};
   EXPECT_THROW(config_from_json(j, "bad.json"), std::runtime_error);

@@ -76,5 +76,34 @@ TEST(ViewSampler, SmallScenesAndErrors) {
   }
 }
 
+// Unordered views: distinct frames anywhere in the scene, every frame reachable in every slot, no gap rule.
+TEST(ViewSampler, UnorderedViewsAreDistinctAndCoverEveryFrame) {
+  std::mt19937_64 rng(7);
+  std::vector<std::set<int64_t>> seen(5);
+  for (int rep = 0; rep < 3000; ++rep) {
+    auto v = sample_unordered_views(24, 5, rng);
+    ASSERT_EQ(v.size(), 5u);
+    EXPECT_EQ(std::set<int64_t>(v.begin(), v.end()).size(), 5u);
+    for (size_t k = 0; k < v.size(); ++k) {
+      EXPECT_GE(v[k], 0);
+      EXPECT_LT(v[k], 24);
+      seen[k].insert(v[k]);
+    }
+  }
+  for (const auto& s : seen) EXPECT_EQ(s.size(), 24u);
+  EXPECT_EQ(sample_unordered_views(5, 5, rng).size(), 5u);  // a scene of exactly num_views frames
+  EXPECT_THROW(sample_unordered_views(4, 5, rng), std::invalid_argument);
+}
+
+TEST(ViewSampler, ViewSamplerSettingFollowsTheDataset) {
+  DatasetInfo ordered, unordered;
+  unordered.ordered_views = false;
+  EXPECT_TRUE(uses_ordered_views("auto", ordered));
+  EXPECT_FALSE(uses_ordered_views("auto", unordered));
+  EXPECT_TRUE(uses_ordered_views("ordered", unordered));
+  EXPECT_FALSE(uses_ordered_views("unordered", ordered));
+  EXPECT_THROW(uses_ordered_views("random", ordered), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace uplvsm::data

@@ -31,6 +31,31 @@ TEST(Baselines, CopyNearestInputPicksPerBatchElement) {
     for (int t = 0; t < 3; ++t) EXPECT_TRUE(torch::all(out[b][t] == expected[b][t]).item<bool>()) << b << " " << t;
 }
 
+// c2w whose camera z axis (viewing direction) points along `yaw` radians about the y axis.
+torch::Tensor looking_along(double yaw) {
+  auto m = torch::eye(4, torch::kFloat64);
+  m[0][0] = std::cos(yaw), m[0][2] = std::sin(yaw), m[2][0] = -std::sin(yaw), m[2][2] = std::cos(yaw);
+  m[0][3] = 5.0 * std::sin(yaw);  // positions alone would say otherwise for some pairs: only directions count
+  return m;
+}
+
+TEST(Baselines, CopyNearestDirectionPicksTheClosestViewingDirection) {
+  auto images = torch::zeros({2, 2, 3, 4, 5});
+  for (int b = 0; b < 2; ++b)
+    for (int v = 0; v < 2; ++v) images[b][v].fill_(10.0 * b + v);
+  auto in = torch::stack({torch::stack({looking_along(0), looking_along(1.5)}),
+                          torch::stack({looking_along(3.0), looking_along(-1.0)})});
+  auto tg = torch::stack({torch::stack({looking_along(0.2), looking_along(1.0), looking_along(0.7)}),
+                          torch::stack({looking_along(2.5), looking_along(-0.5), looking_along(1.2)})});
+  auto out = copy_nearest_direction(images, in, tg);
+  ASSERT_EQ(out.sizes(), (std::vector<int64_t>{2, 3, 3, 4, 5}));
+  // 1.2 is 1.8 rad from 3.0 and 2.2 rad from -1.0.
+  const double expected[2][3] = {{0, 1, 0}, {10, 11, 10}};
+  for (int b = 0; b < 2; ++b)
+    for (int t = 0; t < 3; ++t) EXPECT_TRUE(torch::all(out[b][t] == expected[b][t]).item<bool>()) << b << " " << t;
+  EXPECT_THROW(copy_nearest_direction(images, in.narrow(1, 0, 1), tg), c10::Error);
+}
+
 TEST(Baselines, CopyNearestInputRejectsInconsistentFrames) {
   auto images = torch::zeros({1, 2, 3, 4, 4});
   EXPECT_THROW(copy_nearest_input(images, {{0}}, {{1}}), std::runtime_error);          // 1 frame, 2 views

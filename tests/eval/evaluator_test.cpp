@@ -12,6 +12,7 @@
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/eval/baselines.h"
 #include "uplvsm/eval/metrics.h"
+#include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::eval {
 namespace {
@@ -54,7 +55,7 @@ size_t count_lines(const fs::path& path) {
 
 TEST(Evaluator, TinyModelOnFixtureDataset) {
   torch::manual_seed(0);
-  model::UPLVSM net(tiny_config());
+  auto net = model::make_model(tiny_config());
   net->train();
   data::ChunkDataset dataset(root(), "test");
   const auto out = test::temp_dir("eval_tiny");
@@ -115,7 +116,7 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
 
 TEST(Evaluator, LpipsOnlyWithItsWeights) {
   torch::manual_seed(0);
-  model::UPLVSM net(tiny_config());
+  auto net = model::make_model(tiny_config());
   data::ChunkDataset dataset(root(), "test");
   const auto out = test::temp_dir("eval_lpips");
   EvalOptions opt;
@@ -168,7 +169,7 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
 
 TEST(Evaluator, Bf16ForwardCloseToFp32) {
   torch::manual_seed(0);
-  model::UPLVSM net(tiny_config());
+  auto net = model::make_model(tiny_config());
   data::ChunkDataset dataset(root(), "test");
   EvalOptions opt;
   auto fp32 = evaluate(net, dataset, tiny_prep(), opt);
@@ -187,7 +188,7 @@ TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
                                           {"ffffffffffffffff", {0, 2}, {1, 1, 1}, 0.2}};
   data::write_eval_index((dir / "index.json").string(), entries);
   torch::manual_seed(0);
-  model::UPLVSM net(tiny_config());
+  auto net = model::make_model(tiny_config());
   data::ChunkDataset dataset(root(), "test");
   EvalOptions opt;
   opt.index_path = (dir / "index.json").string();
@@ -209,7 +210,7 @@ TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
 TEST(Evaluator, RunsOnCuda) {
   if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device";
   torch::manual_seed(0);
-  model::UPLVSM net(tiny_config());
+  auto net = model::make_model(tiny_config());
   data::ChunkDataset dataset(root(), "test");
   EvalOptions opt;
   auto cpu = evaluate(net, dataset, tiny_prep(), opt);

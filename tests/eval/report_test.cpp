@@ -1,6 +1,7 @@
 // Tests of eval/report: a report from a fake metrics.json, training log and scene grid contains index.html that
 // links exactly the assets that exist, the training curve and the paper-style table.
 #include "uplvsm/eval/report.h"
+#include "uplvsm/eval/comparison_report.h"
 
 #include <gtest/gtest.h>
 
@@ -142,6 +143,43 @@ TEST(Report, RejectsMalformedMetrics) {
 }
 
 TEST(Report, HtmlEscape) { EXPECT_EQ(html_escape("a<b & \"c\"'"), "a&lt;b &amp; &quot;c&quot;&#39;"); }
+
+
+TEST(Report, ComparisonPageShowsModelsSideBySide) {
+  const auto src = test::temp_dir("report_cmp_src");
+  const auto out = test::temp_dir("report_cmp_out");
+  write(src / "metrics.json", fake_metrics().dump());
+  write(src / "v.mp4", "not really a video");
+  io::write_png((src / "grid.png").string(), torch::full({10, 150, 3}, 128, torch::kUInt8));
+  ReportInputs a;
+  a.metrics_json = (src / "metrics.json").string();
+  a.scene_grids = {(src / "grid.png").string()};
+  a.videos = {{"orbit", (src / "v.mp4").string(), "", 96}};
+  ReportInputs b;
+  b.metrics_json = a.metrics_json;
+  const auto html = read(write_comparison_report(out.string(), "Demo <both>", {{"Shipped", "at 96x96", a}, {"tiny", "", b}}));
+  for (const char* file : {"index.html", "model_0/index.html", "model_0/video_0.mp4", "model_0/scenes/grid.png",
+                           "model_1/index.html", "model_1/metrics.json"})
+    EXPECT_TRUE(fs::is_regular_file(out / file)) << file;
+  EXPECT_NE(html.find("Demo &lt;both&gt;"), std::string::npos);
+  EXPECT_LT(html.find("<h2>Shipped</h2>"), html.find("<h2>tiny</h2>"));
+  EXPECT_NE(html.find("at 96x96"), std::string::npos);
+  // Small renders are upscaled by integer factors (96 px video -> 6x = 576 px; 150 px grid -> 4x = 600 px).
+  EXPECT_NE(html.find("src=\"model_0/video_0.mp4\" width=\"576\""), std::string::npos) << html;
+  EXPECT_NE(html.find("src=\"model_0/scenes/grid.png\" width=\"600\""), std::string::npos) << html;
+  EXPECT_NE(html.find("image-rendering:pixelated"), std::string::npos);
+  // Narrow columns show the whole test set only, not the overlap buckets.
+  EXPECT_EQ(html.find("Large overlap"), std::string::npos);
+  EXPECT_NE(html.find("Test set (3 scenes)"), std::string::npos);
+  fs::remove_all(src);
+  fs::remove_all(out);
+}
+
+TEST(Report, PixelWidthIsAnIntegerMultipleOfTheNativeWidth) {
+  EXPECT_EQ(pixel_width_attr(96, 600), " width=\"576\"");
+  EXPECT_EQ(pixel_width_attr(700, 600), " width=\"700\"");  // never shrunk below its own size
+  EXPECT_EQ(pixel_width_attr(0, 600), "");
+}
 
 }  // namespace
 }  // namespace uplvsm::eval

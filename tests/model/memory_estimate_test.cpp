@@ -4,7 +4,7 @@
 
 #include "train/train_test_util.h"
 #include "uplvsm/model/memory_estimate.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/model_factory.h"
 
 using namespace uplvsm;
 
@@ -22,7 +22,7 @@ TEST(MemoryEstimate, ParameterCountFromTheConfigEqualsTheBuiltModel) {
   for (std::string name : {"tiny", "tiny_ptlvsm", "tiny_lvsm", "tiny_mapper"})
     configs.push_back(load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json").model);
   for (const auto& c : configs) {
-    model::UPLVSM net(c);
+    auto net = model::make_model(c);
     EXPECT_EQ(model::parameter_count(c), net->parameter_count()) << config_to_json(Config{"c", c}).dump();
   }
 }

@@ -41,6 +41,17 @@ TEST(CameraControlPoses, InvariantToAGlobalRigidTransformAndScale) {
   EXPECT_LT(test::max_abs_diff(a, b), 1e-4);
 }
 
+TEST(CameraControlPoses, WorldCamerasFromPosesInvertThem) {
+  torch::manual_seed(2);
+  for (int64_t vi : {1, 2}) {
+    auto inputs = random_cameras(2, vi), targets = random_cameras(2, 4);
+    auto poses = model::camera_control_poses(inputs, targets);
+    auto world = model::camera_control_to_world(inputs, poses);
+    ASSERT_EQ(world.sizes(), (std::vector<int64_t>{2, 4, 4, 4}));
+    EXPECT_LE(test::max_abs_diff(world, targets.to(torch::kFloat32)), 1e-4) << vi << " input views";
+  }
+}
+
 TEST(CameraControlPoses, RejectsNonFiniteCameras) {
   auto c = random_cameras(1, 2);
   c[0][1][0][3] = std::nan("");

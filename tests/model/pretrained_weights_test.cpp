@@ -6,7 +6,9 @@
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/dinov2.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/uplvsm.h"
 
 using namespace uplvsm;
 
@@ -73,7 +75,7 @@ TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
     c.dinov2.imagenet_normalize = false;  // the fixture input is already normalised
     model::UPLVSM net(c);
     auto w = model::read_pretrained_weights(test::fixture("dinov2/weights.pth"));
-    auto report = model::load_dinov2_into_uplvsm(*net, w.tensors, "weights.pth");
+    auto report = model::load_dinov2_into_tokenizer(*net, w.tensors, "weights.pth");
     EXPECT_TRUE(report.ok());
     EXPECT_EQ(report.defaulted.size(), qk_norm ? 4u : 0u);
     EXPECT_EQ(report.skipped, std::vector<std::string>{"mask_token"});
@@ -106,7 +108,8 @@ TEST(PretrainedWeights, InferConfigFromOfficialCheckpoint) {
 // The official training checkpoint, loaded with its config inferred, gives the official forward's poses and renders.
 TEST(PretrainedWeights, OfficialCheckpointPtMatchesOfficialForward) {
   Config config;
-  auto net = model::load_model(test::fixture("official_uplvsm/checkpoint.pt"), torch::kCPU, &config);
+  auto loaded = model::load_model(test::fixture("official_uplvsm/checkpoint.pt"), torch::kCPU, &config);
+  auto net = model::require_uplvsm(loaded, "official checkpoint");
   EXPECT_EQ(net->parameter_count(), 667047);
   auto f = io::read_safetensors(test::fixture("official_uplvsm/io.safetensors")).tensors;
   torch::NoGradGuard no_grad;

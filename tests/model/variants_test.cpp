@@ -1,11 +1,12 @@
-// The model family: the posed baselines (ptlvsm, lvsm) and UP-LVSM's target-pose sources share one module.
+// The model family: UP-LVSM and the posed baselines (ptlvsm, lvsm), built by the factory behind one interface, and
+// UP-LVSM's target-pose sources.
 #include <gtest/gtest.h>
 
 #include "test_util.h"
 #include "train/train_test_util.h"
 #include "uplvsm/geometry/camera.h"
-#include "uplvsm/model/flops.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/posed_lvsm.h"
 #include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/uplvsm.h"
 
@@ -37,8 +38,34 @@ model::Views transformed(model::Views v, const torch::Tensor& world, double scal
 }
 }  // namespace
 
+TEST(Variants, TheFactoryBuildsOneClassPerModel) {
+  auto up = model::make_model(small_config("uplvsm"));
+  ASSERT_NE(model::as_uplvsm(*up), nullptr);
+  EXPECT_EQ(up->name(), "UP-LVSM");
+  EXPECT_EQ(up->default_target_poses(), model::TargetPoses::Estimator);
+  EXPECT_FALSE(up->has_camera_control());  // no pose mapper
+  for (const auto& [variant, posed, name] : {std::tuple{"ptlvsm", model::PosedInputs::First, "PT-LVSM"},
+                                             std::tuple{"lvsm", model::PosedInputs::All, "LVSM"}}) {
+    auto net = model::make_model(small_config(variant));
+    EXPECT_EQ(model::as_uplvsm(*net), nullptr) << variant;
+    auto* p = dynamic_cast<model::PosedLVSMImpl*>(net.get());
+    ASSERT_NE(p, nullptr) << variant;
+    EXPECT_EQ(p->posed_inputs, posed);
+    EXPECT_EQ(net->name(), name);
+    EXPECT_EQ(net->default_target_poses(), model::TargetPoses::Dataset);
+    EXPECT_EQ(model::parse_target_poses("auto", *net), model::TargetPoses::Dataset);
+    EXPECT_TRUE(net->has_camera_control());
+    EXPECT_NE(test::error_of([&] { model::require_uplvsm(net, "pose pairs"); }).find("pose pairs: only UP-LVSM"),
+              std::string::npos);
+  }
+  auto mapped = small_config("ptlvsm");
+  mapped.pose_mapper = true;
+  EXPECT_NE(test::error_of([&] { model::make_model(mapped); }).find("model.pose_mapper"), std::string::npos);
+  EXPECT_NE(test::error_of([&] { model::make_model(small_config("nerf")); }).find("'nerf'"), std::string::npos);
+}
+
 TEST(Variants, PosedVariantsHaveTheOfficialPosedTargetLvsmKeys) {
-  model::UPLVSM net(small_config("ptlvsm"));
+  auto net = model::make_model(small_config("ptlvsm"));
   auto sd = model::state_dict(*net);
   EXPECT_TRUE(sd.count("transformer_blocks.1.attn.q_norm.weight"));
   EXPECT_TRUE(sd.count("transformer_input_layernorm.weight"));
@@ -59,22 +86,22 @@ TEST(Variants, PosedVariantsHaveTheOfficialPosedTargetLvsmKeys) {
 TEST(Variants, PosedVariantsRenderEveryTargetAndIgnoreTheWorldFrameAndScale) {
   for (const std::string variant : {"ptlvsm", "lvsm"}) {
     torch::manual_seed(3);
-    model::UPLVSM net(small_config(variant));
+    auto net = model::make_model(small_config(variant));
     net->eval();
     auto s = random_scene(2, 2, 3);
     model::ForwardTrace trace;
-    auto out = net->forward(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
+    auto out = net->render(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
     ASSERT_EQ(out.render.sizes(), (std::vector<int64_t>{2, 3, 3, 32, 32})) << variant;
     EXPECT_FALSE(out.pose_enc.defined());
     // PT-LVSM poses input view 0 only; LVSM every input view.
     EXPECT_EQ(trace.canonical_plucker.size(1), variant == "lvsm" ? 2 : 1) << variant;
     // The official scene normalisation removes the world frame and the scene scale.
     auto world = geometry::pose_encoding_to_c2w(torch::tensor({{0.3, -2.0, 1.0, 0.2, -0.4, 0.1, 0.9}}));
-    auto moved = net->forward(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5),
-                              model::TargetPoses::Dataset);
+    auto moved = net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5),
+                             model::TargetPoses::Dataset);
     EXPECT_LT(test::max_abs_diff(out.render, moved.render), 1e-4) << variant;
     // Posed variants have no estimator.
-    EXPECT_THROW(net->forward(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
+    EXPECT_THROW(net->render(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
   }
 }
 
@@ -82,11 +109,11 @@ TEST(Variants, PtlvsmMarksInputViewZeroAndLvsmEveryInputView) {
   torch::manual_seed(4);
   auto s = random_scene(1, 3, 1);
   for (const std::string variant : {"ptlvsm", "lvsm"}) {
-    model::UPLVSM net(small_config(variant));
+    auto net = model::make_model(small_config(variant));
     net->eval();
     torch::NoGradGuard no_grad;
     model::ForwardTrace trace;
-    net->forward(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
+    net->render(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
     auto raw = net->tokenize(s.inputs.images);  // DINOv2 tokens before any camera is added
     for (int64_t v = 0; v < 3; ++v) {
       const bool posed = v == 0 || variant == "lvsm";
@@ -104,27 +131,27 @@ TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
   model::UPLVSM net(config);
   net->eval();
   auto s = random_scene(2, 2, 2);
-  auto by_estimator = net->forward(s.inputs, s.targets, model::TargetPoses::Estimator);
+  auto by_estimator = net->render(s.inputs, s.targets, model::TargetPoses::Estimator);
   auto legacy = net->forward(s.inputs.images, s.inputs.fxfycxcy, s.targets.images, s.targets.fxfycxcy);
   EXPECT_TRUE(torch::allclose(by_estimator.render, legacy.render));
   // The mapper starts as the identity: mapper poses equal dataset poses.
-  auto by_dataset = net->forward(s.inputs, s.targets, model::TargetPoses::Dataset);
-  auto by_mapper = net->forward(s.inputs, s.targets, model::TargetPoses::Mapper);
+  auto by_dataset = net->render(s.inputs, s.targets, model::TargetPoses::Dataset);
+  auto by_mapper = net->render(s.inputs, s.targets, model::TargetPoses::Mapper);
   EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, by_mapper.pose_enc), 1e-5);
   EXPECT_LT(test::max_abs_diff(by_dataset.render, by_mapper.render), 1e-5);
   EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, model::camera_control_poses(s.inputs.c2w, s.targets.c2w)), 1e-6);
   // Dataset poses need cameras; a model without a mapper says how to get one.
   auto unposed = s.targets;
   unposed.c2w = torch::Tensor();
-  EXPECT_NE(test::error_of([&] { net->forward(s.inputs, unposed, model::TargetPoses::Dataset); }).find("c2w"),
+  EXPECT_NE(test::error_of([&] { net->render(s.inputs, unposed, model::TargetPoses::Dataset); }).find("c2w"),
             std::string::npos);
   model::UPLVSM plain(small_config("uplvsm"));
-  EXPECT_NE(test::error_of([&] { plain->forward(s.inputs, s.targets, model::TargetPoses::Mapper); })
+  EXPECT_NE(test::error_of([&] { plain->render(s.inputs, s.targets, model::TargetPoses::Mapper); })
                 .find("--stage mapper"),
             std::string::npos);
   // Gradients reach the mapper through the renderer.
   net->train();
-  net->forward(s.inputs, s.targets, model::TargetPoses::Mapper).render.mean().backward();
+  net->render(s.inputs, s.targets, model::TargetPoses::Mapper).render.mean().backward();
   ASSERT_TRUE(net->pose_mapper->A.grad().defined());
   EXPECT_GT(net->pose_mapper->A.grad().abs().sum().item<double>(), 0);
 }
@@ -138,5 +165,6 @@ TEST(Variants, FlopCountsFollowTheArchitecture) {
   EXPECT_EQ(pt.estimator, 0);
   EXPECT_EQ(pt.encoder, 0);
   EXPECT_LT(pt.dinov2, up.dinov2);  // no target images through DINOv2 without the estimator
+  EXPECT_GT(model::forward_flops(small_config("lvsm"), 1, 2, 3).other, pt.other);  // rays on both input views
   EXPECT_DOUBLE_EQ(model::forward_flops(small_config("uplvsm"), 2, 2, 3).total(), 2 * up.total());
 }

@@ -8,7 +8,7 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/metrics.h"
 #include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/render/renderer.h"
 #include "uplvsm/train/trainer.h"
 
@@ -47,7 +47,7 @@ TEST(IdentityTrajectory, ReproducesTheFirstInputBetterThanItsMeanColour) {
 
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   data::PreprocessOptions prep{48, 8, true};
-  auto plain = model::load_model(base, torch::kCPU);
+  auto plain = model::require_uplvsm(model::load_model(base, torch::kCPU), "latent interpolation");
   auto mapped = model::load_model(opt.run_dir, torch::kCPU);
   double psnr_latent = 0, psnr_mapper = 0, psnr_mean = 0;
   for (int64_t i = 0; i < dataset.size(); ++i) {

@@ -6,7 +6,8 @@
 #include "test_util.h"
 #include "train/train_test_util.h"
 #include "uplvsm/geometry/camera.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/posed_lvsm.h"
 #include "uplvsm/render/renderer.h"
 #include "uplvsm/render/trajectory.h"
 
@@ -101,6 +102,24 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
   std::string many = R"({"frames": [)";
   for (int64_t i = 0; i <= render::kMaxVideoFrames; ++i) many += i ? ",{}" : "{}";
   EXPECT_NE(error(many + "]}").find("100001 frames, more than the 100000"), std::string::npos);
+  EXPECT_NE(error(R"({"units": "metres", "frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}]})").find("latent"),
+            std::string::npos);
+  EXPECT_FALSE(path.latent);
+  EXPECT_TRUE(render::read_camera_path(write("latent.json", R"({"units": "latent", "scene": "x",
+                                                                "frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}]})"))
+                  .latent);
+}
+
+// A camera path in latent units (recorded in the viewer) renders exactly the frames of the same latent poses in
+// the interpolation video.
+TEST(RenderLatentPath, MatchesTheInterpolationAtTheSamePoses) {
+  torch::manual_seed(0);
+  auto images = torch::rand({2, 3, 32, 32});
+  auto k = torch::tensor({30.0, 30.0, 16.0, 16.0}).expand({2, 4}).contiguous();
+  model::UPLVSM up(test::micro_model("uplvsm"));
+  auto video = render::render_interpolation(up, images, k, 5);
+  auto frames = render::render_latent_path(up, images, k, video.poses, k[0].expand({5, 4}), 2);
+  EXPECT_LE(test::max_abs_diff(frames, video.frames), 1e-5);
 }
 
 namespace {
@@ -120,22 +139,24 @@ TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
   c2w[1][0][3] = 2.0;  // baseline 2
   auto poses = render::camera_path_preset("orbit", 5);
   auto kk = k[0].expand({5, 4});
-  model::UPLVSM up(micro_model("uplvsm", true));
+  auto up = model::make_model(micro_model("uplvsm", true));
   auto frames = render::render_camera_path(up, {images, k, {}}, poses, kk, 2);
   EXPECT_EQ(frames.sizes(), (std::vector<int64_t>{5, 3, 32, 32}));
   // Chunking does not change frames.
   EXPECT_LE(test::max_abs_diff(frames, render::render_camera_path(up, {images, k, {}}, poses, kk, 5)), 1e-5);
-  model::UPLVSM no_mapper(micro_model("uplvsm", false));
+  auto no_mapper = model::make_model(micro_model("uplvsm", false));
   EXPECT_NE(test::error_of([&] { render::render_camera_path(no_mapper, {images, k, {}}, poses, kk); })
                 .find("--stage mapper"),
             std::string::npos);
   // A posed variant places the path in the inputs' world: its first frame is input view 0's camera.
-  model::UPLVSM pt(micro_model("ptlvsm", false));
+  auto pt = model::make_model(micro_model("ptlvsm", false));
   auto posed = render::render_camera_path(pt, {images, k, c2w}, poses, kk, 2);
   model::Views in{images.unsqueeze(0), k.unsqueeze(0), c2w.unsqueeze(0)};
   model::Views first{torch::zeros({1, 1, 3, 32, 32}), k.slice(0, 0, 1).unsqueeze(0), c2w.slice(0, 0, 1).unsqueeze(0)};
   torch::NoGradGuard no_grad;
-  EXPECT_LE(test::max_abs_diff(posed[0], pt->render_posed(in, first, nullptr, false)[0][0]), 1e-5);
+  auto* pt_lvsm = dynamic_cast<model::PosedLVSMImpl*>(pt.get());
+  ASSERT_NE(pt_lvsm, nullptr);
+  EXPECT_LE(test::max_abs_diff(posed[0], pt_lvsm->render_posed(in, first, nullptr, false)[0][0]), 1e-5);
   EXPECT_LE(test::max_abs_diff(posed, render::render_camera_path(pt, {images, k, c2w}, poses, kk, 5)), 1e-5);
   EXPECT_NE(test::error_of([&] { render::render_camera_path(pt, {images, k, {}}, poses, kk); }).find("c2w"),
             std::string::npos);

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "train/train_test_util.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/study/attention_map.h"
 
 using namespace uplvsm;
@@ -45,8 +46,8 @@ TEST(AttentionMap, QueryPatchFindsItselfInAnIdenticalSecondView) {
   EXPECT_EQ(fig.dim(), 3);
   EXPECT_GE(fig.size(1), 3 * 64);
   EXPECT_THROW(study::cross_view_attention(net, images, intrinsics(), 4, 0), c10::Error);
-  model::UPLVSM posed(test::micro_model("lvsm"));
-  EXPECT_THROW(study::cross_view_attention(posed, images, intrinsics(), 0, 0), c10::Error);
+  auto posed = model::make_model(test::micro_model("lvsm"));  // no scene encoder: not an UP-LVSM
+  EXPECT_THROW(model::require_uplvsm(posed, "study attention"), c10::Error);
 }
 
 TEST(AttentionMap, HeatColoursRunFromDarkBlueToRed) {

@@ -5,6 +5,7 @@
 #include "test_util.h"
 #include "train/train_test_util.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/study/pose_probe.h"
 
 using namespace uplvsm;
@@ -98,10 +99,11 @@ TEST(PosePairs, OneRowPerFrameWithTheFirstContextViewAsIdentity) {
   int64_t rows = 0;
   while (std::getline(in, line)) ++rows;
   EXPECT_EQ(rows, n);
-  model::UPLVSM posed([&] {
+  // A posed model has no latent poses: it cannot become the UP-LVSM that collect_pose_pairs takes.
+  auto posed = model::make_model([&] {
     auto m = config.model;
     m.variant = "ptlvsm";
     return m;
   }());
-  EXPECT_THROW(study::collect_pose_pairs(posed, dataset, prep, opt), c10::Error);
+  EXPECT_THROW(model::require_uplvsm(posed, "pose pairs"), c10::Error);
 }

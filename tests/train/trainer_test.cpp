@@ -4,7 +4,9 @@
 
 #include "train_test_util.h"
 #include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/posed_lvsm.h"
+#include "uplvsm/model/uplvsm.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/state_dict.h"
 #include "uplvsm/train/perceptual_loss.h"
@@ -138,7 +140,7 @@ TEST(Trainer, PeriodicEvaluationIsLoggedBesideTheLoss) {
   auto run = test::temp_dir("train_periodic_eval").string();
   auto opt = options(run);
   std::vector<int64_t> steps;
-  opt.periodic_eval = [&](model::UPLVSM& net, int64_t step) {
+  opt.periodic_eval = [&](model::NovelViewModel& net, int64_t step) {
     EXPECT_FALSE(net->is_training());
     steps.push_back(step);
     return nlohmann::json{{"psnr", step == 4 ? 20.0 : 15.0}};
@@ -199,5 +201,6 @@ TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {
   Config loaded;
   auto net = model::load_model(run, torch::kCPU, &loaded);
   EXPECT_EQ(loaded.model.variant, "ptlvsm");
-  EXPECT_FALSE(net->estimator);
+  EXPECT_EQ(model::as_uplvsm(*net), nullptr);  // the decoder-only model: no estimator
+  EXPECT_NE(dynamic_cast<model::PosedLVSMImpl*>(net.get()), nullptr);
 }

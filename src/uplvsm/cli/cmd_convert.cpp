@@ -11,6 +11,7 @@
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
 
 namespace uplvsm::cli {
@@ -25,7 +26,7 @@ struct ConvertArgs {
   bool verify = false;
 };
 
-void print_summary(const model::UPLVSMImpl& net, const model::PretrainedWeights& w) {
+void print_summary(const model::NovelViewModelImpl& net, const model::PretrainedWeights& w) {
   std::map<std::string, int64_t> per_module;
   for (const auto& item : net.named_parameters(true)) {
     const auto& key = item.key();
@@ -56,7 +57,7 @@ void write_vgg19_extras(const model::PretrainedWeights& w, const std::string& ou
 }
 
 // Reloads the written file and checks every tensor and one forward pass.
-void verify(const std::string& output, const model::UPLVSMImpl& converted, const torch::Device& device) {
+void verify(const std::string& output, const model::NovelViewModelImpl& converted, const torch::Device& device) {
   Config config;
   auto net = model::load_model(output, device, &config);
   auto expected = model::state_dict(converted);
@@ -68,13 +69,13 @@ void verify(const std::string& output, const model::UPLVSMImpl& converted, const
   auto images = torch::rand({1, 3, 3, s, s}, torch::TensorOptions().device(device));
   auto K = torch::tensor({0.9 * s, 0.9 * s, 0.5 * s, 0.5 * s}, torch::TensorOptions().device(device)).expand({1, 3, 4});
   auto t0 = std::chrono::steady_clock::now();
-  // Posed variants need cameras: a camera 1 unit to the right per view.
+  // Posed models need cameras: a camera 1 unit to the right per view.
   auto c2w = torch::eye(4, images.options()).repeat({1, 3, 1, 1});
   c2w.select(1, 1)[0][0][3] = 1.0;
   c2w.select(1, 2)[0][0][3] = 0.5;
   model::Views inputs{images.narrow(1, 0, 2), K.narrow(1, 0, 2), c2w.narrow(1, 0, 2)};
   model::Views targets{images.narrow(1, 2, 1), K.narrow(1, 2, 1), c2w.narrow(1, 2, 1)};
-  auto out = net->forward(inputs, targets, model::parse_target_poses("auto", config.model));
+  auto out = net->render(inputs, targets, net->default_target_poses());
   double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   auto pose = out.pose_enc.defined() ? out.pose_enc.cpu().contiguous() : torch::zeros({7});
   if (!torch::isfinite(out.render).all().item<bool>() || !torch::isfinite(pose).all().item<bool>())
@@ -91,14 +92,14 @@ void run_convert(const ConvertArgs& a) {
   Config config;
   if (!a.config.empty()) config = load_config(a.config);
   nlohmann::json state = {{"step", 0}, {"converted_from", a.input}, {"source", model::to_string(w.source)}};
-  model::UPLVSM net{nullptr};
+  model::NovelViewModel net{nullptr};
   if (w.source == model::WeightSource::Uplvsm) {
     if (a.config.empty()) {
       config.name = fs::path(a.input).stem().string();
       config.model = model::infer_model_config(w.tensors, config.model);
     }
     validate_config(config, a.config.empty() ? a.input + " (inferred config)" : a.config);
-    net = model::UPLVSM(config.model);
+    net = model::make_model(config.model);
     auto report = model::load_state_dict(*net, w.tensors, a.input);
     std::cout << report.summary(a.input) << "\n";
   } else {
@@ -108,8 +109,8 @@ void run_convert(const ConvertArgs& a) {
                                            a.input, model::to_string(w.source)));
     validate_config(config, a.config);
     torch::manual_seed(static_cast<uint64_t>(config.training.seed));
-    net = model::UPLVSM(config.model);
-    auto report = model::load_dinov2_into_uplvsm(*net, w.tensors, a.input);
+    net = model::make_model(config.model);
+    auto report = model::load_dinov2_into_tokenizer(*net, w.tensors, a.input);
     std::cout << report.summary(a.input) << "\n(the rest of the model is freshly initialised with seed "
               << config.training.seed << ")\n";
   }

@@ -82,8 +82,8 @@ void add_eval_command(CLI::App& app) {
     opt.out_dir = a->out;
     opt.bf16 = parse_amp(a->amp);
     // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
-    opt.target_poses = model::parse_target_poses(
-        a->target_poses == "auto" ? config.training.target_poses : a->target_poses, config.model);
+    opt.target_poses =
+        model::parse_target_poses(a->target_poses == "auto" ? config.training.target_poses : a->target_poses, *net);
     if (comm) {
       opt.shard_rank = comm->rank();
       opt.shard_count = comm->world_size();

@@ -8,13 +8,13 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::cli {
 
 namespace {
 void print_model_summary(const Config& c) {
-  model::UPLVSM net(c.model);
+  auto net = model::make_model(c.model);
   std::map<std::string, int64_t> by_module;
   for (const auto& item : net->named_parameters(true)) {
     auto key = item.key();

@@ -18,6 +18,7 @@
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
 #include "uplvsm/render/trajectory.h"
 
@@ -38,15 +39,20 @@ struct RenderArgs {
   double fps = 12, fov = 60;
 };
 
-// The camera path of the video in camera-control units and its pixel intrinsics, or undefined poses for the latent
-// interpolation (unposed inputs and no way to place real cameras).
-std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const data::Views& views, bool posed,
-                                                    const RenderArgs& a) {
+// The camera path of the video and its pixel intrinsics: real cameras in camera-control units, or latent poses
+// (a camera-path file in "latent" units), or no poses for the latent interpolation (unposed inputs, or a model
+// without camera control).
+struct VideoPath {
+  torch::Tensor poses, intrinsics;
+  bool latent = false;
+};
+
+VideoPath camera_path(model::NovelViewModel& net, const data::Views& views, bool posed, const RenderArgs& a) {
   const int64_t H = views.images.size(2), W = views.images.size(3);
   auto k0 = views.fxfycxcy[0].to(torch::kFloat64);
   auto repeat_k = [&](int64_t n) { return k0.unsqueeze(0).expand({n, 4}).contiguous(); };
   if (a.trajectory == "interpolate") {
-    if (!posed || (!net->posed_variant() && !net->pose_mapper)) return {};
+    if (!posed || !net->has_camera_control()) return {};
     // SE(3) interpolation from the first input view (identity) to the second, in camera-control units.
     auto real = model::camera_control_poses(views.c2w.unsqueeze(0), views.c2w.unsqueeze(0))[0].to(torch::kFloat64);
     return {render::interpolate_poses(real.slice(0, 0, 2), a.frames),
@@ -61,8 +67,8 @@ std::pair<torch::Tensor, torch::Tensor> camera_path(model::UPLVSM& net, const da
   }
   auto path = render::read_camera_path(a.trajectory);
   const int64_t n = path.poses.size(0);
-  if (!path.fxfycxcy_normalised.defined()) return {path.poses, repeat_k(n)};
-  return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W)};
+  if (!path.fxfycxcy_normalised.defined()) return {path.poses, repeat_k(n), path.latent};
+  return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W), path.latent};
 }
 
 // The frames stay in memory until the video is written (float32; with --side-by-side also a copy 3x as wide): a
@@ -77,18 +83,22 @@ void check_video_fits(int64_t frames, const torch::Tensor& images, bool side_by_
                                        format_bytes(static_cast<double>(available->bytes)), available->source));
 }
 
-void render_one(model::UPLVSM& net, const data::Views& views, bool posed, const std::string& dir, const RenderArgs& a,
-                nlohmann::json& listing, const std::string& name) {
-  auto [poses, intrinsics] = camera_path(net, views, posed, a);
+void render_one(model::NovelViewModel& net, const data::Views& views, bool posed, const std::string& dir,
+                const RenderArgs& a, nlohmann::json& listing, const std::string& name) {
+  auto [poses, intrinsics, latent] = camera_path(net, views, posed, a);
   check_video_fits(poses.defined() ? poses.size(0) : a.frames, views.images, a.side_by_side);
   torch::Tensor frames, key_poses;
   {
     AutocastGuard amp(render::model_device(*net), parse_amp(a.amp));
-    if (poses.defined()) {
+    if (latent) {
+      auto up = model::require_uplvsm(net, "render: a camera path in latent units");
+      frames = render::render_latent_path(up, views.images, views.fxfycxcy, poses, intrinsics);
+    } else if (poses.defined()) {
       model::Views inputs{views.images, views.fxfycxcy, posed ? views.c2w : torch::Tensor()};
       frames = render::render_camera_path(net, inputs, poses, intrinsics);
     } else {
-      auto video = render::render_interpolation(net, views.images, views.fxfycxcy, a.frames);
+      auto up = model::require_uplvsm(net, "render: the latent interpolation of inputs without cameras");
+      auto video = render::render_interpolation(up, views.images, views.fxfycxcy, a.frames);
       frames = video.frames;
       key_poses = video.key_poses.to(torch::kFloat32).contiguous();
     }
@@ -131,7 +141,8 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--trajectory", a->trajectory,
                   "interpolate, orbit, spiral, dolly, or a camera-path JSON file ({\"frames\": [{\"pose\": [tx, ty, "
                   "tz, qx, qy, qz, qw]} or {\"c2w\": 4x4}, optional \"fxfycxcy\" normalised], first input view "
-                  "canonical, OpenCV axes, translations in input baselines)")
+                  "canonical, OpenCV axes, translations in input baselines; or \"units\": \"latent\": latent poses "
+                  "recorded in `uplvsm serve`)")
       ->capture_default_str();
   cmd->add_option("--focus", a->focus, "presets: distance of the looked-at point in front of the first view (baselines)")
       ->capture_default_str();

@@ -52,7 +52,7 @@ StudyModel start(const PoseArgs& a) {
   apply_common_options(a.common);
   StudyModel m;
   m.device = parse_device(a.common.device);
-  m.net = load_model(a.model, m.device, &m.config);
+  m.net = model::require_uplvsm(load_model(a.model, m.device, &m.config), "study pose-pairs/pose-probe/tsne");
   return m;
 }
 
@@ -198,7 +198,7 @@ void add_attention(CLI::App& study) {
       throw std::runtime_error("study attention: give either --data (dataset scenes) or --images A B (two photos)");
     Config config;
     const auto device = parse_device(a->common.device);
-    auto net = load_model(a->model, device, &config);
+    auto net = model::require_uplvsm(load_model(a->model, device, &config), "study attention");
     data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
                                  config.dataset.square_crop};
     std::vector<std::pair<std::string, data::Views>> pairs;

@@ -125,7 +125,7 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   eopt.num_visualised = 2;
   eopt.out_dir = (dir / "eval").string();
   eopt.bf16 = parse_amp(config.training.amp);
-  eopt.target_poses = model::parse_target_poses("auto", config.model);
+  eopt.target_poses = net->default_target_poses();
   eopt.lpips = lpips;
   eopt.extra = {{"checkpoint", trained.last_checkpoint}, {"series", r.series}, {"setting", r.setting}};
   auto summary = eval::evaluate(net, test, prep, eopt);

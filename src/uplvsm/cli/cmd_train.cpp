@@ -20,16 +20,16 @@ namespace {
 
 // Held-out evaluation during training (training.eval_every): the test split's evaluation index, at most
 // eval.max_scenes scenes (default 16), with the run's target-pose protocol; results in <run>/eval/step_NNNNNNN/.
-std::function<nlohmann::json(model::UPLVSM&, int64_t)> periodic_evaluation(const Config& config,
-                                                                           const std::string& data,
-                                                                           const std::string& run,
-                                                                           torch::Device device) {
+std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluation(const Config& config,
+                                                                                   const std::string& data,
+                                                                                   const std::string& run,
+                                                                                   torch::Device device) {
   const auto index = std::filesystem::path(data) / "evaluation_index.json";
   if (!std::filesystem::exists(index)) {
     spdlog::warn("training.eval_every is set but {} does not exist: no periodic evaluation", index.string());
     return {};
   }
-  return [=](model::UPLVSM& net, int64_t step) {
+  return [=](model::NovelViewModel& net, int64_t step) {
     data::ChunkDataset dataset(data, "test");
     data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
                                  config.dataset.square_crop};
@@ -39,7 +39,7 @@ std::function<nlohmann::json(model::UPLVSM&, int64_t)> periodic_evaluation(const
     opt.device = device;
     opt.num_visualised = 2;
     opt.bf16 = parse_amp(config.training.amp);
-    opt.target_poses = model::parse_target_poses(config.training.target_poses, config.model);
+    opt.target_poses = model::parse_target_poses(config.training.target_poses, *net);
     opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& model_row = summary.table.at("model");
@@ -65,6 +65,7 @@ void add_train_command(CLI::App& app) {
   struct Args {
     CommonOptions common;
     std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
+    std::vector<std::string> set;
     int64_t steps = -1, stop_after = -1;
   };
   auto a = std::make_shared<Args>();
@@ -98,6 +99,9 @@ void add_train_command(CLI::App& app) {
                   "(configs/*_mapper.json)")
       ->check(CLI::IsMember({"main", "mapper"}))
       ->capture_default_str();
+  cmd->add_option("--set", a->set,
+                  "override a config field, section.field=value (repeatable), e.g. --set training.warmup=500 --set "
+                  "model.transformer.n_latent_vectors=64; the run's config.json records the result");
   cmd->add_option("--steps", a->steps, "override training.train_steps");
   cmd->add_option("--stop-after", a->stop_after, "stop after this many steps of this invocation (checkpointed)");
   cmd->add_option("--subset", a->subset,
@@ -105,7 +109,7 @@ void add_train_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->callback([a] {
     apply_common_options(a->common);
-    auto config = load_config(a->config);
+    auto config = apply_config_overrides(load_config(a->config), a->set, a->config);
     if (a->steps > 0) config.training.train_steps = a->steps;
     if (!a->amp.empty()) config.training.amp = a->amp;
     // Absolute, so a resume from another working directory reads the same manifest from the run's config.

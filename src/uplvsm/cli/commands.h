@@ -7,7 +7,7 @@
 
 #include "uplvsm/core/config.h"
 #include "uplvsm/data/preprocess.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/novel_view_model.h"
 
 namespace uplvsm::cli {
 
@@ -25,7 +25,7 @@ struct ModelSource {
   std::string checkpoint, config;
 };
 void add_model_options(CLI::App* cmd, ModelSource& src);
-model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
+model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
 
 // A user's photo (JPEG/PNG) as one view: a pinhole camera with the principal point at the centre and the given
 // horizontal field of view, identity pose (unused by the unposed model).
@@ -43,8 +43,10 @@ void add_dataset_import_command(CLI::App& dataset);
 void add_train_command(CLI::App& app);
 void add_eval_command(CLI::App& app);
 void add_render_command(CLI::App& app);
+void add_serve_command(CLI::App& app);
 void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
+void add_export_command(CLI::App& app);
 void add_study_command(CLI::App& app);
 // study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
 void add_study_grid_commands(CLI::App& study);

@@ -1,11 +1,9 @@
-#include <cmath>
-
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/io/image.h"
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::cli {
 
@@ -42,24 +40,14 @@ void add_model_options(CLI::App* cmd, ModelSource& src) {
       ->check(CLI::ExistingFile);
 }
 
-model::UPLVSM load_model(const ModelSource& src, const torch::Device& device, Config* config_out) {
+model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out) {
   if (src.config.empty()) return model::load_model(src.checkpoint, device, config_out);
   Config hint = load_config(src.config);
   return model::load_model(src.checkpoint, device, config_out, &hint);
 }
 
-// A user's photo: pinhole camera with the principal point at the centre and the given horizontal field of view.
 data::Views load_user_image(const std::string& path, double fov_deg, const data::PreprocessOptions& prep) {
-  auto img = io::read_image(path);
-  const double W = static_cast<double>(img.size(1)), H = static_cast<double>(img.size(0));
-  const double fx_norm = 0.5 / std::tan(fov_deg * M_PI / 360.0);
-  auto cam = torch::zeros({1, 18});
-  cam[0][0] = fx_norm;
-  cam[0][1] = fx_norm * W / H;  // square pixels
-  cam[0][2] = 0.5;
-  cam[0][3] = 0.5;
-  for (int i = 0; i < 3; ++i) cam[0][6 + 5 * i] = 1.0;  // identity w2c: unused by the unposed model
-  return data::preprocess({img}, cam, prep, path);
+  return data::preprocess_photo(io::read_image(path), fov_deg, prep, path);
 }
 
 }  // namespace uplvsm::cli

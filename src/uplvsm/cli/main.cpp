@@ -13,7 +13,7 @@ int main(int argc, char** argv) {
   uplvsm::ensure_passive_openmp(argv);
   CLI::App app{
       "uplvsm - UP-LVSM novel view synthesis from unposed images (ICLR 2026, 'The Less You Depend, The More You "
-      "Learn'), native C++/LibTorch.\nTypical flow: make-dataset -> train -> eval -> render -> report."};
+      "Learn'), native C++/LibTorch.\nTypical flow: make-dataset -> train -> eval -> render -> report; serve opens the viewer."};
   app.require_subcommand(1);
   // Global options, accepted before or after the subcommand's name.
   app.fallthrough();
@@ -30,8 +30,10 @@ int main(int argc, char** argv) {
   uplvsm::cli::add_train_command(app);
   uplvsm::cli::add_eval_command(app);
   uplvsm::cli::add_render_command(app);
+  uplvsm::cli::add_serve_command(app);
   uplvsm::cli::add_report_command(app);
   uplvsm::cli::add_convert_command(app);
+  uplvsm::cli::add_export_command(app);
   uplvsm::cli::add_study_command(app);
   try {
     app.parse(argc, argv);

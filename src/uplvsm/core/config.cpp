@@ -122,10 +122,12 @@ void training_fields(C& c, F&& f) {
   f("max_train_scenes", c.max_train_scenes);
   f("subset", c.subset);
   f("pose_noise_variance", c.pose_noise_variance);
+  f("view_sampler", c.view_sampler);
 }
 
 template <typename C, typename F>
 void dataset_fields(C& c, F&& f) {
+  f("kind", c.kind);
   f("square_crop", c.square_crop);
   f("num_train_scenes", c.num_train_scenes);
   f("num_test_scenes", c.num_test_scenes);
@@ -192,6 +194,33 @@ Config config_from_json(const json& j, const std::string& source) {
   return c;
 }
 
+Config apply_config_overrides(const Config& c, const std::vector<std::string>& assignments,
+                              const std::string& source) {
+  if (assignments.empty()) return c;
+  json j = config_to_json(c);
+  for (const auto& a : assignments) {
+    const auto eq = a.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw std::runtime_error(fmt::format("--set '{}': expected section.field=value (e.g. training.lr=3e-4)", a));
+    const std::string path = a.substr(0, eq), text = a.substr(eq + 1);
+    json* node = &j;
+    for (size_t start = 0;;) {
+      const size_t dot = path.find('.', start);
+      const std::string key = path.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
+      if (!node->is_object() || !node->contains(key))
+        throw std::runtime_error(fmt::format("--set '{}': the config has no field '{}'", a, path));
+      node = &(*node)[key];
+      if (dot == std::string::npos) break;
+      start = dot + 1;
+    }
+    if (node->is_object()) throw std::runtime_error(fmt::format("--set '{}': '{}' is a section, not a field", a, path));
+    // JSON values (numbers, true/false, quoted strings) as written; anything else is a string (auto, bf16, ...).
+    json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
+    *node = value.is_discarded() ? json(text) : value;
+  }
+  return config_from_json(j, source + " (with --set)");
+}
+
 Config load_config(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(fmt::format("config {}: cannot open file", path));
@@ -249,6 +278,10 @@ void validate_config(const Config& c, const std::string& s) {
   require(tr.train_steps >= 1 && tr.warmup >= 0, s, "training.train_steps must be >= 1 and warmup >= 0");
   require(c.dataset.frames_per_scene >= tr.num_views, s, "dataset.frames_per_scene must be >= training.num_views");
   require(c.dataset.texture_scale > 0, s, "dataset.texture_scale must be > 0");
+  require(tr.view_sampler == "auto" || tr.view_sampler == "ordered" || tr.view_sampler == "unordered", s,
+          "training.view_sampler must be 'auto', 'ordered' or 'unordered', got '" + tr.view_sampler + "'");
+  require(c.dataset.kind == "rooms" || c.dataset.kind == "objects", s,
+          "dataset.kind must be 'rooms' or 'objects', got '" + c.dataset.kind + "'");
 }
 
 json config_to_json(const Config& c) {

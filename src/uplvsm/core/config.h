@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace uplvsm {
 
@@ -85,11 +86,17 @@ struct TrainingConfig {
   // The pose-noise study: N(0, variance) added to the 7-D (t, q) encoding of every training camera (the official
   // `noise_scale` knob); 0: clean cameras. Only variants that read training cameras are affected.
   double pose_noise_variance = 0;
+  // How training views are drawn from a scene: "ordered" (the official selector: two context frames min..max
+  // frame_dist apart, targets between them; video datasets), "unordered" (any distinct frames; object renders
+  // whose frames have no order), or "auto" (the dataset's dataset.json view_order; ordered without one).
+  std::string view_sampler = "auto";
 };
 
 struct DatasetConfig {
   bool square_crop = true;
-  // Built-in room walkthroughs (uplvsm make-dataset).
+  // Built-in data (uplvsm make-dataset): "rooms" (walkthroughs, ordered frames) or "objects" (one object seen
+  // from frames_per_scene random cameras on a sphere, unordered).
+  std::string kind = "rooms";
   int64_t num_train_scenes = 400;
   int64_t num_test_scenes = 64;
   int64_t frames_per_scene = 32;
@@ -116,6 +123,9 @@ struct Config {
 };
 
 Config load_config(const std::string& path);
+// Command-line overrides "section.field=value" (e.g. training.lr=3e-4, model.transformer.n_latent_vectors=64),
+// applied in order, then validated like a file. Throws naming the assignment for an unknown field.
+Config apply_config_overrides(const Config& c, const std::vector<std::string>& assignments, const std::string& source);
 Config config_from_json(const nlohmann::json& j, const std::string& source = "<json>");
 nlohmann::json config_to_json(const Config& c);
 // Throws with a clear message when the combination is inconsistent (sizes not divisible, d != dino width, ...).

@@ -258,6 +258,7 @@ ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks
   dir_ = (fs::path(root_) / split_).string();
   if (!fs::is_directory(dir_))
     throw std::runtime_error(fmt::format("ChunkDataset: {} is not a folder (expected root/{{train,test}})", dir_));
+  info_ = read_dataset_info(root_);
   if (!has_chunks(dir_) && is_lvsm_split(dir_)) {
     layout_ = Layout::Lvsm;
     cache_chunks_ *= 16;

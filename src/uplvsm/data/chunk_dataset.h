@@ -18,6 +18,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "uplvsm/data/dataset_info.h"
 #include "uplvsm/data/lvsm_layout.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/scene.h"
@@ -66,6 +67,8 @@ class ChunkDataset {
   ChunkDataset(std::string root, std::string split, int cache_chunks = 4);
 
   Layout layout() const { return layout_; }
+  // <root>/dataset.json (whether frames are ordered; defaults when the file is absent).
+  const DatasetInfo& info() const { return info_; }
   // Keep only these scenes (a subset manifest), in the dataset's order. Throws naming the first keys missing.
   void keep_only(const std::vector<std::string>& keys);
   // False for scenes listed in <split>/unposed.json: their cameras must not be used as ground truth.
@@ -111,6 +114,7 @@ class ChunkDataset {
 
   std::string root_, split_, dir_;
   Layout layout_ = Layout::Chunks;
+  DatasetInfo info_;
   std::set<std::string> unposed_;
   int cache_chunks_;
   std::vector<Entry> entries_;  // sorted by (chunk file, key): deterministic without reading the chunks

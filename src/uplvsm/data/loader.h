@@ -27,6 +27,7 @@ struct LoaderOptions {
   int num_input_views = 2;
   int num_target_views = 6;
   int min_frame_dist = 25, max_frame_dist = 192;
+  bool ordered_views = true;       // false: any distinct frames (unordered views); min/max_frame_dist unused
   PreprocessOptions preprocess;
   uint64_t seed = 777;
   int rank = 0, world_size = 1;

@@ -262,4 +262,19 @@ Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::T
   return views;
 }
 
+Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
+                       const std::string& what) {
+  if (!(fov_deg > 0 && fov_deg < 180))
+    throw std::runtime_error(fmt::format("{}: field of view must be in (0, 180) degrees, got {:g}", what, fov_deg));
+  const double W = static_cast<double>(hwc_u8.size(1)), H = static_cast<double>(hwc_u8.size(0));
+  const double fx_norm = 0.5 / std::tan(fov_deg * M_PI / 360.0);
+  auto cam = torch::zeros({1, 18});
+  cam[0][0] = fx_norm;
+  cam[0][1] = fx_norm * W / H;  // square pixels
+  cam[0][2] = 0.5;
+  cam[0][3] = 0.5;
+  for (int i = 0; i < 3; ++i) cam[0][6 + 5 * i] = 1.0;  // identity w2c
+  return preprocess({hwc_u8}, cam, opt, what);
+}
+
 }  // namespace uplvsm::data

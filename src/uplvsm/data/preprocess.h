@@ -22,6 +22,11 @@ struct PreprocessOptions {
 Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
                  const PreprocessOptions& opt, const std::string& what = "preprocess");
 
+// A user's photo (uint8 [H,W,3]) as one view: a pinhole camera with the principal point at the centre, square
+// pixels and the given horizontal field of view, identity pose (unused by the unposed model).
+Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
+                       const std::string& what);
+
 // Wr = round(int(Hr / H0 * W0) / patch) * patch, with Python's round (half to even), as the official code.
 int resized_width(int height, int width, int image_size, int patch_size);
 

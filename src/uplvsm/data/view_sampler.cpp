@@ -58,4 +58,25 @@ std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, in
   return views;
 }
 
+std::vector<int64_t> sample_unordered_views(int64_t num_frames, int num_views, std::mt19937_64& rng) {
+  if (num_views < 1 || num_frames < num_views)
+    throw std::invalid_argument(fmt::format("sample_unordered_views: scene has {} frames, fewer than the {} views "
+                                            "needed",
+                                            num_frames, num_views));
+  // Partial Fisher-Yates: the first num_views entries of a random permutation of the frames.
+  std::vector<int64_t> pool(num_frames);
+  for (int64_t j = 0; j < num_frames; ++j) pool[j] = j;
+  for (int64_t j = 0; j < num_views; ++j) std::swap(pool[j], pool[uniform_int(rng, j, num_frames - 1)]);
+  pool.resize(num_views);
+  return pool;
+}
+
+bool uses_ordered_views(const std::string& view_sampler, const DatasetInfo& dataset) {
+  if (view_sampler == "ordered") return true;
+  if (view_sampler == "unordered") return false;
+  if (view_sampler == "auto") return dataset.ordered_views;
+  throw std::invalid_argument("training.view_sampler must be 'auto', 'ordered' or 'unordered', got '" + view_sampler +
+                              "'");
+}
+
 }  // namespace uplvsm::data

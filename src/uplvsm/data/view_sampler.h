@@ -1,9 +1,13 @@
-// The official UP-LVSM training view selector (official-uplvsm.md §1, dataset_scene.py view_selector): two
-// context frames `gap` apart plus random frames strictly between them.
+// Training view selection. Ordered frames (videos) use the official UP-LVSM selector (official-uplvsm.md §1,
+// dataset_scene.py view_selector): two context frames `gap` apart plus random frames strictly between them.
+// Unordered frames (object renders) have no "between": any distinct frames, as LVSM samples Objaverse views.
 #pragma once
 #include <cstdint>
 #include <random>
+#include <string>
 #include <vector>
+
+#include "uplvsm/data/dataset_info.h"
 
 namespace uplvsm::data {
 
@@ -22,5 +26,13 @@ std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, in
 // Whether the official selector can use the scene without lowering its gap: num_frames >= num_views and
 // num_frames - 1 >= min_gap (the official code raises, and replaces the scene, otherwise).
 bool can_sample(int64_t num_frames, int num_views, int min_gap);
+
+// num_views distinct frames drawn uniformly, in random order (the first ones become the inputs). Needs
+// num_frames >= num_views (else throws).
+std::vector<int64_t> sample_unordered_views(int64_t num_frames, int num_views, std::mt19937_64& rng);
+
+// Whether training.view_sampler ("auto", "ordered", "unordered") means the ordered selector for this dataset:
+// "auto" follows the dataset's dataset.json (ordered without one). Throws on another value.
+bool uses_ordered_views(const std::string& view_sampler, const DatasetInfo& dataset);
 
 }  // namespace uplvsm::data

@@ -46,6 +46,25 @@ torch::Tensor copy_nearest_input(const torch::Tensor& input_images,
                          input_images.size(4)});
 }
 
+torch::Tensor copy_nearest_direction(const torch::Tensor& input_images, const torch::Tensor& input_c2w,
+                                     const torch::Tensor& target_c2w) {
+  TORCH_CHECK(input_images.dim() == 5, "copy_nearest_direction: input_images must be [b, vi, 3, H, W], got ",
+              input_images.sizes());
+  const int64_t b = input_images.size(0), vi = input_images.size(1);
+  TORCH_CHECK(input_c2w.dim() == 4 && input_c2w.size(0) == b && input_c2w.size(1) == vi && input_c2w.size(2) == 4 &&
+                  input_c2w.size(3) == 4,
+              "copy_nearest_direction: input_c2w must be [", b, ", ", vi, ", 4, 4], got ", input_c2w.sizes());
+  TORCH_CHECK(target_c2w.dim() == 4 && target_c2w.size(0) == b && target_c2w.size(2) == 4 && target_c2w.size(3) == 4,
+              "copy_nearest_direction: target_c2w must be [", b, ", vt, 4, 4], got ", target_c2w.sizes());
+  using torch::indexing::Slice;
+  auto forward = [](const torch::Tensor& c2w) { return c2w.index({Slice(), Slice(), Slice(0, 3), 2}).to(torch::kFloat64); };
+  auto cosine = torch::einsum("btk,bik->bti", {forward(target_c2w), forward(input_c2w)});  // [b, vt, vi]
+  // argmax returns the first maximum: ties go to the earlier input view.
+  auto nearest = cosine.argmax(2).to(input_images.device());                              // [b, vt]
+  auto batch = torch::arange(b, nearest.options()).unsqueeze(1).expand_as(nearest);
+  return input_images.index({batch, nearest});
+}
+
 torch::Tensor mean_colour(const torch::Tensor& target_images) {
   if (target_images.dim() < 3)
     throw std::runtime_error("mean_colour: expected [..., 3, H, W], got " + c10::str(target_images.sizes()));

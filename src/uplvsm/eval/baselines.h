@@ -18,6 +18,12 @@ torch::Tensor copy_nearest_input(const torch::Tensor& input_images,
 // Index of the input frame nearest to `target` (first one on ties); exposed for tests and visualisations.
 int64_t nearest_input(const std::vector<int64_t>& input_frames, int64_t target);
 
+// For unordered views (frame indices say nothing about camera distance): predicts each target by the input view
+// whose viewing direction (camera z axis) is nearest in angle (ties -> the earlier input view). input_c2w
+// [b, vi, 4, 4], target_c2w [b, vt, 4, 4]; returns [b, vt, 3, H, W] on the device of input_images.
+torch::Tensor copy_nearest_direction(const torch::Tensor& input_images, const torch::Tensor& input_c2w,
+                                     const torch::Tensor& target_c2w);
+
 // Predicts each target by a constant image of its own per-channel mean colour. This is an ORACLE constant: it
 // looks at the ground truth, and the per-channel mean is the constant image with the lowest MSE, so its PSNR is an
 // upper bound for every constant prediction (its SSIM is near 0 on textured images). target_images

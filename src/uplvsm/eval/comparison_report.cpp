@@ -25,7 +25,8 @@ img,video{max-width:100%;height:auto;border:1px solid #ddd;image-rendering:pixel
 figure{margin:.6em 0}figcaption,.caption{font-size:.85em;color:#555}pre{background:#f7f7f7;padding:.8em;
 overflow-x:auto;font-size:.85em})";
 
-constexpr int64_t kColumnWidth = 560;  // px a column's images and videos are scaled up to (integer factors)
+// Small renders are scaled up by integer factors to about a column's width (CSS max-width then fits them in).
+constexpr int64_t kColumnWidth = 600;
 constexpr size_t kGridsPerColumn = 3;
 
 nlohmann::json read_json(const fs::path& path) {
@@ -69,7 +70,7 @@ std::string column_html(const ComparedModel& m, const fs::path& sub, const std::
   std::string html = "<section>\n<h2>" + html_escape(m.label) + "</h2>\n";
   if (!m.caption.empty()) html += "<p class=\"caption\">" + html_escape(m.caption) + "</p>\n";
   html += "<p><a href=\"" + html_escape(rel) + "/index.html\">full report</a></p>\n";
-  if (fs::is_regular_file(sub / "metrics.json")) html += results_table_html(read_json(sub / "metrics.json"));
+  if (fs::is_regular_file(sub / "metrics.json")) html += results_table_html(read_json(sub / "metrics.json"), /*full_only=*/true);
   html += videos_html(m, sub, rel);
   html += grids_html(sub, rel);
   if (fs::is_regular_file(sub / "training_curve.png"))

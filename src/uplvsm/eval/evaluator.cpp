@@ -56,6 +56,7 @@ struct Loaded {
 
 // Where the results of one run go while batches finish in group order (main thread only).
 struct RunState {
+  bool ordered_views = true;  // the dataset's frames follow a path: copy-nearest by frame index, else by direction
   std::vector<std::optional<SceneResult>> results;  // by Job::position
   std::vector<std::string> grids;
   int64_t bad_frames = 0, done = 0;
@@ -64,9 +65,9 @@ struct RunState {
 
 // Eval mode for the run; the previous mode comes back even when an exception escapes.
 struct EvalModeGuard {
-  explicit EvalModeGuard(model::UPLVSM& n) : net(n), was_training(n->is_training()) { net->eval(); }
+  explicit EvalModeGuard(model::NovelViewModel& n) : net(n), was_training(n->is_training()) { net->eval(); }
   ~EvalModeGuard() { net->train(was_training); }
-  model::UPLVSM& net;
+  model::NovelViewModel& net;
   bool was_training;
 };
 
@@ -179,7 +180,7 @@ torch::Tensor lpips_of(Lpips lpips, const torch::Tensor& pred, const torch::Tens
 }
 
 // One forward for scenes of equal view counts and image size; scores the model and the baselines per target.
-void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, const EvalOptions& opt,
+void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& scenes, const EvalOptions& opt,
                RunState& state) {
   const int64_t vi = static_cast<int64_t>(scenes[0]->job->entry.context.size());
   const int64_t vt = static_cast<int64_t>(scenes[0]->job->entry.target.size());
@@ -201,10 +202,11 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
     AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
     model::Views inputs{in_img, k.narrow(1, 0, vi), c2w.narrow(1, 0, vi)};
     model::Views targets{gt, k.narrow(1, vi, vt), c2w.narrow(1, vi, vt)};
-    pred = net->forward(inputs, targets, opt.target_poses).render;
+    pred = net->render(inputs, targets, opt.target_poses).render;
   }
   pred = pred.to(torch::kFloat32);
-  auto copy = copy_nearest_input(in_img, in_frames, tgt_frames);
+  auto copy = state.ordered_views ? copy_nearest_input(in_img, in_frames, tgt_frames)
+                                  : copy_nearest_direction(in_img, c2w.narrow(1, 0, vi), c2w.narrow(1, vi, vt));
   auto mean = mean_colour(gt);
   auto lp = [&](const torch::Tensor& x) {
     return opt.lpips ? lpips_of(opt.lpips, x, gt, opt.lpips_chunk).to(torch::kFloat64)
@@ -227,7 +229,8 @@ void run_batch(model::UPLVSM& net, const std::vector<const Loaded*>& scenes, con
   }
 }
 
-void run_loaded(model::UPLVSM& net, const std::vector<Loaded>& loaded, const EvalOptions& opt, RunState& state) {
+void run_loaded(model::NovelViewModel& net, const std::vector<Loaded>& loaded, const EvalOptions& opt,
+                RunState& state) {
   // Scenes of another aspect ratio preprocess to another size (square_crop off): one forward per image size.
   std::map<std::vector<int64_t>, std::vector<const Loaded*>> by_size;
   for (const auto& l : loaded) by_size[l.views.images.sizes().vec()].push_back(&l);
@@ -363,7 +366,8 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
       {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
       {"spans", "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
                 "scene mean over its targets of each kind, then mean over the scenes that have such targets"},
-      {"copy_nearest", "each target predicted by the input view nearest in frame index"},
+      {"copy_nearest", "each target predicted by the input view nearest in frame index (ordered views) or in "
+                       "viewing direction (unordered views: dataset.json view_order)"},
       {"mean_colour", "oracle: each target predicted by its own per-channel mean colour"}};
   return j;
 }
@@ -396,7 +400,7 @@ static void merge_shards(const EvalOptions& opt, RunState& state) {
   }
 }
 
-EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string index_path =
@@ -409,6 +413,7 @@ EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, cons
   for (const auto& job : all_jobs)
     if (static_cast<int>(job.position % static_cast<size_t>(opt.shard_count)) == opt.shard_rank) jobs.push_back(job);
   RunState state;
+  state.ordered_views = dataset.info().ordered_views;
   state.results.resize(all_jobs.size());
   {
     EvalModeGuard mode(net);

@@ -1,4 +1,4 @@
-// Test-set evaluation of a UP-LVSM model with the community protocol: read an evaluation index (pixelSplat /
+// Test-set evaluation of a model of the family with the community protocol: read an evaluation index (pixelSplat /
 // NoPoSplat format), render every scene's target views from its two context views, score each target with PSNR
 // and SSIM (eval/metrics.h), and LPIPS (eval/lpips.h) when its weights are given, next to two trivial baselines
 // (eval/baselines.h), average per scene then over scenes (full set and NoPoSplat overlap buckets), and write
@@ -19,7 +19,7 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/eval/lpips.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/novel_view_model.h"
 
 namespace uplvsm::eval {
 
@@ -36,7 +36,7 @@ struct EvalOptions {
   int64_t lpips_chunk = 10;            // images per LPIPS forward (the official evaluation uses 10)
   bool bf16 = false;                   // the model forward under bf16 autocast (metrics always in fp32/fp64)
   // Where target cameras come from: the estimator reading the target image (UP-LVSM's protocol), the dataset
-  // cameras through the pose mapper (camera control), or the dataset cameras directly (posed variants).
+  // cameras through the pose mapper (camera control), or the dataset cameras directly (posed models).
   model::TargetPoses target_poses = model::TargetPoses::Estimator;
   nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
   // Sharded evaluation, one process per rank: this rank scores the scenes whose position in the index is
@@ -91,7 +91,7 @@ struct EvalSummary {
 // opt.bf16; its training mode is restored
 // afterwards. Scenes are batched by equal (context, target) counts and image size. Throws std::runtime_error for an
 // unreadable index, frames out of range and undecodable images (naming the scene).
-EvalSummary evaluate(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt);
 
 // One scene's results as JSON and back (NaN, e.g. unavailable LPIPS, travels as null); used to merge shards.

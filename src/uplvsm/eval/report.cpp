@@ -248,7 +248,7 @@ std::string html_escape(const std::string& text) {
   return out;
 }
 
-std::string results_table_html(const nlohmann::json& m) {
+std::string results_table_html(const nlohmann::json& m, bool full_only) {
   struct Metric {
     std::string key, header;
     int decimals;
@@ -257,7 +257,9 @@ std::string results_table_html(const nlohmann::json& m) {
   std::vector<Metric> metrics = {{"psnr", "PSNR&uarr;", 2, true}, {"ssim", "SSIM&uarr;", 3, true}};
   const bool has_lpips = m.contains("lpips") && m["lpips"].is_object() && m["lpips"].value("available", false);
   if (has_lpips) metrics.push_back({"lpips", "LPIPS&darr;", 3, false});
-  const auto groups = table_groups(m);
+  auto groups = table_groups(m);
+  if (full_only)  // the whole set alone: no overlap buckets or interpolation/extrapolation spans
+    groups = table_groups({{"table", m.value("table", nlohmann::json::object())}, {"scenes", m.value("scenes", 0)}});
   std::string head1 = "<tr><th rowspan=\"2\">Method</th>", head2 = "<tr>";
   for (const auto& g : groups) {
     head1 += fmt::format("<th colspan=\"{}\">{}</th>", metrics.size(), html_escape(g.header));

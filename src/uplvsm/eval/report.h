@@ -51,7 +51,8 @@ torch::Tensor training_curve(const std::vector<TrainPoint>& points);
 
 // The headline table of a metrics.json object as an HTML <table>: rows UP-LVSM (ours), copy nearest input, mean
 // colour; columns PSNR / SSIM, grouped under Large / Medium / Small / Full when buckets exist. Best value in bold.
-std::string results_table_html(const nlohmann::json& metrics);
+// full_only: just the whole test set's columns (for narrow, side-by-side layouts).
+std::string results_table_html(const nlohmann::json& metrics, bool full_only = false);
 
 std::string html_escape(const std::string& text);
 

@@ -10,31 +10,52 @@ double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden) {
   return projections + mlp + attention;
 }
 
-FlopCount forward_flops(const ModelConfig& c, int64_t batch, int64_t input_views, int64_t target_views) {
-  const auto& t = c.transformer;
+namespace {
+
+// The parts every model of the family has, per image: DINOv2, the Plücker ray tokens, the RGB head.
+struct SharedFlops {
+  int64_t n;  // tokens per image
+  double dino_image, plucker_tokens, rgb_head;
+};
+
+SharedFlops shared_flops(const ModelConfig& c) {
   const auto& dino = c.dinov2;
-  const int64_t grid = c.image_size / c.patch_size, n = grid * grid, L = t.n_latent_vectors;
-  const double b = static_cast<double>(batch), vi = static_cast<double>(input_views),
-               vt = static_cast<double>(target_views), p2 = static_cast<double>(c.patch_size * c.patch_size);
-  FlopCount f;
-  // DINOv2 over every input image and (for the estimator) every target image.
+  const int64_t grid = c.image_size / c.patch_size, n = grid * grid;
+  const double p2 = static_cast<double>(c.patch_size * c.patch_size), d = static_cast<double>(c.transformer.d);
   const double dino_image =
       2.0 * n * 3 * p2 * dino.embed_dim +
       dino.depth * transformer_block_flops(1 + dino.num_register_tokens + n, dino.embed_dim, dino.mlp_ratio * dino.embed_dim);
-  const bool estimator = c.variant == "uplvsm";
-  f.dinov2 = b * (vi + (estimator ? vt : 0)) * dino_image;
-  if (c.variant == "ptlvsm" || c.variant == "lvsm") {
-    // Decoder-only LVSM: every target attends to all input tokens and its own pose tokens.
-    f.decoder = b * vt * t.n_layer * transformer_block_flops(static_cast<int64_t>(vi) * n + n, t.d, 4 * t.d);
-  } else {
-    f.encoder = b * t.encoder_n_layer * transformer_block_flops(L + static_cast<int64_t>(vi) * n, t.d, 4 * t.d);
-    f.estimator = b * vt * t.estimator_n_layer * transformer_block_flops(n + L, t.d, 4 * t.d);
-    f.decoder = b * vt * t.decoder_n_layer * transformer_block_flops(n + L, t.d, 4 * t.d);
-  }
-  const double plucker_tokens = 2.0 * n * 6 * p2 * t.d, rgb_head = 2.0 * n * t.d * 3 * p2;
-  const double canonical_views = c.variant == "lvsm" ? vi : 1;  // views whose tokens get Plücker rays added
-  const double pose_heads = estimator ? vt * 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5) : 0;
-  f.other = b * (canonical_views * plucker_tokens + vt * (plucker_tokens + rgb_head) + pose_heads);
+  return {n, dino_image, 2.0 * n * 6 * p2 * d, 2.0 * n * d * 3 * p2};
+}
+
+}  // namespace
+
+FlopCount uplvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t input_views, int64_t target_views) {
+  const auto& t = c.transformer;
+  const auto s = shared_flops(c);
+  const int64_t n = s.n, L = t.n_latent_vectors;
+  const double b = static_cast<double>(batch), vi = static_cast<double>(input_views),
+               vt = static_cast<double>(target_views);
+  FlopCount f;
+  f.dinov2 = b * (vi + vt) * s.dino_image;  // the estimator reads the target images too
+  f.encoder = b * t.encoder_n_layer * transformer_block_flops(L + input_views * n, t.d, 4 * t.d);
+  f.estimator = b * vt * t.estimator_n_layer * transformer_block_flops(n + L, t.d, 4 * t.d);
+  f.decoder = b * vt * t.decoder_n_layer * transformer_block_flops(n + L, t.d, 4 * t.d);
+  const double pose_heads = vt * 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5);
+  f.other = b * (s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head) + pose_heads);  // marker on view 0
+  return f;
+}
+
+FlopCount posed_lvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t input_views, int64_t target_views,
+                                   int64_t posed_input_views) {
+  const auto& t = c.transformer;
+  const auto s = shared_flops(c);
+  const double b = static_cast<double>(batch), vt = static_cast<double>(target_views);
+  FlopCount f;
+  f.dinov2 = b * static_cast<double>(input_views) * s.dino_image;
+  // Decoder-only: every target attends to all input tokens and its own pose tokens.
+  f.decoder = b * vt * t.n_layer * transformer_block_flops(input_views * s.n + s.n, t.d, 4 * t.d);
+  f.other = b * (static_cast<double>(posed_input_views) * s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head));
   return f;
 }
 

@@ -16,7 +16,11 @@ struct FlopCount {
 // One pre-norm transformer block over one sequence: QKV + output projections, the MLP, and attention.
 double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden);
 
-// The forward of `config`'s model for `batch` scenes with the given view counts at config.image_size.
-FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
+// One forward of each model for `batch` scenes with the given view counts at config.image_size
+// (model_factory.h: forward_flops picks the one of a config).
+FlopCount uplvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
+// posed_input_views: the input views whose tokens get their rays (PT-LVSM 1, LVSM all).
+FlopCount posed_lvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views,
+                                   int64_t target_views, int64_t posed_input_views);
 
 }  // namespace uplvsm::model

@@ -8,7 +8,7 @@
 
 namespace uplvsm::model {
 
-// Parameters of the model `config` builds (equals UPLVSM(config)->parameter_count()).
+// Parameters of the model `config` builds (equals make_model(config)->parameter_count()).
 int64_t parameter_count(const ModelConfig& config);
 
 struct TrainingMemory {

@@ -23,13 +23,6 @@ std::string to_string(WeightSource source) {
 
 namespace {
 
-bool has_key(const NamedTensors& t, const std::string& key) { return t.count(key) > 0; }
-
-bool any_prefix(const NamedTensors& t, const std::string& prefix) {
-  auto it = t.lower_bound(prefix);
-  return it != t.end() && it->first.rfind(prefix, 0) == 0;
-}
-
 NamedTensors strip_prefix(const NamedTensors& in, const std::string& prefix) {
   for (const auto& [k, v] : in)
     if (k.rfind(prefix, 0) != 0) return in;  // only when every key carries it
@@ -46,18 +39,6 @@ std::string some_keys(const NamedTensors& t, size_t n = 8) {
     s += " " + k;
   }
   return s;
-}
-
-const torch::Tensor& require(const NamedTensors& w, const std::string& key) {
-  auto it = w.find(key);
-  if (it == w.end()) throw std::runtime_error(fmt::format("weights lack '{}', needed to infer the model size", key));
-  return it->second;
-}
-
-int64_t count_indexed(const NamedTensors& w, const std::string& prefix) {
-  int64_t n = 0;
-  while (any_prefix(w, fmt::format("{}{}.", prefix, n))) ++n;
-  return n;
 }
 
 }  // namespace
@@ -154,86 +135,11 @@ PretrainedWeights read_pretrained_weights(const std::string& path) {
   return w;
 }
 
-ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
-  auto& t = c.transformer;
-  if (!has_key(w, "n_light_field_latent") && has_key(w, "transformer_input_layernorm.weight")) {
-    // The official posedTargetLVSM layout (decoder-only). Its keys do not tell PT-LVSM from our LVSM variant (which
-    // poses every input view); the official release is PT-LVSM, so that is the default.
-    if (c.variant == "uplvsm") c.variant = "ptlvsm";
-    c.pose_mapper = false;
-    t.d = require(w, "transformer_input_layernorm.weight").size(0);
-    t.d_head = require(w, "transformer_blocks.0.attn.q_norm.weight").size(0);
-    t.n_layer = count_indexed(w, "transformer_blocks.");
-  } else {
-    const auto& latents = require(w, "n_light_field_latent");
-    c.variant = "uplvsm";
-    c.pose_mapper = has_key(w, "pose_mapper.A");
-    t.n_latent_vectors = latents.size(0);
-    t.d = latents.size(1);
-    t.d_head = require(w, "transformer_encoder.0.attn.q_norm.weight").size(0);
-    t.encoder_n_layer = count_indexed(w, "transformer_encoder.");
-    t.decoder_n_layer = count_indexed(w, "transformer_decoder.");
-    t.estimator_n_layer = count_indexed(w, "estimator.transformer_estimator.");
-  }
-  const auto& pose = require(w, "target_pose_tokenizer.1.weight");  // [d, 6 p^2]
-  c.patch_size = int64_t(std::lround(std::sqrt(double(pose.size(1)) / 6.0)));
-  if (6 * c.patch_size * c.patch_size != pose.size(1))
-    throw std::runtime_error(fmt::format("target_pose_tokenizer.1.weight has {} inputs, not 6 p^2", pose.size(1)));
-
-  const std::string vit = "image_tokenizer.1.dino_vit.";
-  auto& dino = c.dinov2;
-  dino.embed_dim = require(w, vit + "cls_token").size(2);
-  dino.depth = count_indexed(w, vit + "blocks.");
-  dino.mlp_ratio = require(w, vit + "blocks.0.mlp.fc1.weight").size(0) / dino.embed_dim;
-  dino.qk_norm = has_key(w, vit + "blocks.0.attn.q_norm.weight");
-  if (dino.qk_norm) dino.num_heads = dino.embed_dim / w.at(vit + "blocks.0.attn.q_norm.weight").size(0);
-  else if (dino.embed_dim % 64 == 0) dino.num_heads = dino.embed_dim / 64;  // Meta's ViTs all use 64-wide heads
-  dino.num_register_tokens = has_key(w, vit + "register_tokens") ? w.at(vit + "register_tokens").size(1) : 0;
-  const int64_t positions = require(w, vit + "pos_embed").size(1) - 1;
-  dino.pos_grid = int64_t(std::lround(std::sqrt(double(positions))));
-  if (dino.pos_grid * dino.pos_grid != positions)
-    throw std::runtime_error(fmt::format("{}pos_embed covers {} patches, not a square grid", vit, positions));
-  return c;
-}
-
-LoadReport load_dinov2_into_uplvsm(UPLVSMImpl& net, const NamedTensors& meta, const std::string& source) {
+LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const NamedTensors& meta, const std::string& source) {
   LoadOptions options;
   options.skip_prefixes = {"mask_token"};  // only used by DINOv2's masked-image pretraining; deleted officially
   if (net.config.dinov2.qk_norm) options.allow_missing_substrings = {"attn.q_norm.", "attn.k_norm."};
   return load_state_dict(*net.tokenizer->dino_vit, meta, source, options);
-}
-
-UPLVSM load_model(const std::string& path_in, const torch::Device& device, Config* config_out,
-                  const Config* config_hint) {
-  const std::string path = resolve_checkpoint(path_in);
-  Config config = config_hint ? *config_hint : Config{};
-  NamedTensors weights;
-  std::map<std::string, std::string> meta;
-  if (!io::looks_like_torch_file(path)) io::read_safetensors_header(path, &meta);
-  if (meta.count("format") && meta.at("format") == kCheckpointFormat) {
-    auto ckpt = read_checkpoint(path);
-    config = ckpt.config;
-    weights = std::move(ckpt.model);
-  } else {
-    auto w = read_pretrained_weights(path);
-    if (w.source != WeightSource::Uplvsm)
-      throw std::runtime_error(fmt::format("{}: holds {} weights, not a UP-LVSM model; start a run from them with "
-                                           "`uplvsm train --init {}` or make a checkpoint with `uplvsm convert --input "
-                                           "{} --config <config> --output init.safetensors`",
-                                           path, to_string(w.source), path, path));
-    if (!config_hint) {
-      config.name = std::filesystem::path(path).stem().string();
-      config.model = infer_model_config(w.tensors, config.model);
-    }
-    weights = std::move(w.tensors);
-  }
-  validate_config(config, path);
-  UPLVSM net(config.model);
-  load_state_dict(*net, weights, path);
-  net->to(device);
-  net->eval();
-  if (config_out) *config_out = config;
-  return net;
 }
 
 }  // namespace uplvsm::model

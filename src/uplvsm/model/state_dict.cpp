@@ -82,4 +82,17 @@ LoadReport load_state_dict(torch::nn::Module& module, const NamedTensors& tensor
   return report;
 }
 
+bool has_key(const NamedTensors& t, const std::string& key) { return t.count(key) > 0; }
+
+bool any_prefix(const NamedTensors& t, const std::string& prefix) {
+  auto it = t.lower_bound(prefix);
+  return it != t.end() && it->first.rfind(prefix, 0) == 0;
+}
+
+int64_t count_indexed(const NamedTensors& t, const std::string& prefix) {
+  int64_t n = 0;
+  while (any_prefix(t, fmt::format("{}{}.", prefix, n))) ++n;
+  return n;
+}
+
 }  // namespace uplvsm::model

@@ -37,4 +37,10 @@ LoadReport load_state_dict(torch::nn::Module& module, const NamedTensors& tensor
 // Parameters and buffers, detached, on CPU, in registration order names.
 NamedTensors state_dict(const torch::nn::Module& module);
 
+// Queries over a state dict's names: a key; some key starting with `prefix`; the depth of a stack, i.e. how many of
+// "<prefix>0.", "<prefix>1.", ... have keys.
+bool has_key(const NamedTensors& tensors, const std::string& key);
+bool any_prefix(const NamedTensors& tensors, const std::string& prefix);
+int64_t count_indexed(const NamedTensors& tensors, const std::string& prefix);
+
 }  // namespace uplvsm::model

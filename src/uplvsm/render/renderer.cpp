@@ -5,7 +5,6 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "uplvsm/geometry/camera.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/video.h"
 #include "uplvsm/render/trajectory.h"
@@ -14,6 +13,23 @@ namespace uplvsm::render {
 
 namespace fs = std::filesystem;
 
+namespace {
+// The decoder over a path of latent poses [F, 7] and intrinsics [F, 4], `chunk` frames at a time.
+torch::Tensor decode_path(model::UPLVSM& net, const torch::Tensor& latents, const torch::Tensor& poses,
+                          const torch::Tensor& intrinsics, int64_t H, int64_t W, int64_t chunk) {
+  const auto device = latents.device();
+  std::vector<torch::Tensor> out;
+  for (int64_t s = 0; s < poses.size(0); s += chunk) {
+    const int64_t n = std::min(chunk, poses.size(0) - s);
+    out.push_back(net->render_views(latents, poses.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32),
+                                    intrinsics.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32), H, W)[0]
+                      .to(torch::kFloat32)
+                      .cpu());
+  }
+  return torch::cat(out);
+}
+}  // namespace
+
 InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t num_frames, int64_t chunk) {
   TORCH_CHECK(images.dim() == 4 && images.size(0) == 2 && images.size(1) == 3,
@@ -21,8 +37,6 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   TORCH_CHECK(num_frames >= 2, "render_interpolation: need at least 2 frames");
   torch::NoGradGuard no_grad;
   net->eval();
-  TORCH_CHECK(!net->posed_variant(), "render_interpolation: the ", net->config.variant,
-              " variant needs cameras: use render_camera_path");
   auto device = model_device(*net);
   auto inputs = images.unsqueeze(0).to(device);
   auto k = fxfycxcy.unsqueeze(0).to(device);
@@ -31,14 +45,21 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   auto key_poses = net->estimate_poses(inputs, latents)[0];  // [2, 7]
   auto poses = interpolate_poses(key_poses, num_frames);
   auto intrinsics = interpolate_intrinsics(k[0], num_frames);
-  std::vector<torch::Tensor> out;
-  for (int64_t s = 0; s < poses.size(0); s += chunk) {
-    const int64_t n = std::min(chunk, poses.size(0) - s);
-    out.push_back(net->render_views(latents, poses.slice(0, s, s + n).unsqueeze(0),
-                                    intrinsics.slice(0, s, s + n).unsqueeze(0), H, W)[0]
-                      .cpu());
-  }
-  return {torch::cat(out), poses.cpu(), key_poses.cpu()};
+  return {decode_path(net, latents, poses, intrinsics, H, W, chunk), poses.cpu(), key_poses.cpu()};
+}
+
+torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
+                                 const torch::Tensor& poses, const torch::Tensor& intrinsics, int64_t chunk) {
+  TORCH_CHECK(images.dim() == 4 && images.size(0) == 2 && images.size(1) == 3,
+              "render_latent_path: expected two images [2, 3, H, W], got ", images.sizes());
+  TORCH_CHECK(poses.dim() == 2 && poses.size(1) == 7 && intrinsics.dim() == 2 && intrinsics.size(0) == poses.size(0),
+              "render_latent_path: expected poses [F, 7] and intrinsics [F, 4], got ", poses.sizes(), " and ",
+              intrinsics.sizes());
+  torch::NoGradGuard no_grad;
+  net->eval();
+  auto device = model_device(*net);
+  auto latents = net->encode_scene(images.unsqueeze(0).to(device), fxfycxcy.unsqueeze(0).to(device));
+  return decode_path(net, latents, poses, intrinsics, images.size(2), images.size(3), chunk);
 }
 
 torch::Device model_device(const torch::nn::Module& net) {
@@ -46,7 +67,7 @@ torch::Device model_device(const torch::nn::Module& net) {
   return params.empty() ? torch::Device(torch::kCPU) : params.front().device();
 }
 
-torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs, const torch::Tensor& poses,
+torch::Tensor render_camera_path(model::NovelViewModel& net, const model::Views& inputs, const torch::Tensor& poses,
                                  const torch::Tensor& fxfycxcy, int64_t chunk) {
   TORCH_CHECK(inputs.images.dim() == 4 && inputs.images.size(1) == 3,
               "render_camera_path: expected input images [v, 3, H, W], got ", inputs.images.sizes());
@@ -59,34 +80,12 @@ torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs,
   const int64_t H = inputs.images.size(2), W = inputs.images.size(3);
   model::Views in{inputs.images.unsqueeze(0).to(device), inputs.fxfycxcy.unsqueeze(0).to(device),
                   inputs.c2w.defined() ? inputs.c2w.unsqueeze(0).to(device) : torch::Tensor()};
-  torch::Tensor latents, world_c2w;
-  if (net->posed_variant()) {
-    TORCH_CHECK(in.c2w.defined(), "the ", net->config.variant,
-                " variant renders from cameras: it needs the input views' c2w (dataset scenes)");
-    // Camera-control units back to the world: first input view's frame, translations times the baseline.
-    auto c2w = in.c2w[0].to(torch::kFloat64);
-    auto baseline = (c2w[1].slice(0, 0, 3).select(1, 3) - c2w[0].slice(0, 0, 3).select(1, 3)).norm();
-    auto p = poses.to(device, torch::kFloat64).clone();
-    p.slice(1, 0, 3).mul_(torch::where(baseline > 1e-9, baseline, torch::ones_like(baseline)));
-    world_c2w = torch::matmul(c2w[0], geometry::pose_encoding_to_c2w(p)).to(torch::kFloat32);
-  } else {
-    TORCH_CHECK(net->pose_mapper, "rendering a camera path needs a camera mapper: fine-tune one with `uplvsm train "
-                                  "--stage mapper` (or render the latent interpolation between the inputs)");
-    latents = net->encode_scene(in.images, in.fxfycxcy);
-  }
+  auto render_at = net->camera_control(in);
   std::vector<torch::Tensor> out;
   for (int64_t s = 0; s < poses.size(0); s += chunk) {
     const int64_t n = std::min(chunk, poses.size(0) - s);
     auto k = fxfycxcy.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32);
-    torch::Tensor frames;
-    if (net->posed_variant()) {
-      model::Views targets{torch::zeros({1, 1, 1, 1, 1}, k.options()).expand({1, n, 3, H, W}), k,
-                           world_c2w.slice(0, s, s + n).unsqueeze(0)};
-      frames = net->render_posed(in, targets, nullptr, /*normalise_with_targets=*/false);
-    } else {
-      auto latent = net->pose_mapper(poses.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32));
-      frames = net->render_views(latents, latent, k, H, W);
-    }
+    auto frames = render_at(poses.slice(0, s, s + n).unsqueeze(0), k, H, W);
     out.push_back(frames[0].to(torch::kFloat32).cpu());
   }
   return torch::cat(out);

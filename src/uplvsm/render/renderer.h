@@ -1,14 +1,15 @@
 // Novel-view videos from two input images, decoded in chunks of views, written as PNG frames, an MP4 and a GIF.
 // - render_interpolation: unposed; the Latent Plücker Learner estimates the inputs' latent poses, which are
 //   interpolated (no camera control needed).
-// - render_camera_path: real cameras in camera-control units (render/trajectory.h) through the pose mapper
-//   (UP-LVSM) or as dataset-style cameras (the posed variants, which need the inputs' c2w).
+// - render_camera_path: real cameras in camera-control units (render/trajectory.h), placed by the model's camera
+//   control: UP-LVSM's pose mapper, or the posed models' world cameras (they need the inputs' c2w).
 #pragma once
 #include <torch/torch.h>
 
 #include <string>
 #include <vector>
 
+#include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::render {
@@ -23,10 +24,15 @@ struct InterpolationVideo {
 InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t num_frames, int64_t chunk = 4);
 
+// Latent poses [F, 7] given directly (a camera path recorded in latent units), intrinsics [F, 4] pixels; images
+// [2, 3, H, W], fxfycxcy [2, 4]. UP-LVSM only. Returns frames [F, 3, H, W] on the CPU.
+torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
+                                 const torch::Tensor& poses, const torch::Tensor& intrinsics, int64_t chunk = 4);
+
 // poses [F, 7] camera-control units, fxfycxcy [F, 4] pixels of the inputs' size; inputs: images [2, 3, H, W],
-// fxfycxcy [2, 4], c2w [2, 4, 4] (needed by the posed variants; may be undefined for UP-LVSM with a mapper).
+// fxfycxcy [2, 4], c2w [2, 4, 4] (needed by the posed models; may be undefined for UP-LVSM with a mapper).
 // Returns frames [F, 3, H, W] on the CPU.
-torch::Tensor render_camera_path(model::UPLVSM& net, const model::Views& inputs, const torch::Tensor& poses,
+torch::Tensor render_camera_path(model::NovelViewModel& net, const model::Views& inputs, const torch::Tensor& poses,
                                  const torch::Tensor& fxfycxcy, int64_t chunk = 4);
 
 // The device a model's parameters live on.

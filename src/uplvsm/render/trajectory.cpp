@@ -123,8 +123,9 @@ CameraPath read_camera_path(const std::string& path) {
     throw std::runtime_error("camera path " + path + ": " + std::to_string(j["frames"].size()) + " frames, more than " +
                              "the " + std::to_string(kMaxVideoFrames) + " a video may have");
   const std::string units = j.value("units", "baseline");
-  if (units != "baseline")
-    throw std::runtime_error("camera path " + path + ": \"units\" must be \"baseline\" (translations in input baselines)");
+  if (units != "baseline" && units != "latent")
+    throw std::runtime_error("camera path " + path + ": \"units\" must be \"baseline\" (real cameras, translations in "
+                             "input baselines) or \"latent\" (the model's latent poses)");
   std::vector<torch::Tensor> poses, intrinsics;
   for (size_t i = 0; i < j["frames"].size(); ++i) {
     const auto& f = j["frames"][i];
@@ -157,7 +158,7 @@ CameraPath read_camera_path(const std::string& path) {
   }
   if (!intrinsics.empty() && intrinsics.size() != poses.size())
     throw std::runtime_error("camera path " + path + ": give \"fxfycxcy\" on every frame or on none");
-  return {torch::stack(poses), intrinsics.empty() ? torch::Tensor() : torch::stack(intrinsics)};
+  return {torch::stack(poses), intrinsics.empty() ? torch::Tensor() : torch::stack(intrinsics), units == "latent"};
 }
 
 }  // namespace uplvsm::render

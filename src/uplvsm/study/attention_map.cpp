@@ -12,8 +12,6 @@ using torch::indexing::Slice;
 
 CrossViewAttention cross_view_attention(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t row, int64_t col) {
-  TORCH_CHECK(!net->posed_variant(), "study attention: the ", net->config.variant,
-              " variant has no scene encoder; use an UP-LVSM model");
   TORCH_CHECK(images.dim() == 4 && images.size(0) == 2 && images.size(1) == 3,
               "study attention: expected two input images [2, 3, H, W], got ", images.sizes());
   const int64_t p = net->config.patch_size, gh = images.size(2) / p, gw = images.size(3) / p;

@@ -47,7 +47,6 @@ double median_of(const torch::Tensor& x) { return x.numel() == 0 ? 0.0 : x.media
 
 PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& dataset,
                              const data::PreprocessOptions& prep, const PosePairOptions& opt) {
-  TORCH_CHECK(!net->posed_variant(), "pose pairs: the ", net->config.variant, " variant has no latent poses");
   TORCH_CHECK(opt.gap >= 1, "pose pairs: gap must be >= 1");
   torch::NoGradGuard no_grad;
   const bool was_training = net->is_training();

@@ -20,7 +20,7 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum)
   torch::Tensor mse, loss;
   {
     AutocastGuard amp(target.device(), ctx.bf16);
-    auto out = ctx.net->forward(batch.inputs, batch.targets, ctx.target_poses);
+    auto out = ctx.net->render(batch.inputs, batch.targets, ctx.target_poses);
     mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
     loss = tc.l2_loss_weight * mse;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/distributed.h"
 #include "uplvsm/train/perceptual_loss.h"
@@ -25,7 +25,7 @@ struct MicroBatch {
 
 // What a step needs besides its batches; built once per run.
 struct StepContext {
-  model::UPLVSMImpl* net = nullptr;
+  model::NovelViewModelImpl* net = nullptr;
   torch::optim::Optimizer* optimizer = nullptr;
   std::vector<torch::Tensor> params;  // trainable parameters (clipped together, as the official loop)
   TrainingConfig training;

@@ -14,10 +14,12 @@
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
+#include "uplvsm/data/view_sampler.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/memory_estimate.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
@@ -49,9 +51,10 @@ struct SignalScope {
   void (*old_term)(int);
 };
 
-data::LoaderOptions loader_options(const Config& c, const Communicator* comm) {
+data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& dataset, const Communicator* comm) {
   const auto& t = c.training;
   data::LoaderOptions o;
+  o.ordered_views = data::uses_ordered_views(t.view_sampler, dataset.info());
   o.batch_size = t.batch_size;
   o.num_views = static_cast<int>(t.num_views);
   o.num_input_views = static_cast<int>(t.num_input_views);
@@ -98,23 +101,25 @@ void check_same_model(const Config& a, const Config& b, const std::string& sourc
 }
 
 // A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
-// Returns whether the pose mapper still needs its initial fit (it has one and the file did not carry it).
-bool init_from_weights(model::UPLVSMImpl& net, const std::string& path) {
+// Returns whether the pose mapper still needs its initial fit (an UP-LVSM with one, from a file without it).
+bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path) {
   auto w = model::read_pretrained_weights(path);
   torch::NoGradGuard no_grad;
+  const auto* up = model::as_uplvsm(net);
+  const bool mapper = up && up->pose_mapper;
   model::LoadOptions load;
-  if (net.pose_mapper) load.allow_missing_substrings.push_back("pose_mapper.");
+  if (mapper) load.allow_missing_substrings.push_back("pose_mapper.");
   auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path, load)
-                                                        : model::load_dinov2_into_uplvsm(net, w.tensors, path);
+                                                        : model::load_dinov2_into_tokenizer(net, w.tensors, path);
   spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
-  return net.pose_mapper && !w.tensors.count("pose_mapper.A");
+  return mapper && !w.tensors.count("pose_mapper.A");
 }
 
 // The camera-control stage starts from the least-squares map between real target poses and the latent poses the
 // estimator gives them, on calibration batches drawn apart from the training stream (another seed).
 void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const TrainOptions& opt) {
   data::ChunkDataset dataset(opt.data_root, "train");
-  auto lo = loader_options(config, nullptr);
+  auto lo = loader_options(config, dataset, nullptr);
   lo.seed += 1000003;
   const int64_t batches = std::max<int64_t>(1, (64 + lo.batch_size - 1) / lo.batch_size);
   torch::NoGradGuard no_grad;
@@ -157,8 +162,8 @@ PerceptualLoss make_perceptual_loss(const TrainingConfig& tc, const TrainOptions
 }
 
 // Held-out evaluation on rank 0; a new best PSNR is recorded in the state and its weights kept as best.safetensors.
-void run_periodic_eval(const TrainOptions& opt, const Config& config, model::UPLVSM& net, TrainState& state, bool lead,
-                       std::ofstream& metrics, const std::string& ckpt_dir) {
+void run_periodic_eval(const TrainOptions& opt, const Config& config, model::NovelViewModel& net, TrainState& state,
+                       bool lead, std::ofstream& metrics, const std::string& ckpt_dir) {
   if (lead) {
     net->eval();
     auto result = opt.periodic_eval(net, state.step);
@@ -209,7 +214,7 @@ std::optional<model::CheckpointFile> resume_checkpoint(const TrainOptions& opt, 
 
 // Restores weights, optimiser and training state from a checkpoint, or initialises a new run (optionally from
 // weights). Returns the state to continue from.
-TrainState resume_or_initialise(model::UPLVSMImpl& net, torch::optim::AdamW& optimizer, const Config& config,
+TrainState resume_or_initialise(model::NovelViewModelImpl& net, torch::optim::AdamW& optimizer, const Config& config,
                                 const TrainOptions& opt, const std::string& checkpoint_dir) {
   if (auto ckpt = resume_checkpoint(opt, checkpoint_dir)) {
     const std::string& resume_from = ckpt->path;
@@ -220,12 +225,14 @@ TrainState resume_or_initialise(model::UPLVSMImpl& net, torch::optim::AdamW& opt
     spdlog::info("resumed from {} at step {}", resume_from, state.step);
     return state;
   }
-  if (!opt.init_weights.empty() && init_from_weights(net, opt.init_weights)) calibrate_pose_mapper(net, config, opt);
+  if (!opt.init_weights.empty() && init_from_weights(net, opt.init_weights))
+    calibrate_pose_mapper(*model::as_uplvsm(net), config, opt);
   return {};
 }
 
 // Restricts the train split to the configured subset and checks it can serve this run (cameras, scene count).
-void prepare_training_data(data::ChunkDataset& dataset, const Config& config, const TrainOptions& opt) {
+void prepare_training_data(data::ChunkDataset& dataset, const Config& config, const TrainOptions& opt,
+                           const model::NovelViewModelImpl& net) {
   const auto& tc = config.training;
   if (!tc.subset.empty()) {
     const auto subset = data::read_subset_manifest(tc.subset);
@@ -233,7 +240,7 @@ void prepare_training_data(data::ChunkDataset& dataset, const Config& config, co
     spdlog::info("subset {} ({}): {} scenes{}", subset.name, tc.subset, dataset.size(),
                  subset.chunks.empty() ? "" : fmt::format(" in {} chunks", subset.chunks.size()));
   }
-  const bool reads_cameras = model::reads_training_cameras(config.model, tc.target_poses);
+  const bool reads_cameras = model::parse_target_poses(tc.target_poses, net) != model::TargetPoses::Estimator;
   for (int64_t i = 0; reads_cameras && i < dataset.size(); ++i)
     if (!dataset.poses_known(i))
       throw std::runtime_error(fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
@@ -248,7 +255,7 @@ void prepare_training_data(data::ChunkDataset& dataset, const Config& config, co
 }
 
 // Everything a step needs besides its batches.
-StepContext make_step_context(model::UPLVSMImpl& net, torch::optim::Optimizer& optimizer, const Config& config,
+StepContext make_step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer& optimizer, const Config& config,
                               const TrainOptions& opt) {
   const auto& tc = config.training;
   StepContext ctx;
@@ -256,12 +263,13 @@ StepContext make_step_context(model::UPLVSMImpl& net, torch::optim::Optimizer& o
   ctx.optimizer = &optimizer;
   ctx.params = trainable_parameters(net);
   ctx.training = tc;
-  ctx.target_poses = model::parse_target_poses(tc.target_poses, config.model);
+  ctx.target_poses = model::parse_target_poses(tc.target_poses, net);
   ctx.perceptual = make_perceptual_loss(tc, opt);
   ctx.bf16 = parse_amp(tc.amp);
   ctx.comm = opt.comm.get();
   if (ctx.bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
-  spdlog::info("{} variant, target poses from {}", config.model.variant, model::to_string(ctx.target_poses));
+  spdlog::info("{} ({} variant), target poses from {}", net.name(), config.model.variant,
+               model::to_string(ctx.target_poses));
   net.set_grad_checkpoint_every(tc.grad_checkpoint_every);
   if (tc.grad_checkpoint_every > 0)
     spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
@@ -306,7 +314,7 @@ void log_step(std::ofstream& metrics, const TrainState& state, const StepResult&
 }
 
 // End of run: the loader's share, data-parallel consistency, and skipped updates.
-void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator* comm, model::UPLVSMImpl& net,
+void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator* comm, model::NovelViewModelImpl& net,
                 const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
   spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(), dataset.chunk_reads());
   if (comm) {
@@ -332,7 +340,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto files = prepare_run_dir(config, opt, lead);
 
   torch::manual_seed(static_cast<uint64_t>(tc.seed));
-  model::UPLVSM net(config.model);
+  auto net = model::make_model(config.model);
   net->to(opt.device);
   net->train();
   auto optimizer = make_optimizer(*net, tc);
@@ -351,12 +359,14 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   }
 
   data::ChunkDataset dataset(opt.data_root, "train");
-  prepare_training_data(dataset, config, opt);
+  prepare_training_data(dataset, config, opt, *net);
   const int64_t scenes = tc.max_train_scenes > 0 ? tc.max_train_scenes : dataset.size();
   spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, net->parameter_count(),
                scenes, opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
                state.step, tc.train_steps);
-  data::TrainingLoader loader(dataset, loader_options(config, comm), state.step);
+  const auto loader_opt = loader_options(config, dataset, comm);
+  if (!loader_opt.ordered_views) spdlog::info("views: unordered (any {} distinct frames per scene)", tc.num_views);
+  data::TrainingLoader loader(dataset, loader_opt, state.step);
   StepContext ctx = make_step_context(*net, *optimizer, config, opt);
 
   SignalScope signals;

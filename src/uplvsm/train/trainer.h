@@ -1,6 +1,7 @@
-// The training loop (official recipe): batches from the step-keyed loader, the UP-LVSM forward with the estimator
-// on the target images, MSE (+ perceptual when available) loss, AdamW with warmup+cosine, gradient clipping with the
-// official skip rules, JSONL metrics, atomic checkpoints with rotation, exact resume, SIGINT/SIGTERM checkpointing.
+// The training loop (official recipe): batches from the step-keyed loader, the model's forward with the run's target
+// poses (UP-LVSM: the estimator on the target images), MSE (+ perceptual when available) loss, AdamW with
+// warmup+cosine, gradient clipping with the official skip rules, JSONL metrics, atomic checkpoints with rotation,
+// exact resume, SIGINT/SIGTERM checkpointing.
 #pragma once
 #include <torch/torch.h>
 
@@ -11,7 +12,7 @@
 #include <nlohmann/json.hpp>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/train/distributed.h"
 
 namespace uplvsm::train {
@@ -33,7 +34,7 @@ struct TrainOptions {
   // Periodic evaluation, every training.eval_every steps and at the end, on rank 0 with the model in eval mode
   // (other ranks wait). Its result is logged to metrics.jsonl as {"step", "eval": result}. The CLI supplies it
   // (eval/ sits beside train/, not below it).
-  std::function<nlohmann::json(model::UPLVSM& net, int64_t step)> periodic_eval;
+  std::function<nlohmann::json(model::NovelViewModel& net, int64_t step)> periodic_eval;
 };
 
 struct TrainResult {

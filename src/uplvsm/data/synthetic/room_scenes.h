@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <string>
 
-#include "uplvsm/data/scene.h"
+#include "uplvsm/data/synthetic/builtin_dataset.h"
 
 namespace uplvsm::data {
 
@@ -22,34 +22,21 @@ struct RoomSceneOptions {
   int eval_gap = 0;            // frames between the two evaluation context views; 0: frames / 2
 };
 
-// A rendered scene with what the JPEG bytes lose: the exact pixels and the ray-cast depth.
-struct RoomRender {
-  RawScene scene;           // what goes into the chunk (JPEG bytes, 18-float cameras)
-  torch::Tensor images;     // uint8 [N,H,W,3], before JPEG compression
-  torch::Tensor depth;      // float32 [N,H,W], camera z of the surface seen through each pixel centre
-  torch::Tensor fxfycxcy;   // float32 [N,4], pixels
-  torch::Tensor c2w;        // float32 [N,4,4], the rendering cameras (float64 ones cast)
-};
+using RoomRender = SceneRender;
 
 // Key of a scene: 16 lowercase hex characters, a hash of the seed.
 std::string room_scene_key(uint64_t seed);
-
-// Seed of scene `index` of a split (0 train, 1 test) of a dataset seeded `dataset_seed`; different splits never
-// share a seed.
-uint64_t builtin_scene_seed(uint64_t dataset_seed, int split, int64_t index);
 
 // Renders one scene (frames in parallel). key = room_scene_key(seed), url "builtin://room/<seed>",
 // timestamps 100000 * i, cameras with the world-to-camera matrices of the rendering cameras.
 RoomRender render_room(uint64_t seed, const RoomSceneOptions& opt);
 RawScene render_room_scene(uint64_t seed, const RoomSceneOptions& opt);
 
-// Fraction of frame a's pixels whose ray-cast 3D point projects in front of camera b and inside its image
-// (no occlusion test), averaged over both directions (a->b and b->a). Same definition as the re10k fixture.
-double context_overlap(const RoomRender& r, int64_t a, int64_t b);
+// The room walkthroughs as a generator for write_generated_dataset (ordered views).
+SceneGenerator room_generator(const RoomSceneOptions& opt);
 
-// Writes root/train and root/test (chunks of `scenes_per_chunk` scenes, NNNNNN.torch, and index.json) and
-// root/evaluation_index.json for the test scenes: context [f, f+gap] (gap = eval_gap or frames/2), three sorted
-// targets strictly between them, and the context overlap. Scenes render in parallel.
+// write_generated_dataset with room_generator: evaluation views are context [f, f+gap] (gap = eval_gap or
+// frames/2), three sorted targets strictly between them, and the context overlap.
 void write_builtin_dataset(const std::string& root, int num_train, int num_test, uint64_t seed,
                            const RoomSceneOptions& opt, int scenes_per_chunk = 64);
 

@@ -1,0 +1,100 @@
+#include "uplvsm/serve/viewer_model.h"
+
+#include <stdexcept>
+
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/pose_mapper.h"
+#include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/uplvsm.h"
+
+namespace uplvsm::serve {
+
+PoseSpace parse_pose_space(const std::string& name) {
+  if (name == "latent") return PoseSpace::Latent;
+  if (name == "real") return PoseSpace::Real;
+  throw std::invalid_argument("space must be \"latent\" or \"real\", got \"" + name + "\"");
+}
+
+const char* to_string(PoseSpace space) { return space == PoseSpace::Latent ? "latent" : "real"; }
+
+int64_t SceneEncoding::bytes() const {
+  auto size = [](const torch::Tensor& t) { return t.defined() ? t.numel() * static_cast<int64_t>(t.element_size()) : 0; };
+  return size(latents) + size(key_latent) + size(key_real) + size(fxfycxcy);
+}
+
+ViewerModel ViewerModel::load(const std::string& checkpoint, const std::string& config_hint, torch::Device device,
+                              bool bf16) {
+  Config config;
+  model::NovelViewModel net{nullptr};
+  if (config_hint.empty()) {
+    net = model::load_model(checkpoint, device, &config);
+  } else {
+    Config hint = load_config(config_hint);
+    net = model::load_model(checkpoint, device, &config, &hint);
+  }
+  // The viewer starts from unposed photos: only UP-LVSM renders those (the posed models need input cameras).
+  return ViewerModel(model::require_uplvsm(net, "serve (the viewer starts from unposed photos)").ptr(), config, bf16);
+}
+
+ViewerModel::ViewerModel(std::shared_ptr<model::UPLVSMImpl> net, Config config, bool bf16)
+    : net_(std::move(net)), config_(std::move(config)), bf16_(bf16) {
+  net_->eval();
+  auto params = net_->parameters();
+  if (!params.empty()) device_ = params.front().device();
+}
+
+bool ViewerModel::has_mapper() const { return static_cast<bool>(net_->pose_mapper); }
+
+int64_t ViewerModel::parameter_count() const { return net_->parameter_count(); }
+
+// Photos carry no cameras: their real poses are read back through the mapper (real = A^-1 (latent - b)), then
+// expressed relative to input 0 with the baseline as unit, as camera_control_poses does for dataset cameras.
+torch::Tensor ViewerModel::real_from_latent(const torch::Tensor& key_latent) const {
+  auto A = net_->pose_mapper->A.detach().to(torch::kCPU, torch::kFloat64);
+  auto b = net_->pose_mapper->b.detach().to(torch::kCPU, torch::kFloat64);
+  auto real = torch::linalg_solve(A, (key_latent - b).t()).t();  // [2, 7]
+  auto q = real.slice(1, 3, 7);
+  real = torch::cat({real.slice(1, 0, 3), q / q.norm(2, 1, true).clamp_min(1e-9)}, 1);
+  auto c2w = geometry::pose_encoding_to_c2w(real);  // [2, 4, 4]
+  return model::camera_control_poses(c2w.unsqueeze(0), c2w.unsqueeze(0))[0].to(torch::kFloat64);
+}
+
+SceneEncoding ViewerModel::encode(const data::Views& views, bool posed) const {
+  TORCH_CHECK(views.images.dim() == 4 && views.images.size(0) == 2 && views.images.size(1) == 3,
+              "serve: a scene is two views [2, 3, H, W], got ", views.images.sizes());
+  torch::NoGradGuard no_grad;
+  AutocastGuard amp(device_, bf16_);
+  SceneEncoding s;
+  auto images = views.images.unsqueeze(0).to(device_);
+  auto k = views.fxfycxcy.unsqueeze(0).to(device_, torch::kFloat32);
+  s.latents = net_->encode_scene(images, k);
+  s.key_latent = net_->estimate_poses(images, s.latents)[0].to(torch::kCPU, torch::kFloat64);
+  s.fxfycxcy = views.fxfycxcy[0].to(torch::kCPU, torch::kFloat32).clone();
+  s.height = views.images.size(2);
+  s.width = views.images.size(3);
+  if (has_mapper()) {
+    if (posed && views.c2w.defined()) {
+      auto c2w = views.c2w.unsqueeze(0);
+      s.key_real = model::camera_control_poses(c2w, c2w)[0].to(torch::kFloat64);
+    } else {
+      s.key_real = real_from_latent(s.key_latent);
+      s.key_real_estimated = true;
+    }
+  }
+  return s;
+}
+
+torch::Tensor ViewerModel::render(const SceneEncoding& scene, const torch::Tensor& poses, PoseSpace space) const {
+  TORCH_CHECK(poses.dim() == 2 && poses.size(1) == 7, "serve: poses must be [F, 7], got ", poses.sizes());
+  if (space == PoseSpace::Real && !has_mapper())
+    throw std::invalid_argument("this checkpoint has no camera mapper: render latent poses (space \"latent\")");
+  torch::NoGradGuard no_grad;
+  AutocastGuard amp(device_, bf16_);
+  auto p = poses.to(device_, torch::kFloat32).unsqueeze(0);
+  if (space == PoseSpace::Real) p = net_->pose_mapper(p);
+  auto k = scene.fxfycxcy.to(device_).view({1, 1, 4}).expand({1, poses.size(0), 4}).contiguous();
+  return net_->render_views(scene.latents, p, k, scene.height, scene.width)[0].to(torch::kCPU, torch::kFloat32);
+}
+
+}  // namespace uplvsm::serve

@@ -1,0 +1,69 @@
+// The viewer's one door into the model: everything `uplvsm serve` asks of UP-LVSM goes through this adapter —
+// encode_scene once per scene (the scene latents are cached by the caller), estimate_poses for the inputs' latent
+// poses, render_views per frame, and, when the checkpoint has a camera mapper, pose_mapper + camera_control_poses
+// for cameras in real units. Keeping it here keeps the rest of serve/ independent of the model's class layout.
+#pragma once
+#include <torch/torch.h>
+
+#include <cstdint>
+#include <memory>
+#include <string>
+
+#include "uplvsm/core/config.h"
+#include "uplvsm/data/scene.h"
+
+namespace uplvsm::model {
+struct UPLVSMImpl;
+}
+
+namespace uplvsm::serve {
+
+// How a 7-D camera pose (t, q_xyzw) is meant: a latent pose the decoder reads directly, or a real camera relative
+// to input view 0 in input baselines (camera-control units), turned into a latent pose by the mapper.
+enum class PoseSpace { Latent, Real };
+PoseSpace parse_pose_space(const std::string& name);  // "latent" | "real"; throws std::invalid_argument
+const char* to_string(PoseSpace space);
+
+// One scene as the decoder needs it, computed once.
+struct SceneEncoding {
+  torch::Tensor latents;     // [1, L, d] scene latents on the model's device
+  torch::Tensor key_latent;  // [2, 7] float64 CPU: the estimator's latent poses of the two inputs
+  torch::Tensor key_real;    // [2, 7] float64 CPU: the inputs in camera-control units (undefined without a mapper)
+  bool key_real_estimated = false;  // key_real[1] inverted through the mapper (photos without cameras)
+  torch::Tensor fxfycxcy;    // [4] float32 pixels: input 0's intrinsics, used for every rendered frame
+  int64_t height = 0, width = 0;
+  int64_t bytes() const;     // memory held (latents and poses)
+};
+
+class ViewerModel {
+ public:
+  // Loads any UP-LVSM checkpoint `uplvsm` reads (ours or the authors'; `config_hint`: optional config JSON for
+  // official files). Posed variants are refused: the viewer starts from unposed photos.
+  static ViewerModel load(const std::string& checkpoint, const std::string& config_hint, torch::Device device,
+                          bool bf16);
+  // A model already built (tests, benchmarks).
+  ViewerModel(std::shared_ptr<model::UPLVSMImpl> net, Config config, bool bf16);
+
+  int64_t image_size() const { return config_.model.image_size; }
+  int64_t patch_size() const { return config_.model.patch_size; }
+  bool has_mapper() const;
+  bool bf16() const { return bf16_; }
+  int64_t parameter_count() const;
+  const Config& config() const { return config_; }
+
+  // views: images [2, 3, H, W] in [0, 1], fxfycxcy [2, 4] pixels, c2w [2, 4, 4] when `posed` (dataset cameras).
+  // Runs the encoder and the estimator. Not thread-safe with other calls: callers serialise model use.
+  SceneEncoding encode(const data::Views& views, bool posed) const;
+  // poses [F, 7] in `space` -> frames [F, 3, H, W] float32 CPU in [0, 1]. Only the decoder runs.
+  torch::Tensor render(const SceneEncoding& scene, const torch::Tensor& poses, PoseSpace space) const;
+
+ private:
+  torch::Tensor real_from_latent(const torch::Tensor& key_latent) const;
+
+  std::shared_ptr<model::UPLVSMImpl> net_;
+  Config config_;
+  bool bf16_ = false;
+  torch::Device device_{torch::kCPU};
+};
+
+}  // namespace uplvsm::serve
