@@ -1,5 +1,6 @@
 // A training process killed with SIGKILL (no chance to checkpoint) and restarted with --resume auto continues from
-// its last checkpoint and logs exactly the loss curve of an uninterrupted run.
+// its last checkpoint and logs exactly the loss curve of an uninterrupted run; when the newest checkpoint was damaged
+// on top of that (a full disk, an interrupted copy), from the one before it, with the same curve.
 #include <gtest/gtest.h>
 
 #include <signal.h>
@@ -54,38 +55,80 @@ size_t lines_in(const fs::path& path) {
   std::ifstream in(path);
   return static_cast<size_t>(std::count(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>(), '\n'));
 }
-}  // namespace
 
-TEST(KillResume, SigkillThenResumeAutoReproducesTheUninterruptedLossCurve) {
-  auto dir = uplvsm::test::temp_dir("kill_resume");
-  auto config = uplvsm::test::micro_config();
-  config.training.train_steps = 120;
-  config.training.checkpoint_every = 25;
-  const auto cfg = (dir / "micro.json").string();
-  std::ofstream(cfg) << uplvsm::config_to_json(config).dump(2);
-  const auto data = uplvsm::test::micro_dataset();
+struct Setup {
+  fs::path dir;
+  std::string cfg, data;
+  std::vector<std::pair<int64_t, double>> expected;  // the uninterrupted run's loss curve
+};
 
-  const auto straight = (dir / "straight").string();
-  ASSERT_EQ(wait_exit(start_training(cfg, data, straight, (dir / "straight.log").string())), 0);
-  const auto expected = loss_curve(straight);
-  ASSERT_EQ(expected.size(), 120u);
+// The config, the dataset and the uninterrupted run, shared by the tests of this file.
+const Setup& setup() {
+  static const Setup s = [] {
+    Setup s;
+    s.dir = uplvsm::test::temp_dir("kill_resume");
+    auto config = uplvsm::test::micro_config();
+    config.training.train_steps = 120;
+    config.training.checkpoint_every = 25;
+    s.cfg = (s.dir / "micro.json").string();
+    std::ofstream(s.cfg) << uplvsm::config_to_json(config).dump(2);
+    s.data = uplvsm::test::micro_dataset();
+    const auto straight = (s.dir / "straight").string();
+    EXPECT_EQ(wait_exit(start_training(s.cfg, s.data, straight, (s.dir / "straight.log").string())), 0);
+    s.expected = loss_curve(straight);
+    return s;
+  }();
+  return s;
+}
 
-  // Kill once the run is past its first checkpoint and between two others.
-  const auto killed = (dir / "killed").string();
-  pid_t pid = start_training(cfg, data, killed, (dir / "killed_1.log").string());
+// Starts a run and kills it once it is past its second checkpoint (step 50) and before the end.
+void start_and_kill(const std::string& run, const std::string& log) {
+  const auto& s = setup();
+  pid_t pid = start_training(s.cfg, s.data, run, log);
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::minutes(5);
-  while (lines_in(fs::path(killed) / "metrics.jsonl") < 60 && std::chrono::steady_clock::now() < deadline)
+  while (lines_in(fs::path(run) / "metrics.jsonl") < 60 && std::chrono::steady_clock::now() < deadline)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
   kill(pid, SIGKILL);
   const int status = wait_exit(pid);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "the run ended before it could be killed";
-  const auto before = loss_curve(killed);
+  const auto before = loss_curve(run);
   ASSERT_GE(before.size(), 60u);
   ASSERT_LT(before.size(), 120u);
+}
 
-  ASSERT_EQ(wait_exit(start_training(cfg, data, killed, (dir / "killed_2.log").string())), 0);
-  std::ifstream log(dir / "killed_2.log");
-  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+std::string read_text(const fs::path& path) {
+  std::ifstream in(path);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+}  // namespace
+
+TEST(KillResume, SigkillThenResumeAutoReproducesTheUninterruptedLossCurve) {
+  const auto& s = setup();
+  ASSERT_EQ(s.expected.size(), 120u);
+  const auto killed = (s.dir / "killed").string();
+  start_and_kill(killed, (s.dir / "killed_1.log").string());
+
+  ASSERT_EQ(wait_exit(start_training(s.cfg, s.data, killed, (s.dir / "killed_2.log").string())), 0);
+  const auto text = read_text(s.dir / "killed_2.log");
   EXPECT_NE(text.find("resumed from"), std::string::npos) << text;
-  EXPECT_EQ(loss_curve(killed), expected);  // lines past the checkpoint were dropped and redone identically
+  EXPECT_EQ(loss_curve(killed), s.expected);  // lines past the checkpoint were dropped and redone identically
+}
+
+TEST(KillResume, TruncatedNewestCheckpointAfterSigkillResumesFromThePreviousOne) {
+  const auto& s = setup();
+  ASSERT_EQ(s.expected.size(), 120u);
+  const auto run = (s.dir / "damaged").string();
+  start_and_kill(run, (s.dir / "damaged_1.log").string());
+
+  const auto ckpts = fs::path(run) / "checkpoints";
+  const auto newest = (ckpts / "ckpt_0000000000000050.safetensors").string();
+  const auto previous = (ckpts / "ckpt_0000000000000025.safetensors").string();
+  ASSERT_TRUE(fs::exists(newest) && fs::exists(previous));
+  fs::resize_file(newest, fs::file_size(newest) / 2);
+
+  ASSERT_EQ(wait_exit(start_training(s.cfg, s.data, run, (s.dir / "damaged_2.log").string())), 0);
+  const auto text = read_text(s.dir / "damaged_2.log");
+  EXPECT_NE(text.find("checkpoint " + newest + " does not read"), std::string::npos) << text;
+  EXPECT_NE(text.find("resumed from " + previous + " at step 25"), std::string::npos) << text;
+  EXPECT_EQ(loss_curve(run), s.expected);  // steps 26.. redone, identically
 }

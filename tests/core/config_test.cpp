@@ -86,6 +86,19 @@ TEST(Config, TokenizerAndDatasetKnobsAreValidated) {
   EXPECT_NO_THROW(config_from_json({{"model", {{"dinov2", {{"pos_embed_init", "sincos"}}}}}}, "ok.json"));
 }
 
+// Fuzzing found 4.4e24 as an integer field to be undefined behaviour (a float-to-int cast); fractions were cut.
+TEST(Config, IntegerFieldsTakeIntegersOnly) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  auto msg = message({{"training", {{"warmup", 4.4e24}}}});
+  EXPECT_NE(msg.find("bad.json: training.warmup: expected an integer, got 4.4e+24"), std::string::npos) << msg;
+  msg = message({{"model", {{"transformer", {{"d", 95.5}}}}}});
+  EXPECT_NE(msg.find("model.transformer.d: expected an integer, got 95.5"), std::string::npos) << msg;
+  msg = message({{"training", {{"seed", nlohmann::json::parse("18446744073709551615")}}}});
+  EXPECT_NE(msg.find("training.seed: expected an integer"), std::string::npos) << msg;
+  msg = message({{"training", {{"batch_size", nlohmann::json::array({1, 2})}}}});
+  EXPECT_NE(msg.find("training.batch_size: expected an integer, got an array of 2"), std::string::npos) << msg;
+}
+
 TEST(Config, MissingOrInvalidFile) {
   EXPECT_THROW(load_config("/nonexistent/config.json"), std::runtime_error);
   auto dir = test::temp_dir("config");

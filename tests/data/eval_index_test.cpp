@@ -102,6 +102,12 @@ TEST(EvalIndex, RoundTripAndErrors) {
   std::ofstream((dir / "trunc.json").string()) << R"({"k": {"context": [1, 2], "tar)";
   EXPECT_THROW(read_eval_index((dir / "trunc.json").string()), std::runtime_error);
   EXPECT_THROW(read_eval_index((dir / "missing.json").string()), std::runtime_error);
+  // A frame value nested 100000 deep is described, not printed (printing recursed once per level and overflowed
+  // the stack, found by fuzzing).
+  std::ofstream((dir / "deep.json").string())
+      << R"({"k": {"context": [)" << std::string(100000, '[') << std::string(100000, ']') << R"(, 1], "target": [1]}})";
+  const auto msg = test::error_of([&] { read_eval_index((dir / "deep.json").string()); });
+  EXPECT_NE(msg.find("non-frame value an array of 1"), std::string::npos) << msg;
   std::filesystem::remove_all(dir);
 }
 

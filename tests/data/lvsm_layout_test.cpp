@@ -90,6 +90,15 @@ TEST(LvsmLayout, BadMetadataNamesTheFileAndField) {
   msg = test::error_of([&] { read_lvsm_scene(meta_path); });
   EXPECT_NE(msg.find("nowhere.png"), std::string::npos) << msg;
 
+  // Deeper than rows of numbers: described, not printed (printing recursed per level; found by fuzzing).
+  auto deep = good;
+  deep["frames"][0]["w2c"][0] = "DEEP";
+  auto deep_text = deep.dump();
+  deep_text.replace(deep_text.find("\"DEEP\""), 6, std::string(100000, '[') + "1" + std::string(100000, ']'));
+  std::ofstream(meta_path) << deep_text;
+  msg = test::error_of([&] { read_lvsm_scene(meta_path); });
+  EXPECT_NE(msg.find("expected numbers, got an array of 1"), std::string::npos) << msg;
+
   write(good);
   EXPECT_EQ(read_lvsm_scene(meta_path).images.size(), 2u);
   std::ofstream(meta_path) << "{\"frames\": [";

@@ -322,6 +322,11 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
       "transform_matrix": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
   msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("not orthonormal"), std::string::npos) << msg;
+  // A field nested deep instead of a number is described, not printed (printing recursed per level; fuzzing).
+  write_text(tj, R"({"fl_x": )" + std::string(100000, '[') + std::string(100000, ']') + R"(, "frames": [{"file_path": "images/a.jpg",
+      "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
+  msg = test::error_of([&] { import_scene(opt); });
+  EXPECT_NE(msg.find("field 'fl_x': expected a number, got an array of 1"), std::string::npos) << msg;
   write_text(tj, R"({"fl_x": 50, "frames": [{"file_path": "images/gone.jpg",
       "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
   msg = test::error_of([&] { import_scene(opt); });

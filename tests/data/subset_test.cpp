@@ -116,6 +116,13 @@ TEST(Subset, BadManifestsNameTheFileAndField) {
   std::ofstream(path) << R"({"name": "x")";
   msg = test::error_of([&] { read_subset_manifest(path); });
   EXPECT_NE(msg.find("not valid JSON"), std::string::npos) << msg;
+  // Found by fuzzing: a huge count was a float-to-int cast (undefined behaviour), a deep entry recursed in the message.
+  std::ofstream(path) << R"({"name": "x", "official_scenes": 4e24, "scenes": ["a"]})";
+  msg = test::error_of([&] { read_subset_manifest(path); });
+  EXPECT_NE(msg.find("official_scenes: expected an integer, got 4e+24"), std::string::npos) << msg;
+  std::ofstream(path) << R"({"name": "x", "scenes": [)" << std::string(100000, '[') << std::string(100000, ']') << "]}";
+  msg = test::error_of([&] { read_subset_manifest(path); });
+  EXPECT_NE(msg.find("holds an array of 1, expected strings"), std::string::npos) << msg;
 }
 
 TEST(Unposed, ListedScenesHaveNoKnownPoses) {
@@ -129,5 +136,8 @@ TEST(Unposed, ListedScenesHaveNoKnownPoses) {
   EXPECT_FALSE(after.poses_known(1));
   std::ofstream(dir / "train/unposed.json") << "{\"a\": 1}";
   auto msg = test::error_of([&] { ChunkDataset bad(dir.string(), "train"); });
-  EXPECT_NE(msg.find("unposed.json"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("unposed.json"), std::string::npos) << msg;  // An entry nested 100000 deep is described, not printed (printing it recursed per level; found by fuzzing).
+  std::ofstream(dir / "train/unposed.json") << "[" << std::string(100000, '[') << std::string(100000, ']') << "]";
+  msg = test::error_of([&] { ChunkDataset bad(dir.string(), "train"); });
+  EXPECT_NE(msg.find("entry an array of 1 is not a scene key"), std::string::npos) << msg;
 }

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "io/image_bomb.h"
 #include "test_util.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/io/safetensors.h"
@@ -16,6 +17,11 @@ namespace {
 using test::error_of;
 
 using test::fixture;
+
+// Restores the process-wide pixel limit when a test ends.
+struct PixelLimitScope {
+  ~PixelLimitScope() { set_max_image_pixels(kDefaultMaxImagePixels); }
+};
 
 // A smooth test image (JPEG-friendly).
 torch::Tensor gradient_image(int h, int w) {
@@ -115,6 +121,51 @@ TEST(Image, DecodeImageTellsPngFromJpegInMemory) {
             std::string::npos);
   std::vector<uint8_t> cut(png.begin(), png.begin() + 40);
   EXPECT_NE(error_of([&] { decode_image(cut.data(), cut.size(), "cut.png"); }).find("cut.png"), std::string::npos);
+}
+
+TEST(Image, PngBombIsRefusedFromItsHeaderBeforeDecoding) {
+  // The bomb: 30000 x 30000 = 900 MP (2.7 GB decoded), Pillow refuses it too.
+  const auto bomb = test::png_declaring(30000, 30000);
+  EXPECT_EQ(image_size(bomb.data(), bomb.size(), "bomb.png"), (std::pair<int, int>{30000, 30000}));
+  const auto msg = error_of([&] { decode_image(bomb.data(), bomb.size(), "uploads/bomb.png"); });
+  EXPECT_NE(msg.find("uploads/bomb.png"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("30000x30000 = 900000000 pixels exceeds the limit of 178956970"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("--max-image-pixels"), std::string::npos) << msg;
+
+  auto dir = test::temp_dir("image_bomb");
+  const auto path = (dir / "bomb.png").string();
+  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bomb.data()), std::streamsize(bomb.size()));
+  EXPECT_NE(error_of([&] { read_image(path); }).find(path + ": image of 30000x30000"), std::string::npos);
+  // Within the limit the header passes and the decoder meets the small image's data: a corrupt PNG, not a bomb.
+  const auto under = test::png_declaring(300, 30);
+  const auto corrupt = error_of([&] { decode_image(under.data(), under.size(), "under.png"); });
+  EXPECT_EQ(corrupt.find("exceeds the limit"), std::string::npos) << corrupt;
+  EXPECT_NE(corrupt.find("under.png: corrupt PNG"), std::string::npos) << corrupt;
+}
+
+TEST(Image, JpegBombIsRefusedFromItsHeaderBeforeDecoding) {
+  const auto bomb = test::jpeg_declaring(60000, 50000);
+  EXPECT_EQ(jpeg_size(bomb.data(), bomb.size(), "bomb.jpg"), (std::pair<int, int>{50000, 60000}));
+  for (const auto& msg : {error_of([&] { decode_jpeg(bomb.data(), bomb.size(), "bomb.jpg"); }),
+                          error_of([&] { decode_image(bomb.data(), bomb.size(), "bomb.jpg"); })})
+    EXPECT_NE(msg.find("bomb.jpg: image of 60000x50000 = 3000000000 pixels exceeds the limit"), std::string::npos)
+        << msg;
+}
+
+TEST(Image, PixelLimitCanBeRaisedLoweredOrSwitchedOff) {
+  PixelLimitScope restore;
+  EXPECT_EQ(max_image_pixels(), kDefaultMaxImagePixels);
+  const auto png = test::small_image_bytes(true), jpeg = test::small_image_bytes(false);  // 16 x 8 = 128 pixels
+  set_max_image_pixels(127);
+  EXPECT_NE(error_of([&] { decode_image(png.data(), png.size(), "p"); }).find("limit of 127 pixels"), std::string::npos);
+  EXPECT_NE(error_of([&] { decode_image(jpeg.data(), jpeg.size(), "j"); }).find("limit of 127 pixels"), std::string::npos);
+  set_max_image_pixels(128);
+  EXPECT_EQ(decode_image(png.data(), png.size(), "p").sizes(), (std::vector<int64_t>{8, 16, 3}));
+  EXPECT_EQ(decode_image(jpeg.data(), jpeg.size(), "j").sizes(), (std::vector<int64_t>{8, 16, 3}));
+  set_max_image_pixels(0);  // no limit
+  EXPECT_EQ(error_of([&] { check_image_pixels(30000, 30000, "x"); }), "(no exception)");
+  EXPECT_THROW(set_max_image_pixels(-1), std::invalid_argument);
+  EXPECT_NE(error_of([&] { check_image_pixels(0, 5, "empty.png"); }).find("empty.png"), std::string::npos);
 }
 
 TEST(Image, FloatConversions) {

@@ -11,6 +11,7 @@
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/torch_file.h"
+#include "uplvsm/io/zip_directory.h"
 
 using namespace uplvsm;
 using Kind = io::PyObject::Kind;
@@ -170,4 +171,60 @@ TEST(TorchFile, LegacyFuzz) {
     }
   }
   SUCCEED();  // reaching here without a crash is the check
+}
+
+// LibTorch's zip reader allocates the size a record declares before reading it: a central directory entry that
+// claims 2 GB for data.pkl in a 2 kB file is refused from the directory, naming the file and the record.
+TEST(TorchFile, ZipRecordClaimingMoreThanTheFileHoldsIsRefused) {
+  const std::string seed = std::string(UPLVSM_SOURCE_DIR) + "/fuzz/corpus/torch_file/official_like_zip.pt";
+  const auto entries = io::read_zip_directory(seed);
+  ASSERT_FALSE(entries.empty());
+  bool has_pickle = false;
+  for (const auto& e : entries) {
+    EXPECT_EQ(e.method, 0) << e.name;  // torch.save stores records uncompressed
+    EXPECT_EQ(e.compressed_size, e.uncompressed_size) << e.name;
+    has_pickle |= e.name.size() >= 8 && e.name.compare(e.name.size() - 8, 8, "data.pkl") == 0;
+  }
+  EXPECT_TRUE(has_pickle);
+
+  auto bytes = read_bytes(seed);
+  const auto entry = bytes.find(std::string("PK\x01\x02", 4));  // the first central directory entry
+  ASSERT_NE(entry, std::string::npos);
+  for (size_t i = 0; i < 4; ++i) bytes[entry + 24 + i] = char(i == 3 ? 0x7f : 0xff);  // uncompressed: 2^31 - 1
+  auto dir = test::temp_dir("torch_file_zip_bomb");
+  const auto path = (dir / "bomb.pt").string();
+  write_bytes(path, bytes);
+  const auto msg = test::error_of([&] { io::TorchFile file(path); });
+  EXPECT_NE(msg.find(path), std::string::npos) << msg;
+  EXPECT_NE(msg.find("claims 2147483647 bytes"), std::string::npos) << msg;
+
+  write_bytes(path, bytes.substr(0, bytes.size() - 30));  // cut inside the end-of-directory record
+  EXPECT_NE(test::error_of([&] { io::TorchFile file(path); }).find(path), std::string::npos);
+}
+
+// A tensor view may repeat stored values (stride 0, or one tensor referenced many times): copies of such views are
+// limited to the file's size, so a 1 kB file cannot ask for 256 GiB.
+TEST(TorchFile, StridedViewCopiesAreBoundedByTheFileSize) {
+  const std::string path = std::string(UPLVSM_SOURCE_DIR) + "/fuzz/corpus/torch_file/regression_stride0_view.pt";
+  const auto msg = test::error_of([&] { io::read_torch_state_dict(path); });
+  EXPECT_NE(msg.find(path), std::string::npos) << msg;
+  EXPECT_NE(msg.find("strided tensor views would copy more bytes than the file holds"), std::string::npos) << msg;
+  // A transposed weight (a legitimate strided view) is copied within the budget.
+  auto sd = io::read_torch_state_dict(std::string(UPLVSM_SOURCE_DIR) + "/fuzz/corpus/torch_file/official_like_zip.pt");
+  ASSERT_TRUE(sd.count("head.weight"));
+  EXPECT_EQ(sd.at("head.weight").sizes(), (std::vector<int64_t>{4, 3}));
+  EXPECT_TRUE(sd.at("head.weight").is_contiguous());
+}
+
+// A pickle nests one level per opcode byte (TUPLE1): a million levels must parse and be released without
+// recursing (the recursive release overflowed the stack; found by reasoning, confirmed under AddressSanitizer).
+TEST(TorchFile, DeeplyNestedPickleIsReleasedWithoutRecursion) {
+  std::string data = "\x80\x02]" + std::string(1000000, '\x85') + ".";
+  size_t pos = 0;
+  io::PersistentLoad none = [](const io::PyObject&) -> io::PyPtr { throw std::runtime_error("no storages"); };
+  auto root = io::unpickle(reinterpret_cast<const uint8_t*>(data.data()), data.size(), &pos, none, "deep");
+  ASSERT_TRUE(root->is(Kind::Tuple));
+  EXPECT_EQ(pos, data.size());
+  root.reset();  // the check: no stack overflow here
+  SUCCEED();
 }

@@ -94,6 +94,14 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
             std::string::npos);
   EXPECT_NE(error(R"({"frames": []})").find("frames"), std::string::npos);
   EXPECT_NE(error("{").find("invalid JSON"), std::string::npos);
+  // Nesting deeper than rows of numbers is an error, not a recursion (a file of '[' overflowed the stack).
+  const auto deep = error(R"({"frames": [{"pose": )" + std::string(100000, '[') + std::string(100000, ']') + "}]}");
+  EXPECT_NE(deep.find("frames[0].pose: expected numbers or rows of numbers, got an array of 1"), std::string::npos)
+      << deep;
+  // A path longer than any video may be is refused before a pose is read.
+  std::string many = R"({"frames": [)";
+  for (int64_t i = 0; i <= render::kMaxVideoFrames; ++i) many += i ? ",{}" : "{}";
+  EXPECT_NE(error(many + "]}").find("100001 frames, more than the 100000"), std::string::npos);
   EXPECT_NE(error(R"({"units": "metres", "frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}]})").find("latent"),
             std::string::npos);
   EXPECT_FALSE(path.latent);

@@ -16,6 +16,8 @@
 #include "serve_test_util.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/video.h"
+#include "uplvsm/serve/http_error.h"
+#include "uplvsm/serve/scene_sources.h"
 
 namespace uplvsm::test {
 namespace {
@@ -236,6 +238,28 @@ TEST_F(ViewerServerTest, UploadsTwoPhotosAndRendersThem) {
   std::string huge(2 * (256 << 10) + (1 << 20) + 1, 'x');
   expect_error(cli.Post("/api/upload", huge, "application/octet-stream"), 413, "too large");
   EXPECT_EQ(cli.Get("/api/info")->status, 200);
+}
+
+// An upload is decoded under the process-wide decompression-bomb limit (--max-image-pixels) when it is lower than
+// the server's own, refused from the header with 413.
+TEST(DecodeUpload, TheProcessPixelLimitAppliesWhenLower) {
+  const auto png = io::encode_png(torch::zeros({40, 30, 3}, torch::kUInt8));
+  const std::string bytes(png.begin(), png.end());
+  serve::UploadLimits limits;
+  EXPECT_EQ(serve::decode_upload(bytes, limits, "image0").sizes(), (std::vector<int64_t>{40, 30, 3}));
+  const int64_t before = io::max_image_pixels();
+  io::set_max_image_pixels(1000);
+  int status = 0;
+  std::string msg;
+  try {
+    serve::decode_upload(bytes, limits, "image0");
+  } catch (const serve::HttpError& e) {
+    status = e.status;
+    msg = e.what();
+  }
+  io::set_max_image_pixels(before);
+  EXPECT_EQ(status, 413);
+  EXPECT_NE(msg.find("image0: 30x40 pixels, more than the 1000 allowed"), std::string::npos) << msg;
 }
 
 TEST_F(ViewerServerTest, ConcurrentClientsAllGetTheirFrames) {

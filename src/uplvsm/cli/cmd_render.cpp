@@ -72,9 +72,22 @@ VideoPath camera_path(model::NovelViewModel& net, const data::Views& views, bool
   return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W), path.latent};
 }
 
+// The frames stay in memory until the video is written (float32; with --side-by-side also a copy 3x as wide): a
+// frame count that cannot fit is refused before rendering, with both numbers.
+void check_video_fits(int64_t frames, const torch::Tensor& images, bool side_by_side) {
+  const double bytes = 12.0 * static_cast<double>(frames * images.size(2) * images.size(3)) * (side_by_side ? 4 : 1);
+  const auto available = available_memory(torch::kCPU);
+  if (!available || bytes <= static_cast<double>(available->bytes)) return;
+  throw std::runtime_error(fmt::format("render: {} frames of {}x{} need at least {} of memory, but only {} is available "
+                                       "({}); render fewer frames",
+                                       frames, images.size(3), images.size(2), format_bytes(bytes),
+                                       format_bytes(static_cast<double>(available->bytes)), available->source));
+}
+
 void render_one(model::NovelViewModel& net, const data::Views& views, bool posed, const std::string& dir,
                 const RenderArgs& a, nlohmann::json& listing, const std::string& name) {
   auto [poses, intrinsics, latent] = camera_path(net, views, posed, a);
+  check_video_fits(poses.defined() ? poses.size(0) : a.frames, views.images, a.side_by_side);
   torch::Tensor frames, key_poses;
   {
     AutocastGuard amp(render::model_device(*net), parse_amp(a.amp));
@@ -123,7 +136,8 @@ void add_render_command(CLI::App& app) {
   cmd->add_option("--scenes", a->scenes, "how many dataset scenes to render")->capture_default_str();
   cmd->add_option("--images", a->images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
   cmd->add_option("--fov", a->fov, "horizontal field of view in degrees for --images")->capture_default_str();
-  cmd->add_option("--frames", a->frames, "frames of the video")->check(CLI::Range(2, 100000))->capture_default_str();
+  cmd->add_option("--frames", a->frames, "frames of the video")
+      ->check(CLI::Range(int64_t{2}, render::kMaxVideoFrames))->capture_default_str();
   cmd->add_option("--fps", a->fps, "frames per second")->capture_default_str();
   cmd->add_option("--trajectory", a->trajectory,
                   "interpolate, orbit, spiral, dolly, or a camera-path JSON file ({\"frames\": [{\"pose\": [tx, ty, "

@@ -75,7 +75,9 @@ void add_train_command(CLI::App& app) {
       ->check(CLI::ExistingFile);
   cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks with a train/ split)")->required()->check(CLI::ExistingDirectory);
   cmd->add_option("--run", a->run, "run directory (config snapshot, metrics.jsonl, checkpoints/)")->required();
-  cmd->add_option("--resume", a->resume, "auto (latest checkpoint in --run, if any), none, or a checkpoint path")
+  cmd->add_option("--resume", a->resume,
+                  "auto (the newest checkpoint in --run that reads, if any: a damaged newer one is skipped with a "
+                  "warning), none, or a checkpoint path (an error if it does not read)")
       ->capture_default_str();
   cmd->add_option("--init", a->init,
                   "start a new run from these weights: UP-LVSM (ours or official, loaded strictly) or DINOv2 "

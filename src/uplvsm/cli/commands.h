@@ -27,6 +27,10 @@ struct ModelSource {
 void add_model_options(CLI::App* cmd, ModelSource& src);
 model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
 
+// What the CLI prints for an uncaught error: its message, without LibTorch's C++ backtrace ("Exception raised
+// from ... frame #0 ...") unless `verbose`, also when another error's message embeds a LibTorch one.
+std::string error_message(const std::exception& e, bool verbose);
+
 void add_info_command(CLI::App& app);
 void add_make_dataset_command(CLI::App& app);
 void add_dataset_command(CLI::App& app);

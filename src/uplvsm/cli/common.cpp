@@ -6,6 +6,16 @@
 
 namespace uplvsm::cli {
 
+std::string error_message(const std::exception& e, bool verbose) {
+  if (verbose) return e.what();
+  if (const auto* c10 = dynamic_cast<const c10::Error*>(&e)) return c10->what_without_backtrace();
+  // A LibTorch message wrapped into another error keeps its backtrace: cut it at the line that starts it.
+  std::string message = e.what();
+  const auto at = message.find("\nException raised from ");
+  if (at != std::string::npos) message.erase(at);
+  return message;
+}
+
 void add_common_options(CLI::App* cmd, CommonOptions& opt) {
   cmd->add_option("--device", opt.device, "cpu, cuda, cuda:N or auto (cuda when available)")->capture_default_str();
   cmd->add_option("--threads", opt.threads, "intra-op threads (0: every core this process may use)")

@@ -4,8 +4,11 @@
 #include <fstream>
 #include <set>
 #include <stdexcept>
+#include <type_traits>
 
 #include <fmt/format.h>
+
+#include "uplvsm/core/json_input.h"
 
 namespace uplvsm {
 
@@ -24,7 +27,10 @@ class Reader {
     seen_.insert(key);
     if (!j_.contains(key)) return;
     try {
-      out = j_.at(key).get<T>();
+      if constexpr (std::is_same_v<T, int64_t>)
+        out = json_integer(j_.at(key), fmt::format("{}.{}", path_, key));
+      else
+        out = j_.at(key).get<T>();
     } catch (const json::exception& e) {
       throw std::runtime_error(fmt::format("{}.{}: wrong type ({})", path_, key, e.what()));
     }

@@ -9,6 +9,8 @@
 #include <cctype>
 #include <cstdlib>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 #include <stdexcept>
 
 #include <fmt/format.h>
@@ -158,6 +160,44 @@ std::string format_runtime_info(const RuntimeInfo& info) {
       std::getenv("OPENBLAS_CORETYPE") ? fmt::format(" (OPENBLAS_CORETYPE={})", std::getenv("OPENBLAS_CORETYPE")) : "",
       info.threads, info.interop_threads, available_cores(), info.omp_wait_policy, info.allocator,
       info.cuda_available ? fmt::format("available, {} device(s)", info.cuda_devices) : "not available");
+}
+
+std::optional<AvailableMemory> available_memory(const torch::Device& device) {
+  if (device.is_cpu()) {
+    std::ifstream in("/proc/meminfo");
+    std::string line;
+    while (std::getline(in, line)) {
+      std::istringstream fields(line);
+      std::string key;
+      int64_t kib = 0;
+      if (fields >> key >> kib && key == "MemAvailable:") return AvailableMemory{kib * 1024, "MemAvailable in /proc/meminfo"};
+    }
+    return std::nullopt;
+  }
+  if (!device.is_cuda()) return std::nullopt;
+  // Looked up at run time: the CUDA runtime is loaded only by a CUDA LibTorch, and this file builds against both.
+  using MemGetInfo = int (*)(size_t*, size_t*);
+  using GetSetDevice = int (*)(int*);
+  using SetDevice = int (*)(int);
+  auto mem_get_info = reinterpret_cast<MemGetInfo>(dlsym(RTLD_DEFAULT, "cudaMemGetInfo"));
+  auto get_device = reinterpret_cast<GetSetDevice>(dlsym(RTLD_DEFAULT, "cudaGetDevice"));
+  auto set_device = reinterpret_cast<SetDevice>(dlsym(RTLD_DEFAULT, "cudaSetDevice"));
+  if (!mem_get_info || !get_device || !set_device) return std::nullopt;
+  int previous = 0;
+  if (get_device(&previous) != 0) return std::nullopt;
+  const int index = device.has_index() ? device.index() : previous;
+  size_t free = 0, total = 0;
+  const bool ok = set_device(index) == 0 && mem_get_info(&free, &total) == 0;
+  set_device(previous);
+  if (!ok) return std::nullopt;
+  return AvailableMemory{static_cast<int64_t>(free), fmt::format("free memory of cuda:{}", index)};
+}
+
+std::string format_bytes(double bytes) {
+  const char* units[] = {"B", "KiB", "MiB", "GiB", "TiB", "PiB"};
+  int u = 0;
+  while (bytes >= 1024.0 && u < 5) bytes /= 1024.0, ++u;
+  return fmt::format("{:.1f} {}", bytes, units[u]);
 }
 
 torch::Device parse_device(const std::string& name) {

@@ -1,6 +1,8 @@
 // Process-wide compute setup: threads, the OpenMP wait policy, BLAS detection and device selection.
 #pragma once
 #include <torch/torch.h>
+
+#include <optional>
 #include <string>
 
 namespace uplvsm {
@@ -40,6 +42,17 @@ int available_cores();
 
 RuntimeInfo runtime_info();
 std::string format_runtime_info(const RuntimeInfo& info);
+
+// Memory a new allocation on `device` can get, and where the figure comes from: MemAvailable of /proc/meminfo for
+// the CPU, the free memory the CUDA runtime reports for a GPU. Empty when it cannot be told (no /proc, no runtime).
+struct AvailableMemory {
+  int64_t bytes = 0;
+  std::string source;  // "MemAvailable in /proc/meminfo", "free memory of cuda:0"
+};
+std::optional<AvailableMemory> available_memory(const torch::Device& device);
+
+// "12.3 GiB", "512.0 MiB": byte counts for messages.
+std::string format_bytes(double bytes);
 
 // "cpu", "cuda", "cuda:N" or "auto" (cuda when available); a clear error otherwise.
 torch::Device parse_device(const std::string& name);

@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/torch_file.h"
@@ -235,7 +236,7 @@ std::vector<std::string> read_unposed_keys(const std::string& split_dir) {
   if (!j.is_array()) throw std::runtime_error(fmt::format("{}: expected an array of scene keys", path.string()));
   std::vector<std::string> keys;
   for (const auto& k : j) {
-    if (!k.is_string()) throw std::runtime_error(fmt::format("{}: entry {} is not a scene key", path.string(), k.dump()));
+    if (!k.is_string()) throw std::runtime_error(fmt::format("{}: entry {} is not a scene key", path.string(), json_excerpt(k)));
     keys.push_back(k.get<std::string>());
   }
   return keys;

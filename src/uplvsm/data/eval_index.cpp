@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
 
@@ -20,7 +21,7 @@ std::vector<int64_t> frame_list(const nlohmann::json& entry, const char* name, c
   std::vector<int64_t> frames;
   for (const auto& v : entry[name]) {
     if (!v.is_number_integer() || v.get<int64_t>() < 0)
-      throw std::runtime_error(fmt::format("{}: field '{}' has a non-frame value {}", where, name, v.dump()));
+      throw std::runtime_error(fmt::format("{}: field '{}' has a non-frame value {}", where, name, json_excerpt(v)));
     frames.push_back(v.get<int64_t>());
   }
   return frames;

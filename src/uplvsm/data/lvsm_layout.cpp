@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
@@ -30,10 +31,10 @@ std::vector<uint8_t> read_bytes(const fs::path& path, const std::string& what) {
 std::vector<double> numbers(const json& j, size_t count, const std::string& what) {
   std::vector<double> out;
   auto take = [&](const json& v) {
-    if (!v.is_number()) throw std::runtime_error(what + ": expected numbers, got " + v.dump());
+    if (!v.is_number()) throw std::runtime_error(what + ": expected numbers, got " + json_excerpt(v));
     out.push_back(v.get<double>());
   };
-  if (!j.is_array()) throw std::runtime_error(what + ": expected an array, got " + j.dump());
+  if (!j.is_array()) throw std::runtime_error(what + ": expected an array, got " + json_excerpt(j));
   for (const auto& v : j) {
     if (v.is_array())
       for (const auto& x : v) take(x);

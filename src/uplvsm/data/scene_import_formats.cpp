@@ -18,6 +18,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/data/scene_import.h"
 
 namespace uplvsm::data {
@@ -136,7 +137,7 @@ std::string quote_non_finite_literals(const std::string& text) {
 double json_number(const json& v, const std::string& where) {
   if (v.is_string())  // a NaN / Infinity literal quoted above, or a number written as a string
     throw std::runtime_error(fmt::format("{}: expected a finite number, got {}", where, v.get<std::string>()));
-  if (!v.is_number()) throw std::runtime_error(fmt::format("{}: expected a number, got {}", where, v.dump()));
+  if (!v.is_number()) throw std::runtime_error(fmt::format("{}: expected a number, got {}", where, json_excerpt(v)));
   const double x = v.get<double>();
   if (!std::isfinite(x)) throw std::runtime_error(fmt::format("{}: expected a finite number, got {}", where, x));
   return x;

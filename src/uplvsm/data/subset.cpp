@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/io/atomic_file.h"
 
 namespace uplvsm::data {
@@ -115,7 +116,7 @@ SubsetManifest read_subset_manifest(const std::string& path) {
     for (const auto& v : j[field]) {
       if (!v.is_string())
         throw std::runtime_error(fmt::format("subset manifest {}: field '{}' holds {}, expected strings", path, field,
-                                             v.dump()));
+                                             json_excerpt(v)));
       out.push_back(v.get<std::string>());
     }
     return out;
@@ -125,7 +126,8 @@ SubsetManifest read_subset_manifest(const std::string& path) {
   m.name = j.value("name", "");
   m.split = j.value("split", "");
   m.rule = j.value("rule", "");
-  m.official_scenes = j.value("official_scenes", int64_t{0});
+  m.official_scenes =
+      j.contains("official_scenes") ? json_integer(j["official_scenes"], "subset manifest " + path + ": official_scenes") : 0;
   m.chunks = j.contains("chunks") ? strings("chunks") : std::vector<std::string>{};
   m.scenes = strings("scenes");
   if (m.scenes.empty()) throw std::runtime_error(fmt::format("subset manifest {}: field 'scenes' is empty", path));

@@ -7,6 +7,7 @@
 #include <jerror.h>
 #include <png.h>
 
+#include <atomic>
 #include <csetjmp>
 #include <cstring>
 #include <stdexcept>
@@ -17,6 +18,8 @@
 
 namespace uplvsm::io {
 namespace {
+
+std::atomic<int64_t> g_max_image_pixels{kDefaultMaxImagePixels};
 
 // libjpeg reports fatal errors through error_exit, which must not return: we longjmp back into the (destructor-free)
 // function that called libjpeg and turn the message into an exception there.
@@ -144,6 +147,12 @@ torch::Tensor read_png(const uint8_t* data, size_t size, const std::string& path
   image.version = PNG_IMAGE_VERSION;
   if (!png_image_begin_read_from_memory(&image, data, size))
     throw std::runtime_error(fmt::format("read_image: {}: not a readable PNG ({})", path, image.message));
+  try {
+    check_image_pixels(image.height, image.width, path);
+  } catch (const std::runtime_error&) {
+    png_image_free(&image);
+    throw;
+  }
   // Keep alpha while decoding and drop it afterwards: asking libpng for RGB would composite onto a background,
   // unlike PIL's convert("RGB").
   bool alpha = (image.format & PNG_FORMAT_FLAG_ALPHA) != 0;
@@ -161,6 +170,25 @@ torch::Tensor read_png(const uint8_t* data, size_t size, const std::string& path
 
 }  // namespace
 
+void set_max_image_pixels(int64_t pixels) {
+  if (pixels < 0) throw std::invalid_argument(fmt::format("max image pixels must be >= 0 (0: no limit), got {}", pixels));
+  g_max_image_pixels = pixels;
+}
+
+int64_t max_image_pixels() { return g_max_image_pixels; }
+
+void check_image_pixels(int64_t height, int64_t width, const std::string& what) {
+  if (height <= 0 || width <= 0)
+    throw std::runtime_error(fmt::format("{}: image header declares an empty size {}x{}", what, width, height));
+  const int64_t limit = max_image_pixels();
+  int64_t pixels = 0;
+  const bool overflow = __builtin_mul_overflow(height, width, &pixels);
+  if (limit > 0 && (overflow || pixels > limit))
+    throw std::runtime_error(fmt::format("{}: image of {}x{} = {} pixels exceeds the limit of {} pixels (a possible "
+                                         "decompression bomb; raise it with --max-image-pixels)",
+                                         what, width, height, overflow ? "too many" : std::to_string(pixels), limit));
+}
+
 std::pair<int, int> jpeg_size(const uint8_t* data, size_t size, const std::string& what) {
   if (data == nullptr || size < 4 || data[0] != 0xFF || data[1] != 0xD8)
     throw std::runtime_error(fmt::format("{}: not a JPEG (no FFD8 start marker; {} bytes)", what, size));
@@ -174,6 +202,7 @@ std::pair<int, int> jpeg_size(const uint8_t* data, size_t size, const std::strin
 
 torch::Tensor decode_jpeg(const uint8_t* data, size_t size, const std::string& what) {
   auto [height, width] = jpeg_size(data, size, what);
+  check_image_pixels(height, width, what);
   auto out = torch::empty({height, width, 3}, torch::kUInt8);
   JpegError err;
   init_jpeg_error(&err);
@@ -242,19 +271,23 @@ std::pair<int, int> image_size(const uint8_t* data, size_t size, const std::stri
     // IHDR is the first chunk: width and height big-endian at bytes 16..23.
     if (size < 24) throw std::runtime_error(fmt::format("{}: truncated PNG header ({} bytes)", what, size));
     auto be32 = [&](size_t at) {
-      return static_cast<int>((uint32_t(data[at]) << 24) | (uint32_t(data[at + 1]) << 16) |
-                              (uint32_t(data[at + 2]) << 8) | uint32_t(data[at + 3]));
+      return (uint32_t(data[at]) << 24) | (uint32_t(data[at + 1]) << 16) | (uint32_t(data[at + 2]) << 8) |
+             uint32_t(data[at + 3]);
     };
-    return {be32(20), be32(16)};
+    // PNG limits both to 2^31 - 1; larger values are a corrupt header, not a size.
+    const uint32_t height = be32(20), width = be32(16);
+    if (height > 0x7fffffffu || width > 0x7fffffffu)
+      throw std::runtime_error(fmt::format("{}: corrupt PNG header (size {}x{})", what, width, height));
+    return {static_cast<int>(height), static_cast<int>(width)};
   }
   return jpeg_size(data, size, what);
 }
 
 torch::Tensor read_image(const std::string& path) {
   auto bytes = read_file(path);
-  if (is_png(bytes.data(), bytes.size())) return read_png(bytes.data(), bytes.size(), path);
-  if (is_jpeg(bytes.data(), bytes.size())) return decode_jpeg(bytes.data(), bytes.size(), path);
-  throw std::runtime_error(fmt::format("read_image: {}: neither PNG nor JPEG (unknown magic bytes)", path));
+  if (!is_png(bytes.data(), bytes.size()) && !is_jpeg(bytes.data(), bytes.size()))
+    throw std::runtime_error(fmt::format("read_image: {}: neither PNG nor JPEG (unknown magic bytes)", path));
+  return decode_image(bytes.data(), bytes.size(), path);
 }
 
 torch::Tensor to_float_chw(const torch::Tensor& hwc_u8) {

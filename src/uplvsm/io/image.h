@@ -10,6 +10,16 @@
 
 namespace uplvsm::io {
 
+// Decompression-bomb guard: every decode checks the size its header declares against this many pixels before
+// allocating, and refuses larger images with an error naming the source, its size and the limit. The default is
+// Pillow's DecompressionBombError threshold (2 x MAX_IMAGE_PIXELS = 178956970); 0 means no limit. Process-wide
+// (`uplvsm --max-image-pixels N` sets it); thread-safe.
+inline constexpr int64_t kDefaultMaxImagePixels = 178956970;
+void set_max_image_pixels(int64_t pixels);
+int64_t max_image_pixels();
+// Throws when height x width is not a positive size within max_image_pixels(); `what` names the image.
+void check_image_pixels(int64_t height, int64_t width, const std::string& what);
+
 // Decodes a complete JPEG file held in memory to uint8 [H,W,3] RGB (grayscale JPEGs are expanded to RGB). Uses
 // libjpeg's defaults (integer slow DCT, fancy upsampling), as PIL and OpenCV do. `what` names the source (file,
 // scene/frame) in error messages; garbage or truncated data throws std::runtime_error.

@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/io/zip_directory.h"
+
 namespace uplvsm::io {
 
 using Kind = PyObject::Kind;
@@ -49,6 +51,9 @@ PyPtr storage_from_pid(const PyObject& pid) {
 struct TorchFile::Impl {
   std::string path, format;
   PyPtr root;
+  // Bytes that copies of strided views may still allocate: a view can repeat stored values (stride 0, or one
+  // tensor referenced many times), so without a budget a small file could demand any amount of memory.
+  mutable int64_t copy_budget = 0;
   std::map<std::string, TensorRef> storages;           // key -> storage (dtype, numel), from the pickle
   mutable std::map<std::string, torch::Tensor> loaded;  // key -> 1-D storage tensor
   // zip
@@ -69,6 +74,8 @@ struct TorchFile::Impl {
 
   void open_zip() {
     format = "zip";
+    // LibTorch's reader allocates each record's declared size: check every declaration against the file first.
+    read_zip_directory(path);
     try {
       zip = std::make_unique<caffe2::serialize::PyTorchStreamReader>(path);
       if (zip->hasRecord("byteorder")) {
@@ -156,8 +163,10 @@ struct TorchFile::Impl {
 
 TorchFile::TorchFile(const std::string& path) : impl_(std::make_unique<Impl>()) {
   impl_->path = path;
-  std::ifstream in(path, std::ios::binary);
+  std::ifstream in(path, std::ios::binary | std::ios::ate);
   if (!in) throw std::runtime_error(fmt::format("{}: cannot open for reading", path));
+  impl_->copy_budget = static_cast<int64_t>(in.tellg());
+  in.seekg(0);
   char head[4] = {0, 0, 0, 0};
   in.read(head, 4);
   in.close();
@@ -180,7 +189,15 @@ const std::string& TorchFile::format() const { return impl_->format; }
 torch::Tensor TorchFile::tensor(const PyObject& t) const {
   if (!t.is(Kind::Tensor)) throw std::runtime_error(fmt::format("{}: expected a tensor, got {}", impl_->path, t.describe()));
   auto storage = impl_->storage(t.tensor);
-  return storage.as_strided(t.tensor.sizes, t.tensor.strides, t.tensor.offset);
+  auto view = storage.as_strided(t.tensor.sizes, t.tensor.strides, t.tensor.offset);
+  if (view.is_contiguous()) return view;
+  const int64_t bytes = view.numel() * int64_t(view.element_size());
+  if (bytes > impl_->copy_budget)
+    throw std::runtime_error(fmt::format("{}: strided tensor views would copy more bytes than the file holds ({} more "
+                                         "needed, {} left)",
+                                         impl_->path, bytes, impl_->copy_budget));
+  impl_->copy_budget -= bytes;
+  return view.contiguous();
 }
 
 std::map<std::string, torch::Tensor> TorchFile::tensors(const PyObject& dict, const std::string& where) const {

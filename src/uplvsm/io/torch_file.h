@@ -27,7 +27,8 @@ class TorchFile {
   const std::string& path() const;
   const std::string& format() const;  // "zip" or "legacy"
 
-  // The tensor a Tensor object refers to (CPU, file dtype). Reads its storage on first use.
+  // The tensor a Tensor object refers to (CPU, file dtype, contiguous). Reads its storage on first use. Strided
+  // views are copied, within a budget of the file's size over all calls (more is an error).
   torch::Tensor tensor(const PyObject& tensor_object) const;
 
   // Every tensor value of a dict (keys must be strings); non-tensor values are an error naming the key.

@@ -10,6 +10,25 @@ namespace uplvsm::io {
 
 using Kind = PyObject::Kind;
 
+PyObject::~PyObject() {
+  std::vector<PyPtr> pending;
+  auto adopt_children = [&pending](PyObject& o) {
+    for (auto& item : o.items) pending.push_back(std::move(item));
+    for (auto& [k, v] : o.dict) {
+      pending.push_back(std::move(k));
+      pending.push_back(std::move(v));
+    }
+    o.items.clear();
+    o.dict.clear();
+  };
+  adopt_children(*this);
+  while (!pending.empty()) {
+    PyPtr p = std::move(pending.back());
+    pending.pop_back();
+    if (p && p.use_count() == 1) adopt_children(*p);  // p's last owner: it is destroyed childless below
+  }
+}
+
 const PyObject* PyObject::get(const std::string& key) const {
   if (kind != Kind::Dict) return nullptr;
   for (const auto& [k, v] : dict)
@@ -98,8 +117,9 @@ PyPtr rebuild_tensor(const PyObject& args) {
   t->tensor.strides = as_int_list(*args.items[3], "tensor stride");
   if (t->tensor.sizes.size() != t->tensor.strides.size())
     throw std::runtime_error("_rebuild_tensor: size and stride have different lengths");
-  // The furthest element addressed must lie inside the storage.
-  int64_t last = t->tensor.offset;
+  // The furthest element addressed must lie inside the storage, and the element count must be representable
+  // (a view of stride 0 can claim any number of elements of one stored value).
+  int64_t last = t->tensor.offset, numel = 1;
   bool empty = false;
   for (size_t i = 0; i < t->tensor.sizes.size(); ++i) {
     if (t->tensor.sizes[i] < 0 || t->tensor.strides[i] < 0)
@@ -107,7 +127,8 @@ PyPtr rebuild_tensor(const PyObject& args) {
     int64_t span = 0;
     if (t->tensor.sizes[i] == 0) empty = true;
     else if (__builtin_mul_overflow(t->tensor.sizes[i] - 1, t->tensor.strides[i], &span) ||
-             __builtin_add_overflow(last, span, &last))
+             __builtin_add_overflow(last, span, &last) || __builtin_mul_overflow(numel, t->tensor.sizes[i], &numel) ||
+             numel > (int64_t(1) << 48))
       throw std::runtime_error("_rebuild_tensor: view extent overflows");
   }
   if (t->tensor.offset < 0 || (!empty && last >= storage.tensor.storage_numel))

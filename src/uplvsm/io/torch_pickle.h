@@ -36,6 +36,13 @@ struct PyObject {
   std::vector<std::pair<PyPtr, PyPtr>> dict; // Dict, in insertion order
   TensorRef tensor;                          // Storage (key, dtype, numel) and Tensor
 
+  PyObject() = default;
+  PyObject(const PyObject&) = default;
+  PyObject& operator=(const PyObject&) = default;
+  // Releases nested containers iteratively: a pickle nests one level per opcode byte, so a recursive release of a
+  // deep one would overflow the stack.
+  ~PyObject();
+
   bool is(Kind k) const { return kind == k; }
   // Dict lookup by string key; nullptr when absent or not a dict.
   const PyObject* get(const std::string& key) const;

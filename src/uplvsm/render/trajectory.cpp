@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/quaternion.h"
 
@@ -86,18 +87,21 @@ torch::Tensor camera_path_preset(const std::string& name, int64_t frames, const 
 }
 
 namespace {
+// A field's numbers: a list, or a list of rows (a matrix). Deeper nesting is an error, not recursed into (a file of
+// '[' would overflow the stack).
 std::vector<double> numbers(const nlohmann::json& j, const std::string& where) {
   std::vector<double> out;
-  auto flatten = [&](const nlohmann::json& v, auto&& self) -> void {
-    if (v.is_array()) {
-      for (const auto& e : v) self(e, self);
-    } else if (v.is_number()) {
-      out.push_back(v.get<double>());
-    } else {
-      throw std::runtime_error(where + ": expected numbers, got " + v.dump());
-    }
+  auto number = [&](const nlohmann::json& v) {
+    if (!v.is_number()) throw std::runtime_error(where + ": expected numbers or rows of numbers, got " + json_excerpt(v));
+    out.push_back(v.get<double>());
   };
-  flatten(j, flatten);
+  if (!j.is_array()) throw std::runtime_error(where + ": expected a list of numbers, got " + json_excerpt(j));
+  for (const auto& row : j) {
+    if (!row.is_array())
+      number(row);
+    else
+      for (const auto& v : row) number(v);
+  }
   for (double x : out)
     if (!std::isfinite(x)) throw std::runtime_error(where + ": not a finite number");
   return out;
@@ -115,6 +119,9 @@ CameraPath read_camera_path(const std::string& path) {
   }
   if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].empty())
     throw std::runtime_error("camera path " + path + ": expected an object with a non-empty \"frames\" list");
+  if (j["frames"].size() > static_cast<size_t>(kMaxVideoFrames))
+    throw std::runtime_error("camera path " + path + ": " + std::to_string(j["frames"].size()) + " frames, more than " +
+                             "the " + std::to_string(kMaxVideoFrames) + " a video may have");
   const std::string units = j.value("units", "baseline");
   if (units != "baseline" && units != "latent")
     throw std::runtime_error("camera path " + path + ": \"units\" must be \"baseline\" (real cameras, translations in "

@@ -34,11 +34,15 @@ struct PresetOptions {
 // Throws std::invalid_argument for an unknown name.
 torch::Tensor camera_path_preset(const std::string& name, int64_t frames, const PresetOptions& options = {});
 
+// The most frames a video may have (`--frames`, camera-path files): bounds what a file can make us render and hold.
+inline constexpr int64_t kMaxVideoFrames = 100000;
+
 // A user's camera path: JSON {"frames": [ {"pose": [tx, ty, tz, qx, qy, qz, qw]} or {"c2w": 4x4 or 3x4 rows},
 // optional "fxfycxcy": [fx, fy, cx, cy] normalised by the image size ], "units": "baseline" | "latent"}. Returns
 // poses [F, 7] (float64) and normalised intrinsics [F, 4] (undefined when no frame gives them; all or none must).
 // "latent" poses (recorded in the viewer on a model without a camera mapper) go to the decoder as they are; they
-// belong to the scene they were recorded on. Errors name the file, the frame and the field.
+// belong to the scene they were recorded on. Errors name the file, the frame and the field; more than
+// kMaxVideoFrames frames is an error.
 struct CameraPath {
   torch::Tensor poses;
   torch::Tensor fxfycxcy_normalised;

@@ -1,5 +1,6 @@
 #include "uplvsm/serve/scene_sources.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include <fmt/format.h>
@@ -76,8 +77,11 @@ torch::Tensor decode_upload(const std::string& bytes, const UploadLimits& limits
   }
   const int64_t h = hw.first, w = hw.second;
   if (h <= 0 || w <= 0) throw HttpError(400, fmt::format("{}: invalid image size {}x{}", what, w, h));
-  if (h * w > limits.max_pixels)
-    throw HttpError(413, fmt::format("{}: {}x{} pixels, more than the {} allowed", what, w, h, limits.max_pixels));
+  // The server's limit, or the process-wide decompression-bomb limit (--max-image-pixels) when that is lower.
+  const int64_t process_limit = io::max_image_pixels();
+  const int64_t max_pixels = process_limit > 0 ? std::min(limits.max_pixels, process_limit) : limits.max_pixels;
+  if (h * w > max_pixels)
+    throw HttpError(413, fmt::format("{}: {}x{} pixels, more than the {} allowed", what, w, h, max_pixels));
   try {
     return io::decode_image(data, bytes.size(), what);
   } catch (const std::exception& e) {

@@ -58,7 +58,8 @@ struct UploadLimits {
 };
 
 // One uploaded photo (PNG or JPEG bytes) -> uint8 [H, W, 3]. Throws HttpError: 413 for a file or image over the
-// limits, 400 for anything that is not a decodable PNG/JPEG. `what` names the form field in messages.
+// limits (max_pixels, or io::max_image_pixels() when lower), 400 for anything that is not a decodable PNG/JPEG.
+// `what` names the form field in messages.
 torch::Tensor decode_upload(const std::string& bytes, const UploadLimits& limits, const std::string& what);
 
 // Two views (inputs 0 and 1) side by side as one JPEG.

@@ -5,7 +5,9 @@
 #include <type_traits>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/train/optimizer.h"
 
 namespace uplvsm::train {
@@ -19,12 +21,19 @@ nlohmann::json TrainState::to_json() const {
 }
 
 TrainState TrainState::from_json(const nlohmann::json& j) {
+  auto integer = [&](const char* key, bool required) -> int64_t {
+    if (!j.contains(key)) {
+      if (!required) return 0;
+      throw std::runtime_error(std::string("training state: missing field '") + key + "'");
+    }
+    return json_integer(j.at(key), std::string("training state ") + key);
+  };
   TrainState s;
-  s.step = j.at("step").get<int64_t>();
-  s.scheduler_step = j.at("scheduler_step").get<int64_t>();
-  s.param_update_step = j.at("param_update_step").get<int64_t>();
-  s.skipped_nonfinite = j.value("skipped_nonfinite", int64_t{0});
-  s.skipped_gradnorm = j.value("skipped_gradnorm", int64_t{0});
+  s.step = integer("step", true);
+  s.scheduler_step = integer("scheduler_step", true);
+  s.param_update_step = integer("param_update_step", true);
+  s.skipped_nonfinite = integer("skipped_nonfinite", false);
+  s.skipped_gradnorm = integer("skipped_gradnorm", false);
   s.train_seconds = j.value("train_seconds", 0.0);
   s.best_eval_psnr = j.value("best_eval_psnr", -1.0);
   return s;
@@ -90,14 +99,40 @@ std::string save_training_checkpoint(const std::string& dir, const Config& confi
   fs::create_directories(dir);
   auto path = (fs::path(dir) / checkpoint_name(state.step)).string();
   model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), optimizer_state(opt, module));
-  std::vector<std::string> all;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    auto name = e.path().filename().string();
-    if (name.rfind("ckpt_", 0) == 0 && e.path().extension() == ".safetensors") all.push_back(e.path().string());
-  }
-  std::sort(all.begin(), all.end());
+  const auto all = training_checkpoints(dir);
   for (size_t i = 0; keep > 0 && i + static_cast<size_t>(keep) < all.size(); ++i) fs::remove(all[i]);
   return path;
+}
+
+std::vector<std::string> training_checkpoints(const std::string& dir) {
+  std::vector<std::string> all;
+  if (!fs::is_directory(dir)) return all;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    auto name = e.path().filename().string();
+    if (e.is_regular_file() && name.rfind("ckpt_", 0) == 0 && e.path().extension() == ".safetensors")
+      all.push_back(e.path().string());
+  }
+  std::sort(all.begin(), all.end());  // zero-padded steps: name order is step order
+  return all;
+}
+
+std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::string& dir) {
+  const auto all = training_checkpoints(dir);
+  std::string reasons;
+  for (auto it = all.rbegin(); it != all.rend(); ++it) {
+    try {
+      auto ckpt = model::read_checkpoint(*it);
+      TrainState::from_json(ckpt.state);
+      return ckpt;
+    } catch (const std::exception& e) {
+      spdlog::warn("checkpoint {} does not read ({}); trying the previous one", *it, e.what());
+      reasons += fmt::format("\n  {}: {}", *it, e.what());
+    }
+  }
+  if (all.empty()) return std::nullopt;
+  throw std::runtime_error(fmt::format("--resume auto: none of the {} checkpoints in {} reads (pass --resume none to "
+                                       "start over):{}",
+                                       all.size(), dir, reasons));
 }
 
 std::string save_best_checkpoint(const std::string& dir, const Config& config, const TrainState& state,

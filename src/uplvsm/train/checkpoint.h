@@ -5,7 +5,9 @@
 #include <torch/torch.h>
 
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <vector>
 
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/checkpoint_io.h"
@@ -29,6 +31,15 @@ std::string checkpoint_name(int64_t step);
 model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module);
 void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module,
                              const model::NamedTensors& state, const std::string& source);
+
+// The ckpt_*.safetensors files of a checkpoint directory, oldest (lowest step) first; none when it does not exist.
+std::vector<std::string> training_checkpoints(const std::string& checkpoint_dir);
+
+// What `--resume auto` resumes from: the newest checkpoint that reads in full (every tensor, the embedded config and
+// training state). Each newer one that does not (truncated by a full disk, a copy or a crash of the storage) is
+// skipped with a warning naming it and why. None when the directory holds no checkpoint; an error when it holds
+// some and none reads.
+std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::string& checkpoint_dir);
 
 // Writes the checkpoint and prunes old ones; returns its path.
 std::string save_training_checkpoint(const std::string& checkpoint_dir, const Config& config, const TrainState& state,

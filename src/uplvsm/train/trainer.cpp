@@ -5,6 +5,7 @@
 #include <csignal>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -15,7 +16,9 @@
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/io/atomic_file.h"
+#include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/memory_estimate.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
@@ -175,6 +178,20 @@ void run_periodic_eval(const TrainOptions& opt, const Config& config, model::Nov
   if (opt.comm) opt.comm->barrier();
 }
 
+// Refuses, before anything is allocated, a config whose training state and activations (a lower bound) exceed the
+// memory the device has free: one line with both numbers instead of LibTorch's failed allocation.
+void check_memory_fits(const Config& config, torch::Device device) {
+  const auto need = model::training_memory(config);
+  const auto available = available_memory(device);
+  if (!available || need.total() <= static_cast<double>(available->bytes)) return;
+  throw std::runtime_error(fmt::format(
+      "config {}: training needs at least {} ({} parameters: {} for weights, gradients and AdamW state, {} of "
+      "activations for a batch of {}), but only {} is available ({}); reduce model dimensions or training.batch_size",
+      config.name, format_bytes(need.total()), need.parameters, format_bytes(need.state_bytes),
+      format_bytes(need.activation_bytes), config.training.batch_size, format_bytes(double(available->bytes)),
+      available->source));
+}
+
 // The run directory's files; the lead rank writes config.json.
 struct RunFiles {
   std::string checkpoint_dir, metrics;
@@ -187,29 +204,24 @@ RunFiles prepare_run_dir(const Config& config, const TrainOptions& opt, bool lea
   return {(fs::path(opt.run_dir) / "checkpoints").string(), (fs::path(opt.run_dir) / "metrics.jsonl").string()};
 }
 
-// The checkpoint to resume from: the latest in the run for "auto" (none on a new run), a given file, or none.
-std::string resume_source(const TrainOptions& opt, const std::string& checkpoint_dir) {
-  if (opt.resume == "none") return "";
-  if (opt.resume != "auto") return model::resolve_checkpoint(opt.resume);
-  if (!fs::exists(checkpoint_dir)) return "";
-  try {
-    return model::resolve_checkpoint(checkpoint_dir);
-  } catch (const std::runtime_error&) {
-    return "";
-  }
+// The checkpoint to resume from: for "auto" the newest in the run that reads (none on a new run; a damaged newer
+// one is skipped with a warning), a given file (damaged: an error), or none.
+std::optional<model::CheckpointFile> resume_checkpoint(const TrainOptions& opt, const std::string& checkpoint_dir) {
+  if (opt.resume == "none") return std::nullopt;
+  if (opt.resume != "auto") return model::read_checkpoint(opt.resume);
+  return read_newest_valid_checkpoint(checkpoint_dir);
 }
 
 // Restores weights, optimiser and training state from a checkpoint, or initialises a new run (optionally from
 // weights). Returns the state to continue from.
 TrainState resume_or_initialise(model::NovelViewModelImpl& net, torch::optim::AdamW& optimizer, const Config& config,
                                 const TrainOptions& opt, const std::string& checkpoint_dir) {
-  const std::string resume_from = resume_source(opt, checkpoint_dir);
-  if (!resume_from.empty()) {
-    auto ckpt = model::read_checkpoint(resume_from);
-    check_same_model(config, ckpt.config, resume_from);
-    model::load_state_dict(net, ckpt.model, resume_from);
-    restore_optimizer_state(optimizer, net, ckpt.optimizer, resume_from);
-    auto state = TrainState::from_json(ckpt.state);
+  if (auto ckpt = resume_checkpoint(opt, checkpoint_dir)) {
+    const std::string& resume_from = ckpt->path;
+    check_same_model(config, ckpt->config, resume_from);
+    model::load_state_dict(net, ckpt->model, resume_from);
+    restore_optimizer_state(optimizer, net, ckpt->optimizer, resume_from);
+    auto state = TrainState::from_json(ckpt->state);
     spdlog::info("resumed from {} at step {}", resume_from, state.step);
     return state;
   }
@@ -324,6 +336,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto t_start = std::chrono::steady_clock::now();
   Communicator* comm = opt.comm.get();
   const bool lead = !comm || comm->rank() == 0;  // the rank that writes files and shows progress
+  check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
 
   torch::manual_seed(static_cast<uint64_t>(tc.seed));

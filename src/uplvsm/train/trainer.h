@@ -20,7 +20,7 @@ namespace uplvsm::train {
 struct TrainOptions {
   std::string data_root;           // pixelSplat-format root with a train/ split
   std::string run_dir;             // config.json, metrics.jsonl, checkpoints/
-  std::string resume = "auto";     // "auto" (latest in run_dir if any), "none", or a checkpoint path
+  std::string resume = "auto";     // "auto" (newest readable checkpoint in run_dir, if any), "none", or a path
   // Weights for a new run (ignored when resuming): UP-LVSM loaded strictly, or DINOv2 into the image tokenizer.
   std::string init_weights;
   // VGG19 weights (torchvision `features.N.*`) for the perceptual loss; without them a config asking for the
