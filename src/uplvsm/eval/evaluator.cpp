@@ -20,7 +20,6 @@
 #include "uplvsm/eval/metrics.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
-#include "uplvsm/io/raster.h"
 
 namespace uplvsm::eval {
 namespace {
@@ -466,88 +465,6 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   }
   if (!opt.out_dir.empty() && opt.shard_rank == 0) write_results(opt.out_dir, s, opt.extra);
   return s;
-}
-
-namespace {
-double number(const nlohmann::json& j, const char* key) {
-  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : kUnavailable;
-}
-}  // namespace
-
-nlohmann::json scene_to_json(const SceneResult& r) {
-  nlohmann::json views = nlohmann::json::array();
-  for (const auto& v : r.views)
-    views.push_back({{"frame", v.frame}, {"psnr", v.psnr}, {"ssim", v.ssim}, {"lpips", v.lpips},
-                     {"psnr_copy", v.psnr_copy}, {"ssim_copy", v.ssim_copy}, {"lpips_copy", v.lpips_copy},
-                     {"psnr_mean", v.psnr_mean}, {"ssim_mean", v.ssim_mean}, {"lpips_mean", v.lpips_mean},
-                     {"extrapolated", v.extrapolated}});
-  nlohmann::json j{{"key", r.key}, {"context", r.context}, {"target", r.target}, {"bucket", r.bucket}, {"views", views}};
-  if (r.overlap) j["overlap"] = *r.overlap;
-  return j;
-}
-
-SceneResult scene_from_json(const nlohmann::json& j) {
-  SceneResult r;
-  r.key = j.at("key").get<std::string>();
-  r.context = j.at("context").get<std::vector<int64_t>>();
-  r.target = j.at("target").get<std::vector<int64_t>>();
-  r.bucket = j.at("bucket").get<std::string>();
-  if (j.contains("overlap") && j["overlap"].is_number()) r.overlap = j["overlap"].get<double>();
-  for (const auto& v : j.at("views")) {
-    ViewMetrics m;
-    m.frame = v.at("frame").get<int64_t>();
-    m.psnr = number(v, "psnr"), m.ssim = number(v, "ssim"), m.lpips = number(v, "lpips");
-    m.psnr_copy = number(v, "psnr_copy"), m.ssim_copy = number(v, "ssim_copy"), m.lpips_copy = number(v, "lpips_copy");
-    m.psnr_mean = number(v, "psnr_mean"), m.ssim_mean = number(v, "ssim_mean"), m.lpips_mean = number(v, "lpips_mean");
-    m.extrapolated = v.at("extrapolated").get<bool>();
-    r.views.push_back(m);
-  }
-  finalise_scene(r);
-  return r;
-}
-
-torch::Tensor error_heatmap(const torch::Tensor& pred, const torch::Tensor& gt, double gain) {
-  // Anchors of an inferno-like ramp: black, purple, red, orange, pale yellow.
-  static const std::vector<float> kAnchors = {0, 0, 4, 87, 16, 110, 188, 55, 84, 249, 142, 9, 252, 255, 164};
-  const int64_t n = static_cast<int64_t>(kAnchors.size()) / 3;
-  auto e = ((pred.to(torch::kFloat32) - gt.to(torch::kFloat32)).abs().mean(-3) * gain).clamp(0, 1);
-  auto lut = torch::tensor(kAnchors).view({n, 3}).div(255.0).to(e.device());
-  auto t = e * static_cast<double>(n - 1);
-  auto i0 = t.floor().clamp(0, static_cast<double>(n - 2)).to(torch::kInt64);
-  auto frac = (t - i0.to(torch::kFloat32)).unsqueeze(-1);
-  auto out_shape = e.sizes().vec();
-  out_shape.push_back(3);
-  auto c0 = lut.index_select(0, i0.flatten()).view(out_shape);
-  auto c1 = lut.index_select(0, (i0 + 1).flatten()).view(out_shape);
-  return (c0 + (c1 - c0) * frac).movedim(-1, -3).contiguous();
-}
-
-torch::Tensor scene_grid(const SceneResult& scene, const torch::Tensor& inputs, const torch::Tensor& pred,
-                         const torch::Tensor& gt, const torch::Tensor& copy) {
-  auto cpu = [](const torch::Tensor& t) { return t.detach().to(torch::kCPU, torch::kFloat32); };
-  auto in = cpu(inputs), p = cpu(pred), g = cpu(gt), c = cpu(copy);
-  auto heat = error_heatmap(p, g);
-  std::vector<std::string> cols;
-  for (int64_t i = 0; i < in.size(0); ++i)
-    cols.push_back(i < static_cast<int64_t>(scene.context.size())
-                       ? fmt::format("input f{}", scene.context[static_cast<size_t>(i)])
-                       : fmt::format("input {}", i));
-  for (const char* label : {"prediction", "truth", "|error|x4", "copy nearest"}) cols.emplace_back(label);
-  std::vector<std::vector<torch::Tensor>> rows;
-  std::vector<std::string> row_labels;
-  for (int64_t t = 0; t < p.size(0); ++t) {
-    std::vector<torch::Tensor> row;
-    for (int64_t i = 0; i < in.size(0); ++i) row.push_back(in[i]);
-    row.insert(row.end(), {p[t], g[t], heat[t], c[t]});
-    rows.push_back(std::move(row));
-    if (t < static_cast<int64_t>(scene.views.size())) {
-      const auto& v = scene.views[static_cast<size_t>(t)];
-      row_labels.push_back(fmt::format("frame {}\n{:.2f} dB\nSSIM {:.3f}", v.frame, v.psnr, v.ssim));
-    } else {
-      row_labels.push_back(fmt::format("target {}", t));
-    }
-  }
-  return io::make_grid(rows, row_labels, cols, /*pad=*/8);
 }
 
 }  // namespace uplvsm::eval
