@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <fstream>
 
+#include <nlohmann/json.hpp>
+
 #include "train/train_test_util.h"
 
 namespace fs = std::filesystem;
@@ -72,7 +74,10 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   ASSERT_EQ(run_cli("study pose-probe --checkpoint " + run + " --data " + data + " --gap 5 --iterations 50 --out " +
                    (dir / "probe").string(), &out), 0);
   EXPECT_NE(out.find("trans@0.1/0.2/0.3"), std::string::npos) << out;
-  EXPECT_TRUE(fs::exists(dir / "probe/probe.json"));
+  EXPECT_NE(out.find("  mean    trans@0.1"), std::string::npos) << out;  // the floor the probes are read against
+  ASSERT_TRUE(fs::exists(dir / "probe/probe.json"));
+  const auto probe = nlohmann::json::parse(std::ifstream(dir / "probe/probe.json"));
+  for (const char* key : {"mlp", "linear", "mean_pose"}) EXPECT_TRUE(probe.contains(key)) << key;
   ASSERT_EQ(run_cli("study tsne --checkpoint " + run + " --data " + data + " --gap 5 --perplexity 3 --iterations 100 --out " +
                    (dir / "tsne").string(), &out), 0);
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.png"));

@@ -71,6 +71,16 @@ TEST(PoseProbe, LinearProbeInvertsALinearLatentSpaceAndMlpFitsATwistedOne) {
   EXPECT_GT(mlp.translation_accuracy[2], 0.8);
 }
 
+TEST(PoseProbe, MeanPoseBaselinePredictsTheTrainingMeanForEveryView) {
+  auto real = torch::tensor({{0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}, {0.0, 0.0, 3.0, 0.0, 0.0, 0.0, -1.0}}, torch::kFloat64);
+  auto train = pairs_from(torch::zeros({2, 7}, torch::kFloat64), real);
+  auto mean = study::mean_pose_baseline(train, 3);
+  ASSERT_EQ(mean.sizes(), (std::vector<int64_t>{3, 7}));
+  // -q and q are one rotation: the mean of the two identities is the identity, not a zero quaternion.
+  for (int64_t i = 0; i < 3; ++i)
+    EXPECT_LE(test::max_abs_diff(mean[i], torch::tensor({0.0, 0.0, 2.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat64)), 1e-12);
+}
+
 TEST(PosePairs, OneRowPerFrameWithTheFirstContextViewAsIdentity) {
   auto config = test::micro_config();
   torch::manual_seed(2);
@@ -85,9 +95,19 @@ TEST(PosePairs, OneRowPerFrameWithTheFirstContextViewAsIdentity) {
   ASSERT_EQ(pairs.latent.sizes(), (std::vector<int64_t>{n, 7}));
   ASSERT_EQ(pairs.real.sizes(), (std::vector<int64_t>{n, 7}));
   ASSERT_EQ(pairs.frames.size(), static_cast<size_t>(n));
-  for (int64_t i = 0; i < n; ++i)
-    if (pairs.frames[i] == 0)
-      EXPECT_LE(test::max_abs_diff(pairs.real[i], torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0})), 1e-6);
+  // Latent and real poses share one convention: the first context view is the identity, the second one lies one
+  // context baseline away.
+  const auto identity = torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat64);
+  for (int64_t i = 0; i < n; ++i) {
+    if (pairs.frames[i] == 0) {
+      EXPECT_LE(test::max_abs_diff(pairs.real[i], identity), 1e-6);
+      EXPECT_LE(test::max_abs_diff(pairs.latent[i], identity), 1e-5);
+    }
+    if (pairs.frames[i] == opt.gap) {
+      EXPECT_NEAR(pairs.real[i].slice(0, 0, 3).norm().item<double>(), 1.0, 1e-5);
+      EXPECT_NEAR(pairs.latent[i].slice(0, 0, 3).norm().item<double>(), 1.0, 1e-4);
+    }
+  }
   auto kept = study::without_canonical_views(pairs);
   EXPECT_EQ(kept.frames.size(), static_cast<size_t>(dataset.size() * 5));
   auto csv = (test::temp_dir("pose_pairs") / "pairs.csv").string();

@@ -108,8 +108,10 @@ void add_pose_probe(CLI::App& study) {
     po.iterations = a->iterations;
     auto mlp = study::pose_accuracy(study::fit_and_apply_mlp_probe(train, test.latent, po), test.real);
     auto linear = study::pose_accuracy(study::fit_and_apply_linear_probe(train, test.latent), test.real);
+    auto mean = study::pose_accuracy(study::mean_pose_baseline(train, test.real.size(0)), test.real);
     nlohmann::json result{{"mlp", study::to_json(mlp)},
                           {"linear", study::to_json(linear)},
+                          {"mean_pose", study::to_json(mean)},
                           {"train_views", train.frames.size()},
                           {"test_views", test.frames.size()},
                           {"train_split", a->train_split},
@@ -117,9 +119,10 @@ void add_pose_probe(CLI::App& study) {
                           {"gap", a->gap},
                           {"checkpoint", a->model.checkpoint},
                           {"conventions",
-                           "real poses relative to the first context view, translations in context baselines; "
-                           "translation error |t_pred - t|, rotation error 2 acos|<q_pred, q>| in degrees; the "
-                           "first context view is excluded"}};
+                           "real and latent poses relative to the first context view, translations in context "
+                           "baselines; translation error |t_pred - t|, rotation error 2 acos|<q_pred, q>| in "
+                           "degrees; the first context view is excluded; mean_pose predicts the training views' "
+                           "mean real pose (no latent used)"}};
     const auto text = result.dump(2) + "\n";
     io::write_file_atomic((fs::path(a->out) / "probe.json").string(), text.data(), text.size());
     auto row = [](const char* name, const study::PoseAccuracy& p) {
@@ -130,7 +133,7 @@ void add_pose_probe(CLI::App& study) {
     };
     std::cout << fmt::format("pose probe: fitted on {} views, scored on {} views -> {}/probe.json\n",
                              train.frames.size(), test.frames.size(), a->out)
-              << row("MLP", mlp) << row("linear", linear);
+              << row("MLP", mlp) << row("linear", linear) << row("mean", mean);
   });
 }
 

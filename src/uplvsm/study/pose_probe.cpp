@@ -6,6 +6,7 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/core/progress.h"
+#include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/pose_mapper.h"
@@ -25,7 +26,11 @@ torch::Tensor latent_poses_of_scene(model::UPLVSM& net, const data::Views& views
     const int64_t n = std::min(chunk, images.size(1) - s);
     poses.push_back(net->estimate_poses(images.narrow(1, s, n), latents)[0].cpu());
   }
-  return torch::cat(poses).to(torch::kFloat64);
+  // Expressed like the real poses: relative to the first context view, translations in the context baseline. The
+  // estimator's latent frame is the scene latents' own (its origin and scale differ per scene), so a probe of the
+  // absolute latent poses would have to learn each scene's frame from a single view.
+  auto c2w = geometry::pose_encoding_to_c2w(torch::cat(poses).to(torch::kFloat64)).unsqueeze(0);
+  return model::camera_control_poses(c2w.narrow(1, 0, 2), c2w)[0].to(torch::kFloat64);
 }
 
 // Quaternions with w >= 0 (q and -q are one rotation), so a regression has one target per rotation.
@@ -154,6 +159,11 @@ torch::Tensor fit_and_apply_linear_probe(const PosePairs& train, const torch::Te
   return probe->forward(latent.to(torch::kFloat32)).to(torch::kFloat64);
 }
 
+torch::Tensor mean_pose_baseline(const PosePairs& train, int64_t views) {
+  auto mean = normalise_output(canonical_sign(train.real).mean(0, true));
+  return mean.expand({views, 7}).clone();
+}
+
 torch::Tensor fit_and_apply_mlp_probe(const PosePairs& train, const torch::Tensor& latent, const ProbeOptions& o) {
   torch::manual_seed(o.seed);
   torch::nn::Sequential mlp(torch::nn::Linear(7, o.hidden), torch::nn::ReLU(), torch::nn::Linear(o.hidden, 7));
@@ -162,13 +172,16 @@ torch::Tensor fit_and_apply_mlp_probe(const PosePairs& train, const torch::Tenso
   auto mean = train.latent.mean(0), std = train.latent.std(0).clamp_min(1e-6);
   auto x = (train.latent - mean) / std, y = canonical_sign(train.real);
   torch::optim::Adam adam(mlp->parameters(), torch::optim::AdamOptions(o.lr));
+  ProgressBar bar("mlp probe", o.iterations, "step");
   for (int64_t it = 0; it < o.iterations; ++it) {
     adam.zero_grad();
     auto out = mlp->forward(x);
     auto loss = torch::mse_loss(out, y);
     loss.backward();
     adam.step();
+    bar.update(it + 1);
   }
+  bar.finish();
   torch::NoGradGuard no_grad;
   return normalise_output(mlp->forward((latent.to(torch::kFloat64) - mean) / std));
 }

@@ -2,7 +2,9 @@
 // Latent Plücker Learner, real pose) for the frames of dataset scenes, and probes that map latent poses to real
 // SE(3) poses - a 2-layer MLP (the paper's probe) and a linear least-squares map for comparison.
 // Real poses are camera-control poses (model/pose_mapper.h): relative to the first context view, translations in
-// units of the context baseline. Per scene the context is frames {0, gap}; every frame in between is a target.
+// units of the context baseline. Latent poses are put in the same convention (relative to the first context view's
+// latent pose, translations in the latent context baseline), so a probe maps like to like. Per scene the context is
+// frames {0, gap}; every frame in between is a target.
 // Errors: translation |t_pred - t_real| (baseline units); rotation the geodesic angle 2 acos |<q_pred, q_real>|
 // (degrees). Accuracy@x = share of views with error below x. The first context view (always the identity) is
 // left out of fitting and scoring.
@@ -21,7 +23,7 @@
 namespace uplvsm::study {
 
 struct PosePairs {
-  torch::Tensor latent, real;  // [N, 7] float64 (t, q_xyzw)
+  torch::Tensor latent, real;  // [N, 7] float64 (t, q_xyzw), both relative to the first context view
   std::vector<std::string> scenes;
   std::vector<int64_t> frames;
   int64_t skipped_scenes = 0;  // too few frames or a bad frame (logged)
@@ -58,6 +60,8 @@ struct ProbeOptions {
   uint64_t seed = 0;
 };
 // The probes fitted on `train` and applied to latent poses [N, 7]: predicted real poses [N, 7].
+// The floor a probe must beat: every view predicted as the training views' mean real pose (no latent pose used).
+torch::Tensor mean_pose_baseline(const PosePairs& train, int64_t views);
 torch::Tensor fit_and_apply_linear_probe(const PosePairs& train, const torch::Tensor& latent);
 torch::Tensor fit_and_apply_mlp_probe(const PosePairs& train, const torch::Tensor& latent, const ProbeOptions& options);
 
