@@ -144,14 +144,17 @@ demo: build-cli
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
 
 # Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the main training
-# (configs/demo.json), the camera-mapper fine-tune (configs/demo_mapper.json), then the weights-only exports. Hours on
-# 2 cores; every step resumes, so run it again after an interruption. Runs are deterministic for a given thread count.
+# (configs/demo.json, 12000 steps), a warm restart from its weights on a second cosine schedule (configs/demo_continue.json,
+# 8500 steps: fresh optimiser, lower peak learning rate, another data order), the camera-mapper fine-tune
+# (configs/demo_mapper.json), then the weights-only exports. Hours on 2 cores; every step resumes, so run it again after
+# an interruption. Runs are deterministic for a given thread count.
 DEMO_MODEL_WORK ?= out/demo_model
 demo-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
 	$(UPLVSM) train --config $(DEMO_MODEL_CONFIG) --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/main --resume auto
-	$(UPLVSM) train --stage mapper --config configs/demo_mapper.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/mapper --resume auto
-	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/main --out $(DEMO_MODEL)
+	$(UPLVSM) train --config configs/demo_continue.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/continue --resume auto
+	$(UPLVSM) train --stage mapper --config configs/demo_mapper.json --init $(DEMO_MODEL_WORK)/continue --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/mapper --resume auto
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/continue --out $(DEMO_MODEL)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
 
 clean:
