@@ -138,7 +138,7 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
-	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo.json) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; video: interpolation between the two inputs' latent poses; held-out scenes" \
+	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo.json then configs/demo_continue.json) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; video: interpolation between the two inputs' latent poses; held-out scenes" \
 	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
