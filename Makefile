@@ -75,10 +75,15 @@ test-unit: build
 test-slow: build browser-deps
 	cd $(BUILD) && ctest --output-on-failure -L slow
 
-# Benchmarks, as the environment is and without this machine's OPENBLAS_* overrides (see README, Performance).
+# Benchmarks, as the environment is and without this machine's OPENBLAS_* overrides (see README, Performance); then
+# the x224 forward from Python beside the same forward from C++ (bench/python_vs_cpp.py), both ways too.
+# BENCH_PYTHON=0 leaves the Python comparison out.
+BENCH_PYTHON ?= 1
+PYTHON_BENCH = PYTHONPATH=$(BUILD)/python /usr/bin/python3 bench/python_vs_cpp.py --build $(BUILD)
 bench: build
 	$(BUILD)/uplvsm_bench $(BENCH_ARGS)
 	env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE $(BUILD)/uplvsm_bench $(BENCH_ARGS)
+	if [ "$(BENCH_PYTHON)" = 1 ]; then $(PYTHON_BENCH) && env -u OPENBLAS_CORETYPE -u OPENBLAS_L2_SIZE $(PYTHON_BENCH); fi
 
 # libFuzzer on every reader of untrusted files (fuzz/; README "Robustness"): FUZZ_SECONDS per target, from the seeds
 # in fuzz/corpus/<name>; new inputs accumulate in $(FUZZ_BUILD)/corpus/<name>, crashes are written to $(FUZZ_BUILD)/

@@ -37,6 +37,13 @@ std::shared_ptr<Model> load(const std::string& path, const py::object& device, c
   return std::make_shared<Model>(path, dev, hint ? &*hint : nullptr);
 }
 
+std::shared_ptr<Model> init(const py::object& config, const py::object& device, uint64_t seed) {
+  const auto dev = to_device(device);
+  const Config c = to_config(config);
+  py::gil_scoped_release release;
+  return std::make_shared<Model>(c, dev, seed);
+}
+
 py::dict forward(Model& m, const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                  const torch::Tensor& target_images, const torch::Tensor& target_fxfycxcy,
                  const std::string& target_poses, const std::optional<torch::Tensor>& input_c2w,
@@ -167,6 +174,10 @@ origin, translations in input baselines, OpenCV axes), path_fxfycxcy [F, 4] pixe
         return "uplvsm.Model(variant='" + s.config().model.variant + "', parameters=" +
                std::to_string(s.parameter_count()) + ", device='" + s.device().str() + "')";
       });
+  m.def("init", &init, py::arg("config"), py::arg("device") = "cpu", py::arg("seed") = 0,
+        R"(A freshly initialised model of a config (a dict or a path to a config JSON, e.g. configs/paper_x224.json):
+the model's own initialisation drawn after torch.manual_seed(seed) (the global generator is reseeded), in eval mode.
+For benchmarks and for training from scratch in Python.)");
   m.def("load", &load, py::arg("path"), py::arg("device") = "cpu", py::arg("config") = py::none(),
         R"(A ready model from any weight file: a uplvsm checkpoint (file, checkpoints dir or run dir; its own config),
 the authors' UP-LVSM / PT-LVSM .pt/.pth/.safetensors (dimensions inferred from the tensors, 224 px unless `config`

@@ -23,6 +23,14 @@ ModelAdapter::ModelAdapter(const std::string& path, const torch::Device& device,
   net_ = model::load_model(path, device, &config_, hint);
 }
 
+ModelAdapter::ModelAdapter(const Config& config, const torch::Device& device, uint64_t seed)
+    : config_(config), device_(device) {
+  torch::manual_seed(seed);
+  net_ = model::make_model(config.model);
+  net_->to(device);
+  net_->eval();
+}
+
 int64_t ModelAdapter::parameter_count() const { return net_->parameter_count(); }
 
 std::vector<std::pair<std::string, torch::Tensor>> ModelAdapter::state_dict() const {

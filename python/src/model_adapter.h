@@ -26,6 +26,9 @@ class ModelAdapter {
  public:
   // Any weight file model::load_model reads; `hint` is the config for an authors' file (ignored for ours).
   ModelAdapter(const std::string& path, const torch::Device& device, const Config* hint);
+  // A freshly initialised model of `config` (random weights from `seed`, in eval mode): training from scratch,
+  // benchmarks.
+  ModelAdapter(const Config& config, const torch::Device& device, uint64_t seed);
 
   const Config& config() const { return config_; }
   torch::Device device() const { return device_; }

@@ -21,6 +21,17 @@ PYBIND11_MODULE(_uplvsm, m) {
 thread, and glibc malloc keeping blocks under 1 GiB in the heap (large tensors are not page-faulted afresh on every
 op). Process-wide: it applies to torch too.)");
   m.def(
+      "_apply_runtime_defaults", [](bool set_threads) { uplvsm::init_library_runtime(set_threads); },
+      py::arg("set_threads"),
+      "What `import uplvsm` applies (see uplvsm.__init__): allocator thresholds, and intra-op threads when asked.");
+  m.def(
+      "_blas_warning",
+      [] {
+        return uplvsm::blas_warning(uplvsm::runtime_info(), uplvsm::detect_cpu_features(),
+                                    std::getenv("OPENBLAS_CORETYPE"));
+      },
+      "The warning `import uplvsm` gives when the loaded BLAS is slower than this CPU allows (\"\" when fine).");
+  m.def(
       "runtime_info",
       [] {
         const auto i = uplvsm::runtime_info();

@@ -23,6 +23,39 @@ TEST(Runtime, OpenBlasFallbackCoreIsReplacedByTheCpusBest) {
   EXPECT_EQ(openblas_core_for_cpu("Zen", haswell), "");
 }
 
+TEST(Runtime, BlasWarningNamesTheCauseAndTheFix) {
+  CpuFeatures sapphire_rapids{true, true, true};
+  CpuFeatures haswell{true, false, false};
+  auto openblas = [](const std::string& core) {
+    RuntimeInfo info;
+    info.blas_library = "/usr/lib/x86_64-linux-gnu/openblas-openmp/libblas.so.3";
+    info.blas_config = "OpenBLAS 0.3.21 DYNAMIC_ARCH";
+    info.blas_core = core;
+    return info;
+  };
+  // OpenBLAS's own good pick, or the best core pinned by hand: nothing to say.
+  EXPECT_EQ(blas_warning(openblas("Cooperlake"), sapphire_rapids, nullptr), "");
+  EXPECT_EQ(blas_warning(openblas("Cooperlake"), sapphire_rapids, "Cooperlake"), "");
+  EXPECT_EQ(blas_warning(openblas("Haswell"), haswell, nullptr), "");
+  EXPECT_EQ(blas_warning(openblas("Zen"), haswell, "Zen"), "");
+  EXPECT_EQ(blas_warning(openblas("SomeFutureCore"), sapphire_rapids, nullptr), "");  // unknown: no guess
+  // The environment holds OpenBLAS to narrower kernels: unset it, or ask for the best.
+  auto pinned = blas_warning(openblas("Haswell"), sapphire_rapids, "Haswell");
+  EXPECT_NE(pinned.find("OPENBLAS_CORETYPE=Haswell in the environment"), std::string::npos) << pinned;
+  EXPECT_NE(pinned.find("unset OPENBLAS_CORETYPE"), std::string::npos) << pinned;
+  EXPECT_NE(pinned.find("OPENBLAS_CORETYPE=Cooperlake"), std::string::npos) << pinned;
+  // A CPU newer than OpenBLAS: its fallback kernels, fixed by setting the variable.
+  auto fallback = blas_warning(openblas("Prescott"), sapphire_rapids, nullptr);
+  EXPECT_NE(fallback.find("Prescott fallback kernels"), std::string::npos) << fallback;
+  EXPECT_NE(fallback.find("start Python with OPENBLAS_CORETYPE=Cooperlake"), std::string::npos) << fallback;
+  // The reference BLAS.
+  RuntimeInfo reference;
+  reference.blas_library = "/usr/lib/x86_64-linux-gnu/blas/libblas.so.3";
+  auto slow = blas_warning(reference, haswell, nullptr);
+  EXPECT_NE(slow.find("reference BLAS (/usr/lib/x86_64-linux-gnu/blas/libblas.so.3)"), std::string::npos) << slow;
+  EXPECT_EQ(best_openblas_core(CpuFeatures{}), "");
+}
+
 TEST(Runtime, LoadedOpenBlasUsesVectorKernelsTheCpuSupports) {
   // The tests run through the same start-up as the binary, so a fallback core must have been fixed by now
   // (unless the environment pins OPENBLAS_CORETYPE, which always wins).

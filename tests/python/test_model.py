@@ -106,3 +106,25 @@ def test_bad_arguments_raise_clear_errors(official_model, official_io):
     with pytest.raises(RuntimeError, match="needs the input and target c2w|c2w"):
         m.forward(f["input.images"], f["input.fxfycxcy"], f["target.images"], f["target.fxfycxcy"],
                   target_poses="dataset")
+
+
+def test_init_builds_a_fresh_model_of_a_config():
+    from conftest import REPO
+    config = REPO / "configs" / "tiny.json"
+    a, b = uplvsm.init(str(config), seed=1), uplvsm.init(str(config), seed=1)
+    other = uplvsm.init(str(config), seed=2)
+    assert a.name == "UP-LVSM" and a.config["name"] == "tiny"
+    # The parameter count the CLI reports for the same config (`uplvsm info --config configs/tiny.json`).
+    info = subprocess.run([CLI, "info", "--config", str(config)], capture_output=True, text=True, check=True).stdout
+    assert f"{a.parameter_count() / 1e6:.2f} M parameters" in info
+    sa, sb, so = a.state_dict(), b.state_dict(), other.state_dict()
+    assert all(torch.equal(sa[k], sb[k]) for k in sa)  # one seed, one model
+    assert not torch.equal(sa["n_light_field_latent"], so["n_light_field_latent"])
+    size = 48
+    images = torch.rand(1, 3, 3, size, size)
+    k = torch.tensor([40.0, 40.0, 24.0, 24.0]).expand(1, 3, 4).contiguous()
+    with torch.no_grad():
+        out = a.forward(images[:, :2], k[:, :2], images[:, 2:], k[:, 2:])
+    assert out["render"].shape == (1, 1, 3, size, size)
+    with pytest.raises(ValueError, match="variant"):
+        uplvsm.init({"model": {"variant": "nerf"}})

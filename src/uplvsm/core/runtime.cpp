@@ -120,6 +120,54 @@ void init_runtime(int threads) {
   }
 }
 
+void init_library_runtime(bool set_threads) {
+  configure_allocator();
+  if (set_threads) torch::set_num_threads(available_cores());
+}
+
+std::string best_openblas_core(const CpuFeatures& cpu) {
+  if (cpu.avx512_bf16) return "Cooperlake";
+  if (cpu.avx512) return "SkylakeX";
+  if (cpu.avx2_fma) return "Haswell";
+  return "";
+}
+
+namespace {
+// How wide OpenBLAS's kernels of a core family are: 0 SSE fallbacks, 1 AVX2, 2 AVX-512, 3 AVX-512 BF16; -1 unknown.
+int core_tier(std::string core) {
+  for (auto& c : core) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  for (const char* name : {"prescott", "core2", "nehalem", "sandybridge", "katmai", "coppermine", "northwood", "atom",
+                           "penryn", "dunnington", "opteron", "barcelona", "bobcat", "bulldozer", "piledriver",
+                           "steamroller", "excavator"})
+    if (core == name) return 0;
+  if (core == "haswell" || core == "zen" || core == "skylake") return 1;
+  if (core == "skylakex") return 2;
+  if (core == "cooperlake" || core == "sapphirerapids") return 3;
+  return -1;
+}
+}  // namespace
+
+std::string blas_warning(const RuntimeInfo& info, const CpuFeatures& cpu, const char* env_coretype) {
+  if (info.blas_config.empty() && info.blas_library.find("/blas/") != std::string::npos)
+    return fmt::format("LibTorch runs on the reference BLAS ({}), about 60x slower than OpenBLAS: import uplvsm "
+                       "before torch (it loads OpenBLAS first), or point libblas.so.3 at OpenBLAS (update-alternatives "
+                       "--config libblas.so.3-x86_64-linux-gnu)",
+                       info.blas_library);
+  const std::string best = best_openblas_core(cpu);
+  const int loaded = core_tier(info.blas_core), wanted = core_tier(best);
+  if (info.blas_core.empty() || best.empty() || loaded < 0 || loaded >= wanted) return "";
+  if (env_coretype != nullptr)
+    return fmt::format("OPENBLAS_CORETYPE={} in the environment holds OpenBLAS to its {} kernels, slower than this "
+                       "CPU allows: start Python without it (unset OPENBLAS_CORETYPE) or with OPENBLAS_CORETYPE={}",
+                       env_coretype, info.blas_core, best);
+  if (loaded == 0)
+    return fmt::format("OpenBLAS does not recognise this CPU and runs its {} fallback kernels (about 3x slower): "
+                       "start Python with OPENBLAS_CORETYPE={} (the uplvsm binary sets it itself)",
+                       info.blas_core, best);
+  return fmt::format("OpenBLAS runs its {} kernels, narrower than this CPU's: start Python with OPENBLAS_CORETYPE={}",
+                     info.blas_core, best);
+}
+
 namespace {
 int find_blas(struct dl_phdr_info* info, size_t, void* data) {
   auto* out = static_cast<std::string*>(data);

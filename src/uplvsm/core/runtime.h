@@ -40,6 +40,22 @@ std::string openblas_core_for_cpu(const std::string& picked_core, const CpuFeatu
 void init_runtime(int threads = 0);
 int available_cores();
 
+// What a host process that loads the library (the Python module, on import) gets by default: the allocator
+// thresholds of init_runtime and, when set_threads, intra-op threads = available_cores(). Inter-op threads are left
+// alone: a host may set those only once, before any parallel work, and that choice is its own.
+void init_library_runtime(bool set_threads);
+
+// The OpenBLAS kernel family best suited to this CPU (Cooperlake with AVX-512 BF16, SkylakeX with AVX-512, Haswell
+// with AVX2 + FMA), or "" when none of those applies.
+std::string best_openblas_core(const CpuFeatures& cpu);
+
+// When the loaded BLAS computes slower than this CPU allows, a warning naming the cause and the fix (the environment
+// variable to unset or set before the process starts); "" when it is fine. Cases: the reference BLAS; OpenBLAS on
+// fallback kernels it picked itself (a CPU newer than it); OpenBLAS held to weaker kernels by OPENBLAS_CORETYPE
+// (env_coretype, nullptr when unset). A binary can re-exec to fix the second case (ensure_passive_openmp); a Python
+// process cannot, once torch has loaded OpenBLAS.
+std::string blas_warning(const RuntimeInfo& info, const CpuFeatures& cpu, const char* env_coretype);
+
 RuntimeInfo runtime_info();
 std::string format_runtime_info(const RuntimeInfo& info);
 
