@@ -63,6 +63,7 @@ TEST(ShippedModel, ReproducesItsPsnrOnTheFixedTestSlice) {
     const double psnr = table.at("model").at("psnr"), ssim = table.at("model").at("ssim");
     EXPECT_NEAR(psnr, slice.at("psnr").get<double>(), 0.05);
     EXPECT_NEAR(ssim, slice.at("ssim").get<double>(), 0.002);
+    EXPECT_NEAR(table.at("model").at("grad_ratio").get<double>(), slice.at("grad_ratio").get<double>(), 0.003);
     EXPECT_NEAR(table.at("copy_nearest").at("psnr").get<double>(), slice.at("copy_nearest_psnr").get<double>(), 0.05);
     // docs/demo.md quotes the card's figures (the slice, and the full test split).
     EXPECT_NE(demo_page.find(fmt::format("{:.2f} dB on the first {} test scenes", slice.at("psnr").get<double>(), scenes)),

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <filesystem>
 #include <fstream>
 
 #include "test_util.h"
@@ -9,12 +10,18 @@
 using namespace uplvsm;
 
 TEST(Config, ShippedConfigsLoadAndRoundTrip) {
-  for (std::string name : {"tiny", "paper_x224", "paper_x518"}) {
-    auto c = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json");
+  int configs = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(UPLVSM_SOURCE_DIR) + "/configs")) {
+    if (entry.path().extension() != ".json") continue;
+    ++configs;
+    const std::string name = entry.path().stem().string();
+    SCOPED_TRACE(name);
+    auto c = load_config(entry.path().string());
     EXPECT_EQ(c.name, name);
     auto again = config_from_json(config_to_json(c));
     EXPECT_EQ(config_to_json(again), config_to_json(c));
   }
+  EXPECT_GE(configs, 10);
   auto paper = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/paper_x224.json");
   EXPECT_EQ(paper.model.transformer.d, 768);
   EXPECT_EQ(paper.model.transformer.decoder_n_layer, 14);
@@ -84,6 +91,19 @@ TEST(Config, TokenizerAndDatasetKnobsAreValidated) {
   msg = message({{"dataset", {{"texture_scale", 0}}}});
   EXPECT_NE(msg.find("dataset.texture_scale must be > 0"), std::string::npos) << msg;
   EXPECT_NO_THROW(config_from_json({{"model", {{"dinov2", {{"pos_embed_init", "sincos"}}}}}}, "ok.json"));
+}
+
+TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  auto msg = message({{"model", {{"encoder_cameras", true}}}});  // target poses left at 'auto' (the estimator)
+  EXPECT_NE(msg.find("model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
+                     "training.target_poses 'dataset'"),
+            std::string::npos)
+      << msg;
+  EXPECT_NO_THROW(
+      config_from_json({{"model", {{"encoder_cameras", true}}}, {"training", {{"target_poses", "dataset"}}}}, "ok"));
+  msg = message({{"model", {{"variant", "lvsm"}, {"keep_image_tokens", true}}}});
+  EXPECT_NE(msg.find("model.keep_image_tokens: only the uplvsm variant"), std::string::npos) << msg;
 }
 
 // Fuzzing found 4.4e24 as an integer field to be undefined behaviour (a float-to-int cast); fractions were cut.

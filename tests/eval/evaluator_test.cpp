@@ -93,10 +93,15 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   auto gt = views.images.narrow(0, 2, 3);
   auto copy = views.images.index_select(0, torch::tensor({0, 1, 1}, torch::kInt64));
   auto psnr_copy = psnr(copy, gt), ssim_mean = ssim(mean_colour(gt), gt);
+  auto edges_copy = gradient_energy_ratio(copy, gt);
   for (int t = 0; t < 3; ++t) {
     EXPECT_NEAR(r.views[t].psnr_copy, psnr_copy[t].item<double>(), 1e-9);
     EXPECT_NEAR(r.views[t].ssim_mean, ssim_mean[t].item<double>(), 1e-9);
+    EXPECT_NEAR(r.views[t].grad_ratio_copy, edges_copy[t].item<double>(), 1e-12);
+    EXPECT_EQ(r.views[t].grad_ratio_mean, 0.0);  // a constant colour has no edges
+    EXPECT_TRUE(r.views[t].grad_ratio > 0 && std::isfinite(r.views[t].grad_ratio)) << r.views[t].grad_ratio;
   }
+  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("grad_ratio"), r.grad_ratio_copy);
 
   // Files.
   EXPECT_TRUE(fs::is_regular_file(out / "metrics.json"));
@@ -110,6 +115,7 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   EXPECT_EQ(j["views"], 3);
   EXPECT_EQ(j["skipped"]["null_entries"], 1);
   EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.psnr, 1e-12);
+  EXPECT_NEAR(j["table"]["model"]["grad_ratio"].get<double>(), r.grad_ratio, 1e-12);
   EXPECT_TRUE(j["buckets"].contains("large"));
   if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(out);
 }
@@ -259,6 +265,7 @@ TEST(Evaluator, SceneResultsRoundTripThroughJsonForShardMerging) {
   r.target = {3, 12};
   r.views[1].extrapolated = true;
   r.views[0].lpips = 0.125;  // the other LPIPS values stay NaN (unavailable) and must come back as NaN
+  r.views[0].grad_ratio = 0.375, r.views[1].grad_ratio_copy = 0.875;
   auto back = scene_from_json(nlohmann::json::parse(scene_to_json(r).dump()));
   EXPECT_EQ(back.key, "k");
   EXPECT_EQ(back.context, r.context);
@@ -272,6 +279,8 @@ TEST(Evaluator, SceneResultsRoundTripThroughJsonForShardMerging) {
   EXPECT_TRUE(std::isnan(back.views[1].lpips));
   EXPECT_DOUBLE_EQ(back.psnr, r.psnr);
   EXPECT_DOUBLE_EQ(back.ssim_copy, r.ssim_copy);
+  EXPECT_DOUBLE_EQ(back.views[0].grad_ratio, 0.375);
+  EXPECT_DOUBLE_EQ(back.views[1].grad_ratio_copy, 0.875);
 }
 
 TEST(Evaluator, InterpolationAndExtrapolationSpans) {

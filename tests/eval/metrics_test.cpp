@@ -110,6 +110,48 @@ TEST(Metrics, GaussianWindow) {
   EXPECT_NEAR(w[5].item<double>() / w[0].item<double>(), std::exp(25.0 / (2 * 2.25)), 1e-9);
 }
 
+// The gradient energy written out pixel by pixel (an independent computation of the definition in metrics.h).
+double gradient_energy_by_loops(const torch::Tensor& image) {
+  auto x = image.to(torch::kFloat64).clamp(0.0, 1.0).contiguous();
+  auto a = x.accessor<double, 3>();
+  const int64_t C = x.size(0), H = x.size(1), W = x.size(2);
+  double sum = 0;
+  for (int64_t c = 0; c < C; ++c)
+    for (int64_t y = 0; y < H; ++y)
+      for (int64_t i = 0; i < W; ++i) {
+        if (i + 1 < W) sum += std::abs(a[c][y][i + 1] - a[c][y][i]);
+        if (y + 1 < H) sum += std::abs(a[c][y + 1][i] - a[c][y][i]);
+      }
+  return sum / static_cast<double>(C * H * (W - 1) + C * (H - 1) * W);
+}
+
+TEST(Metrics, GradientEnergyRatioMatchesThePixelLoop) {
+  torch::manual_seed(3);
+  auto gt = torch::rand({2, 3, 3, 9, 7}) * 1.2 - 0.1;  // some values outside [0, 1]: clamped first
+  auto pred = torch::rand({2, 3, 3, 9, 7});
+  auto ratio = gradient_energy_ratio(pred, gt);
+  ASSERT_EQ(ratio.sizes(), (std::vector<int64_t>{2, 3}));
+  EXPECT_EQ(ratio.scalar_type(), torch::kFloat64);
+  for (int64_t b = 0; b < 2; ++b)
+    for (int64_t v = 0; v < 3; ++v)
+      EXPECT_NEAR(ratio[b][v].item<double>(),
+                  gradient_energy_by_loops(pred[b][v]) / gradient_energy_by_loops(gt[b][v]), 1e-12);
+}
+
+TEST(Metrics, GradientEnergyRatioOfKnownImages) {
+  // A vertical edge 0 | 1 in a 1-channel 4x4 image: 4 of the 12 x-differences are 1, no y-difference.
+  auto edge = torch::zeros({1, 4, 4});
+  edge.narrow(2, 2, 2).fill_(1.0);
+  EXPECT_NEAR(gradient_energy(edge).item<double>(), 4.0 / 24.0, 1e-15);
+  EXPECT_NEAR(gradient_energy_ratio(edge, edge).item<double>(), 1.0, 1e-15);
+  EXPECT_NEAR(gradient_energy_ratio(edge * 0.5, edge).item<double>(), 0.5, 1e-15);  // half the contrast
+  EXPECT_NEAR(gradient_energy_ratio(torch::full({1, 4, 4}, 0.3), edge).item<double>(), 0.0, 1e-15);  // flat
+  // A flat truth is floored, so the ratio stays finite.
+  const double flat = gradient_energy_ratio(edge, torch::full({1, 4, 4}, 0.3)).item<double>();
+  EXPECT_NEAR(flat, (4.0 / 24.0) / kMinGradientEnergy, 1e-6);
+  EXPECT_THROW(gradient_energy_ratio(torch::rand({3, 1, 8}), torch::rand({3, 1, 8})), std::runtime_error);
+}
+
 TEST(Metrics, CudaMatchesCpu) {
   if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device";
   auto pairs = fixture_pairs();

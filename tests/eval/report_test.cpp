@@ -31,9 +31,9 @@ std::string read(const fs::path& path) {
 }
 
 nlohmann::json fake_metrics() {
-  nlohmann::json row = {{"model", {{"psnr", 25.5}, {"ssim", 0.8}}},
-                        {"copy_nearest", {{"psnr", 14.25}, {"ssim", 0.4}}},
-                        {"mean_colour", {{"psnr", 12.0}, {"ssim", 0.05}}}};
+  nlohmann::json row = {{"model", {{"psnr", 25.5}, {"ssim", 0.8}, {"grad_ratio", 0.25}}},
+                        {"copy_nearest", {{"psnr", 14.25}, {"ssim", 0.4}, {"grad_ratio", 1.1}}},
+                        {"mean_colour", {{"psnr", 12.0}, {"ssim", 0.05}, {"grad_ratio", 0.0}}}};
   return {{"scenes", 3}, {"table", row}, {"buckets", {{"large", row}, {"small", row}}},
           {"bucket_scenes", {{"large", 2}, {"small", 1}}}, {"seconds", 12.5}};
 }
@@ -78,6 +78,8 @@ TEST(Report, WritesIndexWithExistingAssets) {
   EXPECT_NE(html.find("Medium overlap (0 scenes)"), std::string::npos);
   EXPECT_NE(html.find("Full (3 scenes)"), std::string::npos);
   EXPECT_NE(html.find("<b>25.50</b>"), std::string::npos);
+  EXPECT_NE(html.find("<b>1.10</b>"), std::string::npos);  // edges: the nearest to 1 is best, not the highest
+  EXPECT_EQ(html.find("<b>0.25</b>"), std::string::npos);
   EXPECT_NE(html.find("14.25"), std::string::npos);
   EXPECT_NE(html.find("1:02:05"), std::string::npos);  // training time
   EXPECT_NE(html.find("absent.png"), std::string::npos);  // listed as missing
@@ -123,7 +125,7 @@ TEST(Report, LpipsColumnOnlyWhenAvailable) {
   EXPECT_NE(html.find("LPIPS&darr;"), std::string::npos);
   EXPECT_NE(html.find("<b>0.125</b>"), std::string::npos) << html;
   EXPECT_NE(html.find("<td>0.500</td>"), std::string::npos);
-  EXPECT_NE(html.find("colspan=\"3\""), std::string::npos);
+  EXPECT_NE(html.find("colspan=\"4\""), std::string::npos);  // PSNR, SSIM, LPIPS, edges
   EXPECT_EQ(html.find("LPIPS unavailable"), std::string::npos);
   EXPECT_EQ(html.find("Extrapolation"), std::string::npos);
   m["spans"] = {{"interpolation", m["table"]}, {"extrapolation", m["table"]}};

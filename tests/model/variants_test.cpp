@@ -124,6 +124,69 @@ TEST(Variants, PtlvsmMarksInputViewZeroAndLvsmEveryInputView) {
   }
 }
 
+// The diagnostic LVSM encoder-decoder (model.encoder_cameras): UP-LVSM's latent bottleneck with every input camera.
+TEST(Variants, EncoderCamerasGiveEveryInputViewItsRealCamera) {
+  torch::manual_seed(6);
+  auto config = small_config("uplvsm");
+  config.encoder_cameras = true;
+  model::UPLVSM net(config);
+  net->eval();
+  torch::NoGradGuard no_grad;
+  EXPECT_EQ(net->name(), "LVSM encoder-decoder");
+  EXPECT_EQ(net->default_target_poses(), model::TargetPoses::Dataset);
+  auto s = random_scene(1, 3, 2);
+  model::ForwardTrace trace;
+  auto out = net->render(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
+  // The encoder's image tokens (after the latents), per view, against the raw DINOv2 tokens.
+  auto raw = net->tokenize(s.inputs.images);
+  auto marked = [&](const model::ForwardTrace& t) {
+    return t.encoder_input.narrow(1, net->n_light_field_latent.size(0), raw.size(1) * raw.size(2)).view(raw.sizes());
+  };
+  for (int64_t v = 0; v < 3; ++v)
+    EXPECT_GT(test::max_abs_diff(marked(trace).select(1, v), raw.select(1, v)), 1e-4) << "view " << v;
+  // View 0 carries the identity camera, exactly UP-LVSM's canonical marker (which marks view 0 alone).
+  model::ForwardTrace unposed;
+  net->encode_scene(s.inputs.images, s.inputs.fxfycxcy, &unposed);
+  EXPECT_LT(test::max_abs_diff(marked(trace).select(1, 0), marked(unposed).select(1, 0)), 1e-5);
+  EXPECT_EQ(test::max_abs_diff(marked(unposed).select(1, 1), raw.select(1, 1)), 0.0);
+  // Moving input view 2 changes the render (the encoder reads it); the world frame and scale do not.
+  auto moved_view = s.inputs;
+  moved_view.c2w = s.inputs.c2w.clone();
+  moved_view.c2w.index_put_({0, 2, Slice(0, 3), 3}, torch::tensor({0.5, -0.25, 0.75}));
+  EXPECT_GT(test::max_abs_diff(net->render(moved_view, s.targets, model::TargetPoses::Dataset).render, out.render),
+            1e-6);
+  auto world = geometry::pose_encoding_to_c2w(torch::tensor({0.3, -1.0, 2.0, 0.2, 0.1, -0.3, 0.9}).view({1, 1, 7}));
+  auto moved = net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5),
+                           model::TargetPoses::Dataset);
+  EXPECT_LT(test::max_abs_diff(out.render, moved.render), 1e-4);
+  EXPECT_THROW(net->render(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
+}
+
+TEST(Variants, KeepImageTokensExtendsTheSceneLatentsWithTheEncodersImageTokens) {
+  torch::manual_seed(7);
+  auto config = small_config("uplvsm");
+  model::UPLVSM plain(config);
+  config.keep_image_tokens = true;
+  model::UPLVSM kept(config);
+  model::load_state_dict(*kept, model::state_dict(*plain), "plain");  // the same weights: no new parameter
+  plain->eval(), kept->eval();
+  torch::NoGradGuard no_grad;
+  auto s = random_scene(2, 2, 3);
+  auto latents = plain->encode_scene(s.inputs.images, s.inputs.fxfycxcy);
+  auto scene = kept->encode_scene(s.inputs.images, s.inputs.fxfycxcy);
+  const int64_t L = config.transformer.n_latent_vectors, n = (32 / config.patch_size) * (32 / config.patch_size);
+  ASSERT_EQ(scene.sizes(), (std::vector<int64_t>{2, L + 2 * n, config.transformer.d}));
+  EXPECT_LT(test::max_abs_diff(scene.narrow(1, 0, L), latents), 1e-6);
+  auto out = kept->render(s.inputs, s.targets, model::TargetPoses::Estimator);
+  EXPECT_EQ(out.render.sizes(), (std::vector<int64_t>{2, 3, 3, 32, 32}));
+  EXPECT_GT(test::max_abs_diff(out.render, plain->render(s.inputs, s.targets, model::TargetPoses::Estimator).render),
+            1e-6);  // the decoder now attends to the image tokens too
+  auto plain_flops = model::forward_flops(small_config("uplvsm"), 1, 2, 3);
+  auto kept_flops = model::forward_flops(config, 1, 2, 3);
+  EXPECT_EQ(kept_flops.encoder, plain_flops.encoder);
+  EXPECT_GT(kept_flops.decoder, plain_flops.decoder);
+}
+
 TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
   torch::manual_seed(5);
   auto config = small_config("uplvsm");

@@ -102,7 +102,8 @@ void add_eval_command(CLI::App& app) {
     auto line = [&](const std::string& name, const std::string& row) {
       const auto& r = t.at(row);
       const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
-      return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  LPIPS {}\n", name, r.at("psnr"), r.at("ssim"), lpips);
+      return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.at("psnr"),
+                         r.at("ssim"), r.at("grad_ratio"), lpips);
     };
     std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
                              summary.seconds, a->out)

@@ -16,6 +16,7 @@
 #include "uplvsm/data/photo.h"
 #include "uplvsm/study/attention_map.h"
 #include "uplvsm/study/pose_probe.h"
+#include "uplvsm/study/pose_sensitivity.h"
 #include "uplvsm/study/tsne.h"
 
 namespace uplvsm::cli {
@@ -29,6 +30,7 @@ struct PoseArgs {
   ModelSource model;
   std::string data, split = "test", train_split = "train", out;
   int64_t max_scenes = 0, gap = 12, iterations = 3000;
+  std::string target_poses = "auto";
 };
 
 void add_pose_options(CLI::App* cmd, PoseArgs& a) {
@@ -53,15 +55,15 @@ StudyModel start(const PoseArgs& a) {
   apply_common_options(a.common);
   StudyModel m;
   m.device = parse_device(a.common.device);
-  m.net = model::require_uplvsm(load_model(a.model, m.device, &m.config), "study pose-pairs/pose-probe/tsne");
+  m.net = model::require_uplvsm(load_model(a.model, m.device, &m.config),
+                                "study pose-pairs/pose-probe/pose-sensitivity/tsne");
   return m;
 }
 
 study::PosePairs pairs_of(model::UPLVSM& net, const Config& config, const PoseArgs& a, const std::string& split,
                           torch::Device device) {
   data::ChunkDataset dataset(a.data, split);
-  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                               config.dataset.square_crop};
+  auto prep = data::preprocess_options(config);
   study::PosePairOptions opt;
   opt.max_scenes = a.max_scenes;
   opt.gap = a.gap;
@@ -134,6 +136,51 @@ void add_pose_probe(CLI::App& study) {
     std::cout << fmt::format("pose probe: fitted on {} views, scored on {} views -> {}/probe.json\n",
                              train.frames.size(), test.frames.size(), a->out)
               << row("MLP", mlp) << row("linear", linear) << row("mean", mean);
+  });
+}
+
+void print_sensitivity(const nlohmann::json& s, const std::string& out) {
+  auto row = [](const char* name, const nlohmann::json& m) {
+    return fmt::format("  {:<22} {:4} views  sensitivity {:.3f}  PSNR {:6.2f}  edges {:.3f}\n", name,
+                       m.at("views").get<int64_t>(), m.at("sensitivity").get<double>(), m.at("psnr").get<double>(),
+                       m.at("grad_ratio").get<double>());
+  };
+  std::cout << fmt::format("pose sensitivity -> {}/sensitivity.json\n", out)
+            << row("targets", s.at("targets")) << row("inputs (reconstructed)", s.at("inputs"))
+            << row("all but the first input", s.at("all_but_first_input"));
+}
+
+void add_pose_sensitivity(CLI::App& study) {
+  auto* cmd = study.add_subcommand(
+      "pose-sensitivity", "Does the decoder use the latent pose? Each view rendered at its own pose and at the first "
+                          "input's: render change against truth change (0: the pose is ignored), and how well the "
+                          "input views themselves are reconstructed; writes sensitivity.json and views.csv");
+  auto a = std::make_shared<PoseArgs>();
+  add_pose_options(cmd, *a);
+  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
+  cmd->add_option("--target-poses", a->target_poses, "where the views' poses come from (auto: the model's protocol)")
+      ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
+      ->capture_default_str();
+  cmd->add_option("--out", a->out, "output directory")->required();
+  cmd->callback([a] {
+    auto [config, device, net] = start(*a);
+    data::ChunkDataset dataset(a->data, a->split);
+    study::SensitivityOptions opt;
+    opt.max_scenes = a->max_scenes;
+    opt.gap = a->gap;
+    opt.device = device;
+    opt.source = model::parse_target_poses(a->target_poses, *net);
+    auto report = study::measure_pose_sensitivity(net, dataset, data::preprocess_options(config), opt);
+    fs::create_directories(a->out);
+    study::write_sensitivity_csv((fs::path(a->out) / "views.csv").string(), report);
+    auto summary = study::summarise(report);
+    summary["checkpoint"] = a->model.checkpoint;
+    summary["split"] = a->split;
+    summary["gap"] = a->gap;
+    summary["target_poses"] = model::to_string(opt.source);
+    const auto text = summary.dump(2) + "\n";
+    io::write_file_atomic((fs::path(a->out) / "sensitivity.json").string(), text.data(), text.size());
+    print_sensitivity(summary, a->out);
   });
 }
 
@@ -246,10 +293,12 @@ void add_attention(CLI::App& study) {
 
 void add_study_command(CLI::App& app) {
   auto* study = app.add_subcommand(
-      "study", "The paper's analyses as tools (pose-pairs, pose-probe, tsne, attention, scaling, pose-noise)");
+      "study", "The paper's analyses as tools (pose-pairs, pose-probe, pose-sensitivity, tsne, attention, scaling, "
+               "pose-noise)");
   study->require_subcommand(1);
   add_pose_pairs(*study);
   add_pose_probe(*study);
+  add_pose_sensitivity(*study);
   add_tsne(*study);
   add_attention(*study);
   add_study_grid_commands(*study);

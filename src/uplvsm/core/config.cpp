@@ -86,6 +86,8 @@ template <typename C, typename F>
 void model_fields(C& c, F&& f) {
   f("variant", c.variant);
   f("pose_mapper", c.pose_mapper);
+  f("encoder_cameras", c.encoder_cameras);
+  f("keep_image_tokens", c.keep_image_tokens);
   f("image_size", c.image_size);
   f("patch_size", c.patch_size);
 }
@@ -240,6 +242,8 @@ void validate_config(const Config& c, const std::string& s) {
           "model.variant must be 'uplvsm', 'ptlvsm' or 'lvsm', got '" + m.variant + "'");
   require(!m.pose_mapper || m.variant == "uplvsm", s,
           "model.pose_mapper: only the uplvsm variant has latent poses to map to");
+  require(!m.keep_image_tokens || m.variant == "uplvsm", s,
+          "model.keep_image_tokens: only the uplvsm variant has an encoder whose image tokens it could keep");
   require(m.patch_size > 0 && m.image_size > 0 && m.image_size % m.patch_size == 0, s,
           fmt::format("model.image_size ({}) must be a positive multiple of model.patch_size ({})", m.image_size,
                       m.patch_size));
@@ -272,6 +276,9 @@ void validate_config(const Config& c, const std::string& s) {
   require(m.variant == "uplvsm" || tp == "auto" || tp == "dataset", s,
           "training.target_poses: the " + m.variant + " variant renders from dataset cameras ('auto' or 'dataset')");
   require(tp != "mapper" || m.pose_mapper, s, "training.target_poses 'mapper' needs model.pose_mapper: true");
+  require(!m.encoder_cameras || (m.variant == "uplvsm" && tp == "dataset"), s,
+          "model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
+          "training.target_poses 'dataset'");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
   require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
           "training.pose_noise_variance must be a finite number >= 0");

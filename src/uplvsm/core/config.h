@@ -44,6 +44,14 @@ struct Dinov2Config {
 struct ModelConfig {
   std::string variant = "uplvsm";  // "uplvsm", "ptlvsm" (posed targets), "lvsm" (posed inputs and targets)
   bool pose_mapper = false;        // camera control: the linear pose mapper (model/pose_mapper.h), uplvsm only
+  // Diagnostic, not unposed: the uplvsm encoder reads every input view's real camera (its Plücker ray tokens, in
+  // camera-control units) instead of the identity marker on view 0 - LVSM's encoder-decoder, the same scene-latent
+  // bottleneck with known cameras. Needs training.target_poses 'dataset'.
+  bool encoder_cameras = false;
+  // uplvsm: the encoder's outputs at the input image tokens join the scene latents as the scene representation the
+  // estimator and the decoder attend to (official: discarded, only the latents are kept). A lever against the latent
+  // bottleneck at small scale (docs/demo.md); the weights are the same, so any checkpoint loads either way.
+  bool keep_image_tokens = false;
   int64_t image_size = 224;
   int64_t patch_size = 14;
   TransformerConfig transformer;

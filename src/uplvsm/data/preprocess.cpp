@@ -277,4 +277,9 @@ Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const Prepro
   return preprocess({hwc_u8}, cam, opt, what);
 }
 
+PreprocessOptions preprocess_options(const Config& config) {
+  return {static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+          config.dataset.square_crop};
+}
+
 }  // namespace uplvsm::data

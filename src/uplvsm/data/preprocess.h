@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "uplvsm/core/config.h"
 #include "uplvsm/data/scene.h"
 
 namespace uplvsm::data {
@@ -15,6 +16,9 @@ struct PreprocessOptions {
   int patch_size = 14;      // the resized width is rounded to a multiple of this
   bool square_crop = true;  // centred crop of side min(Hr, Wr)
 };
+
+// The preprocessing a model of `config` expects: its image and patch size, the dataset's square_crop.
+PreprocessOptions preprocess_options(const Config& config);
 
 // Decoded frames (uint8 [H0,W0,3] each, typically all the same size) and their camera rows [V,18] -> Views.
 // `frames` of the result is 0..V-1 (callers that know the scene's frame numbers overwrite it). `what` names the

@@ -10,6 +10,7 @@
 #include <chrono>
 #include <filesystem>
 #include <future>
+#include <iterator>
 #include <stdexcept>
 #include <utility>
 
@@ -20,26 +21,31 @@
 #include "uplvsm/eval/metrics.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
+#include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::eval {
 namespace {
 
 namespace fs = std::filesystem;
 
-// The nine numbers of a view or scene, in the order model, copy-nearest, mean-colour x PSNR, SSIM, LPIPS; shared by
-// ViewMetrics and SceneResult, which name the same fields.
-using Values = std::array<double, 9>;
+// The twelve numbers of a view or scene, in the order model, copy-nearest, mean-colour x PSNR, SSIM, LPIPS, gradient-
+// energy ratio; shared by ViewMetrics and SceneResult, which name the same fields.
+using Values = std::array<double, 12>;
 template <class M>
 Values values_of(const M& m) {
-  return {m.psnr, m.ssim, m.lpips, m.psnr_copy, m.ssim_copy, m.lpips_copy, m.psnr_mean, m.ssim_mean, m.lpips_mean};
+  return {m.psnr,       m.ssim,      m.lpips,     m.grad_ratio,      //
+          m.psnr_copy,  m.ssim_copy, m.lpips_copy, m.grad_ratio_copy,  //
+          m.psnr_mean,  m.ssim_mean, m.lpips_mean, m.grad_ratio_mean};
 }
 template <class M>
 void assign_values(M& m, const Values& v) {
-  m.psnr = v[0], m.ssim = v[1], m.lpips = v[2], m.psnr_copy = v[3], m.ssim_copy = v[4], m.lpips_copy = v[5];
-  m.psnr_mean = v[6], m.ssim_mean = v[7], m.lpips_mean = v[8];
+  m.psnr = v[0], m.ssim = v[1], m.lpips = v[2], m.grad_ratio = v[3];
+  m.psnr_copy = v[4], m.ssim_copy = v[5], m.lpips_copy = v[6], m.grad_ratio_copy = v[7];
+  m.psnr_mean = v[8], m.ssim_mean = v[9], m.lpips_mean = v[10], m.grad_ratio_mean = v[11];
 }
 const char* const kTableRows[] = {"model", "copy_nearest", "mean_colour"};
-const char* const kTableMetrics[] = {"psnr", "ssim", "lpips"};
+const char* const kTableMetrics[] = {"psnr", "ssim", "lpips", "grad_ratio"};
+constexpr size_t kNumMetrics = std::size(kTableMetrics);
 
 struct Job {
   data::EvalEntry entry;
@@ -60,14 +66,6 @@ struct RunState {
   std::vector<std::string> grids;
   int64_t bad_frames = 0, done = 0;
   double psnr_sum = 0, ssim_sum = 0, lpips_sum = 0;
-};
-
-// Eval mode for the run; the previous mode comes back even when an exception escapes.
-struct EvalModeGuard {
-  explicit EvalModeGuard(model::NovelViewModel& n) : net(n), was_training(n->is_training()) { net->eval(); }
-  ~EvalModeGuard() { net->train(was_training); }
-  model::NovelViewModel& net;
-  bool was_training;
 };
 
 std::string safe_file_name(const std::string& key) {
@@ -211,10 +209,11 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
     return opt.lpips ? lpips_of(opt.lpips, x, gt, opt.lpips_chunk).to(torch::kFloat64)
                      : torch::full({x.size(0), x.size(1)}, kUnavailable, x.options().dtype(torch::kFloat64));
   };
-  auto metrics = torch::stack({psnr(pred, gt), ssim(pred, gt), lp(pred), psnr(copy, gt), ssim(copy, gt), lp(copy),
-                               psnr(mean, gt), ssim(mean, gt), lp(mean)}, 1)
-                     .to(torch::kCPU, torch::kFloat64)
-                     .contiguous();  // [b, 9, vt], rows in Values order
+  std::vector<torch::Tensor> rows;
+  for (const auto* x : {&pred, &copy, &mean})
+    for (auto&& m : {psnr(*x, gt), ssim(*x, gt), lp(*x), gradient_energy_ratio(*x, gt)})
+      rows.push_back(m.to(torch::kCPU));
+  auto metrics = torch::stack(rows, 1).to(torch::kFloat64).contiguous();  // [b, 12, vt], rows in Values order
   auto acc = metrics.accessor<double, 3>();
   for (size_t b = 0; b < scenes.size(); ++b) {
     const Job& job = *scenes[b]->job;
@@ -244,8 +243,9 @@ std::map<std::string, std::map<std::string, double>> mean_table(const std::vecto
   }
   const double n = static_cast<double>(scenes.size());
   std::map<std::string, std::map<std::string, double>> table;
-  for (size_t row = 0; row < 3; ++row)
-    for (size_t col = 0; col < 3; ++col) table[kTableRows[row]][kTableMetrics[col]] = sums[3 * row + col] / n;
+  for (size_t row = 0; row < std::size(kTableRows); ++row)
+    for (size_t col = 0; col < kNumMetrics; ++col)
+      table[kTableRows[row]][kTableMetrics[col]] = sums[kNumMetrics * row + col] / n;
   return table;
 }
 
@@ -259,7 +259,8 @@ std::string csv_values(const Values& v) {
 }
 
 const char* const kValueColumns =
-    "psnr,ssim,lpips,psnr_copy,ssim_copy,lpips_copy,psnr_mean,ssim_mean,lpips_mean";
+    "psnr,ssim,lpips,grad_ratio,psnr_copy,ssim_copy,lpips_copy,grad_ratio_copy,psnr_mean,ssim_mean,lpips_mean,"
+    "grad_ratio_mean";
 
 std::string csv_field(const std::string& s) {
   if (s.find_first_of(",\"\n") == std::string::npos) return s;
@@ -361,6 +362,8 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
                "data_range=1.0)"},
       {"lpips", "lpips.LPIPS(net, version='0.1')(pred, gt, normalize=True), float32, unclamped; null when the "
                 "backbone/lin weights were not given"},
+      {"grad_ratio", "gradient-energy ratio mean|grad pred| / mean|grad gt|: mean absolute forward difference along x "
+                     "and y over all channels of the [0,1]-clamped images (float64), per image; gt floored at 1e-6"},
       {"averaging", "mean over each scene's targets, then mean over scenes"},
       {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
       {"spans", "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
@@ -415,7 +418,7 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   state.ordered_views = dataset.info().ordered_views;
   state.results.resize(all_jobs.size());
   {
-    EvalModeGuard mode(net);
+    model::EvalModeGuard mode(*net);
     torch::NoGradGuard no_grad;
     ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
     const auto batches = make_batches(jobs, opt.batch_size);
@@ -456,9 +459,10 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   if (s.scenes == 0) {
     spdlog::warn("eval: no scene was evaluated ({})", index_path);
   } else {
-    spdlog::info("eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} LPIPS {} | copy nearest {:.3f} / {:.4f} | mean "
-                 "colour {:.3f} / {:.4f}",
+    spdlog::info("eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} edges {:.3f} LPIPS {} | copy nearest {:.3f} / {:.4f} "
+                 "| mean colour {:.3f} / {:.4f}",
                  s.scenes, format_duration(s.seconds), s.table["model"]["psnr"], s.table["model"]["ssim"],
+                 s.table["model"]["grad_ratio"],
                  opt.lpips ? fmt::format("{:.4f}", s.table["model"]["lpips"]) : "unavailable",
                  s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
                  s.table["mean_colour"]["ssim"]);

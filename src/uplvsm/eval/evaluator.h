@@ -51,6 +51,7 @@ struct ViewMetrics {
   int64_t frame = 0;
   double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
   double lpips = kUnavailable, lpips_copy = kUnavailable, lpips_mean = kUnavailable;
+  double grad_ratio = 0, grad_ratio_copy = 0, grad_ratio_mean = 0;  // gradient_energy_ratio (eval/metrics.h)
   bool extrapolated = false;  // the frame lies outside [min(context), max(context)] (else interpolation)
 };
 
@@ -63,12 +64,13 @@ struct SceneResult {
   // Means over the targets.
   double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
   double lpips = kUnavailable, lpips_copy = kUnavailable, lpips_mean = kUnavailable;
+  double grad_ratio = 0, grad_ratio_copy = 0, grad_ratio_mean = 0;
 };
 
 struct EvalSummary {
   int64_t scenes = 0;
-  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim", "lpips" (mean over scenes of per-scene
-  // means; NaN when no scene was evaluated, and LPIPS NaN when it was unavailable).
+  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim", "lpips", "grad_ratio" (mean over scenes of
+  // per-scene means; NaN when no scene was evaluated, and LPIPS NaN when it was unavailable).
   std::map<std::string, std::map<std::string, double>> table;
   // bucket ("small", "medium", "large", "ignore"; scenes without overlap are in no bucket) -> row -> metric.
   std::map<std::string, std::map<std::string, std::map<std::string, double>>> buckets;

@@ -112,4 +112,18 @@ torch::Tensor ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
   return per_channel.reshape(shape).mean(-1).to(torch::kFloat64);
 }
 
+torch::Tensor gradient_energy(const torch::Tensor& x) {
+  if (x.dim() < 3 || x.size(-1) < 2 || x.size(-2) < 2)
+    throw std::runtime_error("gradient_energy: expected [..., C, H, W] with H, W >= 2, got " + c10::str(x.sizes()));
+  auto v = x.to(torch::kFloat64).clamp(0.0, 1.0);
+  auto dx = (v.narrow(-1, 1, v.size(-1) - 1) - v.narrow(-1, 0, v.size(-1) - 1)).abs().flatten(-3);
+  auto dy = (v.narrow(-2, 1, v.size(-2) - 1) - v.narrow(-2, 0, v.size(-2) - 1)).abs().flatten(-3);
+  return torch::cat({dx, dy}, -1).mean(-1);
+}
+
+torch::Tensor gradient_energy_ratio(const torch::Tensor& pred, const torch::Tensor& gt) {
+  check_pair(pred, gt, "gradient_energy_ratio");
+  return gradient_energy(pred) / gradient_energy(gt).clamp_min(kMinGradientEnergy);
+}
+
 }  // namespace uplvsm::eval

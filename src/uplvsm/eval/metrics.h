@@ -24,6 +24,15 @@ torch::Tensor psnr(const torch::Tensor& pred, const torch::Tensor& gt);
 // float32. pred, gt: [..., C, H, W] with H, W >= 11. Returns float64 [...].
 torch::Tensor ssim(const torch::Tensor& pred, const torch::Tensor& gt);
 
+// Edge content of a prediction against its truth, the structure measure available without LPIPS weights (defined in
+// docs/model.md): mean |grad pred| / mean |grad gt|, where mean |grad x| is the mean absolute forward difference of
+// the [0, 1]-clamped image along x and along y, over every channel (C (H (W-1)) + C (H-1) W values, float64). 1: as
+// much edge as the truth; 0: flat (a blur of the truth scores in between). A flat truth (mean |grad gt| below
+// kMinGradientEnergy) is floored there, so the ratio stays finite. pred, gt: [..., C, H, W], H, W >= 2; float64 [...].
+constexpr double kMinGradientEnergy = 1e-6;
+torch::Tensor gradient_energy(const torch::Tensor& x);
+torch::Tensor gradient_energy_ratio(const torch::Tensor& pred, const torch::Tensor& gt);
+
 // The normalised 11-tap Gaussian window (sigma 1.5, float64, CPU), as scipy's _gaussian_kernel1d builds it.
 torch::Tensor gaussian_window();
 

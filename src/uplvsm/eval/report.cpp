@@ -73,10 +73,10 @@ double cell(const nlohmann::json& table, const std::string& row, const std::stri
   return number_or_nan(table[row], metric);
 }
 
-std::string format_cell(double value, double best, int decimals) {
+std::string format_cell(double value, bool best, int decimals) {
   if (!std::isfinite(value)) return "<td>&ndash;</td>";
   auto text = fmt::format("{:.{}f}", value, decimals);
-  return value == best ? "<td><b>" + text + "</b></td>" : "<td>" + text + "</td>";
+  return best ? "<td><b>" + text + "</b></td>" : "<td>" + text + "</td>";
 }
 
 // One column group (a bucket or the full set): the table object and its header text.
@@ -248,18 +248,30 @@ std::string html_escape(const std::string& text) {
   return out;
 }
 
+// Whether any group's table has `metric` in some row (older metrics.json files lack the gradient-energy ratio).
+bool has_metric(const std::vector<Group>& groups, const std::string& metric) {
+  for (const auto& g : groups)
+    for (const auto& [row, name] : kRows)
+      if (std::isfinite(cell(g.table, row, metric))) return true;
+  return false;
+}
+
 std::string results_table_html(const nlohmann::json& m, bool full_only) {
   struct Metric {
     std::string key, header;
     int decimals;
-    bool higher_is_better;
+    double (*score)(double);  // the best cell of a column has the highest score
   };
-  std::vector<Metric> metrics = {{"psnr", "PSNR&uarr;", 2, true}, {"ssim", "SSIM&uarr;", 3, true}};
+  auto higher = [](double v) { return v; };
+  auto lower = [](double v) { return -v; };
+  auto nearest_one = [](double v) { return -std::abs(v - 1.0); };  // as much edge as the truth, no more
+  std::vector<Metric> metrics = {{"psnr", "PSNR&uarr;", 2, higher}, {"ssim", "SSIM&uarr;", 3, higher}};
   const bool has_lpips = m.contains("lpips") && m["lpips"].is_object() && m["lpips"].value("available", false);
-  if (has_lpips) metrics.push_back({"lpips", "LPIPS&darr;", 3, false});
+  if (has_lpips) metrics.push_back({"lpips", "LPIPS&darr;", 3, lower});
   auto groups = table_groups(m);
   if (full_only)  // the whole set alone: no overlap buckets or interpolation/extrapolation spans
     groups = table_groups({{"table", m.value("table", nlohmann::json::object())}, {"scenes", m.value("scenes", 0)}});
+  if (has_metric(groups, "grad_ratio")) metrics.push_back({"grad_ratio", "Edges&rarr;1", 2, nearest_one});
   std::string head1 = "<tr><th rowspan=\"2\">Method</th>", head2 = "<tr>";
   for (const auto& g : groups) {
     head1 += fmt::format("<th colspan=\"{}\">{}</th>", metrics.size(), html_escape(g.header));
@@ -270,13 +282,13 @@ std::string results_table_html(const nlohmann::json& m, bool full_only) {
     html += "<tr><td>" + html_escape(name) + "</td>";
     for (const auto& g : groups) {
       for (const auto& metric : metrics) {
-        const double sign = metric.higher_is_better ? 1.0 : -1.0;
         double best = -std::numeric_limits<double>::infinity();
         for (const auto& [r, n] : kRows) {
           const double v = cell(g.table, r, metric.key);
-          if (std::isfinite(v)) best = std::max(best, sign * v);
+          if (std::isfinite(v)) best = std::max(best, metric.score(v));
         }
-        html += format_cell(cell(g.table, row, metric.key), sign * best, metric.decimals);
+        const double v = cell(g.table, row, metric.key);
+        html += format_cell(v, std::isfinite(v) && metric.score(v) == best, metric.decimals);
       }
     }
     html += "</tr>\n";
@@ -285,6 +297,9 @@ std::string results_table_html(const nlohmann::json& m, bool full_only) {
   if (!has_lpips)
     html += "<p class=\"caption\">LPIPS unavailable: the evaluation was run without LPIPS weights "
             "(<code>uplvsm eval --lpips-backbone ... --lpips-lin ...</code>).</p>\n";
+  if (has_metric(groups, "grad_ratio"))
+    html += "<p class=\"caption\">Edges: the gradient-energy ratio mean|&nabla;prediction| / mean|&nabla;truth| "
+            "(1: as much edge as the truth, 0: flat; a blur scores in between; docs/model.md).</p>\n";
   return html;
 }
 

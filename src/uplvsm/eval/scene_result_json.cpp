@@ -19,6 +19,8 @@ nlohmann::json scene_to_json(const SceneResult& r) {
     views.push_back({{"frame", v.frame}, {"psnr", v.psnr}, {"ssim", v.ssim}, {"lpips", v.lpips},
                      {"psnr_copy", v.psnr_copy}, {"ssim_copy", v.ssim_copy}, {"lpips_copy", v.lpips_copy},
                      {"psnr_mean", v.psnr_mean}, {"ssim_mean", v.ssim_mean}, {"lpips_mean", v.lpips_mean},
+                     {"grad_ratio", v.grad_ratio}, {"grad_ratio_copy", v.grad_ratio_copy},
+                     {"grad_ratio_mean", v.grad_ratio_mean},
                      {"extrapolated", v.extrapolated}});
   nlohmann::json j{{"key", r.key}, {"context", r.context}, {"target", r.target}, {"bucket", r.bucket}, {"views", views}};
   if (r.overlap) j["overlap"] = *r.overlap;
@@ -38,6 +40,8 @@ SceneResult scene_from_json(const nlohmann::json& j) {
     m.psnr = number(v, "psnr"), m.ssim = number(v, "ssim"), m.lpips = number(v, "lpips");
     m.psnr_copy = number(v, "psnr_copy"), m.ssim_copy = number(v, "ssim_copy"), m.lpips_copy = number(v, "lpips_copy");
     m.psnr_mean = number(v, "psnr_mean"), m.ssim_mean = number(v, "ssim_mean"), m.lpips_mean = number(v, "lpips_mean");
+    m.grad_ratio = number(v, "grad_ratio"), m.grad_ratio_copy = number(v, "grad_ratio_copy");
+    m.grad_ratio_mean = number(v, "grad_ratio_mean");
     m.extrapolated = v.at("extrapolated").get<bool>();
     r.views.push_back(m);
   }

@@ -39,8 +39,9 @@ FlopCount uplvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t inpu
   FlopCount f;
   f.dinov2 = b * (vi + vt) * s.dino_image;  // the estimator reads the target images too
   f.encoder = b * t.encoder_n_layer * transformer_block_flops(L + input_views * n, t.d, 4 * t.d);
-  f.estimator = b * vt * t.estimator_n_layer * transformer_block_flops(n + L, t.d, 4 * t.d);
-  f.decoder = b * vt * t.decoder_n_layer * transformer_block_flops(n + L, t.d, 4 * t.d);
+  const int64_t scene = L + (c.keep_image_tokens ? input_views * n : 0);  // what estimator and decoder attend to
+  f.estimator = b * vt * t.estimator_n_layer * transformer_block_flops(n + scene, t.d, 4 * t.d);
+  f.decoder = b * vt * t.decoder_n_layer * transformer_block_flops(n + scene, t.d, 4 * t.d);
   const double pose_heads = vt * 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5);
   f.other = b * (s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head) + pose_heads);  // marker on view 0
   return f;

@@ -68,7 +68,8 @@ TrainingMemory training_memory(const Config& config) {
   double values = dino_tokens * kept(c.dinov2.depth, c.dinov2.embed_dim);
   if (c.variant == "uplvsm") {
     values += b * (L + vi * n) * kept(t.encoder_n_layer, t.d);
-    values += b * vt * (n + L) * ((estimator ? kept(t.estimator_n_layer, t.d) : 0) + kept(t.decoder_n_layer, t.d));
+    const double scene = L + (c.keep_image_tokens ? vi * n : 0.0);
+    values += b * vt * (n + scene) * ((estimator ? kept(t.estimator_n_layer, t.d) : 0) + kept(t.decoder_n_layer, t.d));
   } else {
     values += b * vt * (vi * n + n) * kept(t.n_layer, t.d);
   }

@@ -29,12 +29,23 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "encode_scene: input images must be [b, v, 3, H, W], got ",
               images.sizes());
   const int64_t b = images.size(0), v = images.size(1), H = images.size(3), W = images.size(4);
-  auto tokens = tokenize(images);  // [b, v, n, d]
-  const int64_t n = tokens.size(2), d = tokens.size(3);
   // The canonical marker: Plücker rays of an identity camera, added to view 0's tokens only.
   auto identity = geometry::identity_c2w({b, 1}, fxfycxcy.options());
   auto marker_rays = geometry::plucker_rays(identity, fxfycxcy.index({Slice(), Slice(0, 1)}), H, W);
-  auto x = with_camera_tokens(tokens, marker_rays).reshape({b, v * n, d});
+  if (trace)
+    trace->canonical_plucker =
+        geometry::plucker_rays(geometry::identity_c2w({b, v}, fxfycxcy.options()), fxfycxcy, H, W);
+  return encode_scene_with_rays(images, marker_rays, trace);
+}
+
+torch::Tensor UPLVSMImpl::encode_scene_with_rays(const torch::Tensor& images, const torch::Tensor& rays,
+                                                 ForwardTrace* trace) {
+  TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "encode_scene: input images must be [b, v, 3, H, W], got ",
+              images.sizes());
+  const int64_t b = images.size(0), v = images.size(1);
+  auto tokens = tokenize(images);  // [b, v, n, d]
+  const int64_t n = tokens.size(2), d = tokens.size(3);
+  auto x = with_camera_tokens(tokens, rays).reshape({b, v * n, d});
   const int64_t L = n_light_field_latent.size(0);
   auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);
   torch::Tensor z;
@@ -45,17 +56,17 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   if (trace) {
     trace->encoder_input = encoder_input;
     trace->input_dino_tokens = tokens;
-    trace->canonical_plucker =
-        geometry::plucker_rays(geometry::identity_c2w({b, v}, fxfycxcy.options()), fxfycxcy, H, W);
     trace->encoder_output = z;
   }
-  return z.index({Slice(), Slice(0, L)});
+  return config.keep_image_tokens ? z : z.index({Slice(), Slice(0, L)});
 }
 
 torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torch::Tensor& scene_latents,
                                          ForwardTrace* trace) {
   TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "estimate_poses: target images must be [b, v, 3, H, W], got ",
               images.sizes());
+  TORCH_CHECK(!config.encoder_cameras, "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
+                                       "dataset cameras; its pose estimator is never trained");
   const int64_t b = images.size(0), v = images.size(1);
   auto tokens = tokenize(images);
   auto flat_tokens = tokens.flatten(0, 1);
@@ -104,8 +115,26 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
   TORCH_CHECK(false, "unknown target pose source");
 }
 
+namespace {
+// model.encoder_cameras: every input view's real camera in camera-control units (view 0 the identity, as the marker).
+torch::Tensor input_camera_rays(const Views& inputs) {
+  const auto& c2w = require_c2w(inputs, "input", TargetPoses::Dataset);
+  auto poses = camera_control_poses(c2w, c2w).to(inputs.fxfycxcy.device());
+  return geometry::plucker_rays(geometry::pose_encoding_to_c2w(poses), inputs.fxfycxcy, inputs.images.size(3),
+                                inputs.images.size(4));
+}
+}  // namespace
+
+torch::Tensor UPLVSMImpl::encode(const Views& inputs, ForwardTrace* trace) {
+  return config.encoder_cameras ? encode_scene_with_rays(inputs.images, input_camera_rays(inputs), trace)
+                                : encode_scene(inputs.images, inputs.fxfycxcy, trace);
+}
+
 Rendered UPLVSMImpl::render(const Views& inputs, const Views& targets, TargetPoses source, ForwardTrace* trace) {
-  auto latents = encode_scene(inputs.images, inputs.fxfycxcy, trace);
+  TORCH_CHECK(!config.encoder_cameras || source == TargetPoses::Dataset,
+              "model.encoder_cameras: this LVSM encoder-decoder renders from dataset cameras only; target poses '",
+              to_string(source), "' do not apply");
+  auto latents = encode(inputs, trace);
   auto poses = target_latent_poses(inputs, targets, latents, source, trace).to(latents.device());
   auto render =
       render_views(latents, poses, targets.fxfycxcy, targets.images.size(3), targets.images.size(4), trace);

@@ -21,9 +21,17 @@ namespace uplvsm::model {
 struct UPLVSMImpl : NovelViewModelImpl {
   explicit UPLVSMImpl(const ModelConfig& config);
 
-  // Scene latents [b, L, d] from unposed input views and their intrinsics (pixels) [b, v_in, 4].
+  // Scene latents [b, L, d] from unposed input views and their intrinsics (pixels) [b, v_in, 4]; with
+  // model.keep_image_tokens [b, L + v_in n, d], the encoder's image-token outputs after the latents.
   torch::Tensor encode_scene(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                              ForwardTrace* trace = nullptr);
+  // The same from input views whose first k views carry camera rays [b, k, 6, H, W]: encode_scene passes the
+  // identity camera's rays for view 0 (the canonical marker); model.encoder_cameras passes every view's real camera.
+  torch::Tensor encode_scene_with_rays(const torch::Tensor& input_images, const torch::Tensor& rays,
+                                       ForwardTrace* trace = nullptr);
+  // The scene latents of `inputs` as render() makes them: encode_scene, or with model.encoder_cameras every input
+  // view's real camera (its c2w is then required).
+  torch::Tensor encode(const Views& inputs, ForwardTrace* trace = nullptr);
   // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner).
   torch::Tensor estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                ForwardTrace* trace = nullptr);
@@ -43,11 +51,13 @@ struct UPLVSMImpl : NovelViewModelImpl {
   Rendered forward(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                    const torch::Tensor& target_images, const torch::Tensor& target_fxfycxcy,
                    ForwardTrace* trace = nullptr);
-  TargetPoses default_target_poses() const override { return TargetPoses::Estimator; }
+  TargetPoses default_target_poses() const override {
+    return config.encoder_cameras ? TargetPoses::Dataset : TargetPoses::Estimator;
+  }
   bool has_camera_control() const override { return !pose_mapper.is_empty(); }
   // Encodes the scene once; real cameras go through the pose mapper to latent poses.
   CameraRenderer camera_control(const Views& inputs) override;
-  std::string name() const override { return "UP-LVSM"; }
+  std::string name() const override { return config.encoder_cameras ? "LVSM encoder-decoder" : "UP-LVSM"; }
   void set_grad_checkpoint_every(int64_t k) override;
 
   torch::Tensor n_light_field_latent;  // [L, d] learnable scene-latent queries

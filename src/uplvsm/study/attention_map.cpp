@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include "uplvsm/io/raster.h"
+#include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::study {
 
@@ -18,8 +19,7 @@ CrossViewAttention cross_view_attention(model::UPLVSM& net, const torch::Tensor&
   TORCH_CHECK(row >= 0 && row < gh && col >= 0 && col < gw, "study attention: patch (", row, ", ", col,
               ") is outside view 1's ", gh, "x", gw, " patch grid");
   torch::NoGradGuard no_grad;
-  const bool was_training = net->is_training();
-  net->eval();
+  model::EvalModeGuard mode(*net);
   model::ForwardTrace trace;
   net->encode_scene(images.unsqueeze(0), fxfycxcy.unsqueeze(0), &trace);
   // Replay the encoder up to its last block, whose attention probabilities are the figure's.
@@ -38,7 +38,6 @@ CrossViewAttention cross_view_attention(model::UPLVSM& net, const torch::Tensor&
   auto tokens = torch::nn::functional::normalize(trace.input_dino_tokens[0].to(torch::kFloat32),
                                                  torch::nn::functional::NormalizeFuncOptions().dim(-1));
   out.similarity = tokens[1].matmul(tokens[0][row * gw + col]).reshape({gh, gw}).cpu();
-  if (was_training) net->train();
   return out;
 }
 

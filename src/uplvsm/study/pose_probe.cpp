@@ -9,6 +9,7 @@
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/io/atomic_file.h"
+#include "uplvsm/model/eval_mode.h"
 #include "uplvsm/model/pose_mapper.h"
 
 namespace uplvsm::study {
@@ -54,8 +55,7 @@ PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& datas
                              const data::PreprocessOptions& prep, const PosePairOptions& opt) {
   TORCH_CHECK(opt.gap >= 1, "pose pairs: gap must be >= 1");
   torch::NoGradGuard no_grad;
-  const bool was_training = net->is_training();
-  net->eval();
+  model::EvalModeGuard mode(*net);
   const int64_t scenes = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
   PosePairs out;
   std::vector<torch::Tensor> latent, real;
@@ -88,7 +88,6 @@ PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& datas
     bar.update(i + 1);
   }
   bar.finish();
-  net->train(was_training);
   if (latent.empty()) throw std::runtime_error("pose pairs: no usable scene in split " + dataset.split());
   out.latent = torch::cat(latent);
   out.real = torch::cat(real);

@@ -18,6 +18,7 @@
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/eval_mode.h"
 #include "uplvsm/model/memory_estimate.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
@@ -123,8 +124,7 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
   lo.seed += 1000003;
   const int64_t batches = std::max<int64_t>(1, (64 + lo.batch_size - 1) / lo.batch_size);
   torch::NoGradGuard no_grad;
-  const bool was_training = net.is_training();
-  net.eval();
+  model::EvalModeGuard mode(net);
   std::vector<torch::Tensor> real, latent;
   const int64_t vi = config.training.num_input_views;
   for (int64_t i = 0; i < batches; ++i) {
@@ -136,7 +136,6 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
     latent.push_back(net.estimate_poses(targets.images, latents).reshape({-1, 7}).cpu());
     real.push_back(model::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
   }
-  net.train(was_training);
   const double rms = model::fit_pose_mapper(*net.pose_mapper, torch::cat(real), torch::cat(latent));
   spdlog::info("pose mapper: least-squares fit on {} target views (RMS residual {:.4f})", torch::cat(real).size(0),
                rms);
@@ -165,9 +164,11 @@ PerceptualLoss make_perceptual_loss(const TrainingConfig& tc, const TrainOptions
 void run_periodic_eval(const TrainOptions& opt, const Config& config, model::NovelViewModel& net, TrainState& state,
                        bool lead, std::ofstream& metrics, const std::string& ckpt_dir) {
   if (lead) {
-    net->eval();
-    auto result = opt.periodic_eval(net, state.step);
-    net->train();
+    json result;
+    {
+      model::EvalModeGuard mode(*net);
+      result = opt.periodic_eval(net, state.step);
+    }
     if (result.contains("psnr") && result.at("psnr").is_number() && result.at("psnr").get<double>() > state.best_eval_psnr) {
       state.best_eval_psnr = result.at("psnr").get<double>();
       result["best"] = save_best_checkpoint(ckpt_dir, config, state, *net);
