@@ -21,7 +21,8 @@ namespace {
 using namespace uplvsm;
 constexpr int64_t kInputViews = 2, kTargetViews = 3, kFrames = 8;
 
-// A randomly initialised model of a config in eval mode and one random scene of `views` views at its resolution.
+// A randomly initialised model of a config in eval mode and one random scene of `views` views at its resolution, on
+// the bench device ($UPLVSM_BENCH_DEVICE).
 struct Setup {
   Config config;
   model::UPLVSM net{nullptr};
@@ -36,6 +37,10 @@ Setup make_setup(const std::string& config_name, int64_t views) {
   const int64_t size = s.config.model.image_size;
   s.images = torch::rand({1, views, 3, size, size});
   s.fxfycxcy = torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({1, views, 4}).contiguous();
+  const auto device = bench::bench_device();
+  s.net->to(device);
+  s.images = s.images.to(device);
+  s.fxfycxcy = s.fxfycxcy.to(device);
   return s;
 }
 
@@ -45,10 +50,13 @@ void BM_Inference(benchmark::State& state, const std::string& config_name) {
   auto& net = setup.net;
   auto inputs = setup.images.narrow(1, 0, kInputViews), targets = setup.images.narrow(1, kInputViews, kTargetViews);
   auto in_k = setup.fxfycxcy.narrow(1, 0, kInputViews), tg_k = setup.fxfycxcy.narrow(1, kInputViews, kTargetViews);
+  const auto device = bench::bench_device();
   auto run = [&] {
     torch::NoGradGuard no_grad;
-    AutocastGuard amp(torch::kCPU, bf16);
-    return net->forward(inputs, in_k, targets, tg_k).render;
+    AutocastGuard amp(device, bf16);
+    auto render = net->forward(inputs, in_k, targets, tg_k).render;
+    bench::synchronize(device);
+    return render;
   };
   run();  // warm-up
   bench::maybe_profile("Inference_" + config_name + (bf16 ? "_bf16" : "_fp32"), run);
@@ -69,9 +77,12 @@ BENCHMARK_CAPTURE(BM_Inference, paper_x224, std::string("paper_x224"))
 void BM_RenderInterpolation(benchmark::State& state, const std::string& config_name) {
   const bool bf16 = state.range(0) != 0;
   auto setup = make_setup(config_name, kInputViews);
+  const auto device = bench::bench_device();
   auto run = [&] {
-    AutocastGuard amp(torch::kCPU, bf16);
-    return render::render_interpolation(setup.net, setup.images[0], setup.fxfycxcy[0], kFrames).frames;
+    AutocastGuard amp(device, bf16);
+    auto frames = render::render_interpolation(setup.net, setup.images[0], setup.fxfycxcy[0], kFrames).frames;
+    bench::synchronize(device);
+    return frames;
   };
   run();
   const auto t0 = std::chrono::steady_clock::now();

@@ -1,6 +1,6 @@
 // Training throughput: one optimiser step (forward, MSE loss, backward, AdamW) of the `tiny` and `paper_x224`
-// configs at batch 1 with 2 input + 6 target views, in fp32 and bf16 autocast, with and without gradient
-// checkpointing. Counters: steps/s (items_per_second), model TFLOP/s (3x the forward's matmul FLOPs, recomputation
+// configs at batch 1 with 2 input + 6 target views, and of `demo` as `make demo-model` trains it (batch 8, 2 input
+// + 3 target views), in fp32 and bf16 autocast, with and without gradient checkpointing. Counters: steps/s (items_per_second), model TFLOP/s (3x the forward's matmul FLOPs, recomputation
 // not counted) and MFU against the matmul peak this machine measured for the same dtype (BM_MatmulPeak).
 // Peak memory is per process (getrusage), so measure one configuration per run, from the repository root:
 //   build/uplvsm_bench --benchmark_filter='TrainStep/paper_x224/fp32/ckpt:1$'
@@ -22,32 +22,43 @@ namespace {
 
 using namespace uplvsm;
 using bench::bench_config, bench::matmul_flops_per_second, bench::peak_rss_gib;
-constexpr int64_t kTrainInputViews = 2, kTrainTargetViews = 6;
+constexpr int64_t kTrainInputViews = 2;
+
+// The batch a benchmark trains at: the official per-GPU recipe (batch 1, 6 targets) or the demo model's.
+struct TrainShape {
+  int64_t batch = 1, target_views = 6;
+};
 
 void BM_MatmulPeak(benchmark::State& state) {
   const bool bf16 = state.range(0) != 0;
-  const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
-  auto a = torch::randn({2048, 768}).to(dtype), b = torch::randn({768, 3072}).to(dtype);
-  for (auto _ : state) benchmark::DoNotOptimize(torch::matmul(a, b).data_ptr());
+  const auto device = bench::bench_device();
+  const auto options = torch::TensorOptions().dtype(bf16 ? torch::kBFloat16 : torch::kFloat32).device(device);
+  auto a = torch::randn({2048, 768}, options), b = torch::randn({768, 3072}, options);
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(torch::matmul(a, b).data_ptr());
+    bench::synchronize(device);
+  }
   state.counters["TFLOP/s"] = benchmark::Counter(2.0 * 2048 * 768 * 3072 * 1e-12 * static_cast<double>(state.iterations()),
                                                  benchmark::Counter::kIsRate);
   state.SetLabel(bf16 ? "bf16" : "fp32");
 }
 BENCHMARK(BM_MatmulPeak)->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
+void BM_TrainStep(benchmark::State& state, const std::string& config_name, TrainShape shape) {
   const bool bf16 = state.range(0) != 0;
   const int64_t checkpoint_every = state.range(1);
   auto config = bench_config(config_name);
-  config.training.batch_size = 1;
+  config.training.batch_size = shape.batch;
   torch::manual_seed(0);
   model::UPLVSM net(config.model);
+  const auto device = bench::bench_device();
+  net->to(device);
   net->train();
   net->set_grad_checkpoint_every(checkpoint_every);
   auto optimizer = train::make_optimizer(*net, config.training);
-  const int64_t S = config.model.image_size, v = kTrainInputViews + kTrainTargetViews;
-  auto images = torch::rand({1, v, 3, S, S});
-  auto fxfycxcy = torch::tensor({0.9 * S, 0.9 * S, 0.5 * S, 0.5 * S}).expand({1, v, 4}).contiguous();
+  const int64_t S = config.model.image_size, v = kTrainInputViews + shape.target_views, B = shape.batch;
+  auto images = torch::rand({B, v, 3, S, S}).to(device);
+  auto fxfycxcy = torch::tensor({0.9 * S, 0.9 * S, 0.5 * S, 0.5 * S}).expand({B, v, 4}).contiguous().to(device);
   using torch::indexing::Slice;
   auto inputs = images.index({Slice(), Slice(0, kTrainInputViews)});
   auto targets = images.index({Slice(), Slice(kTrainInputViews)});
@@ -57,7 +68,7 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
     optimizer->zero_grad();
     torch::Tensor loss;
     {
-      AutocastGuard amp(torch::kCPU, bf16);
+      AutocastGuard amp(device, bf16);
       auto out = net->forward(inputs, in_k, targets, tgt_k);
       loss = torch::mse_loss(out.render.to(torch::kFloat32), targets);
     }
@@ -69,8 +80,9 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) benchmark::DoNotOptimize(step());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double step_flops = 3.0 * model::forward_flops(config.model, 1, kTrainInputViews, kTrainTargetViews).total();
-  state.SetItemsProcessed(state.iterations());
+  const double step_flops =
+      3.0 * model::forward_flops(config.model, B, kTrainInputViews, shape.target_views).total();
+  state.SetItemsProcessed(state.iterations() * B);  // scenes/s
   state.counters["TFLOP/s"] =
       benchmark::Counter(step_flops * 1e-12 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   const double peak = matmul_flops_per_second(bf16);
@@ -80,16 +92,22 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name) {
   state.counters["peak_RSS_GiB"] = peak_rss_gib();
   state.SetLabel(std::string(bf16 ? "bf16" : "fp32") + (checkpoint_every ? " checkpointed" : ""));
 }
-BENCHMARK_CAPTURE(BM_TrainStep, tiny, std::string("tiny"))
+BENCHMARK_CAPTURE(BM_TrainStep, tiny, std::string("tiny"), TrainShape{})
     ->ArgNames({"bf16", "ckpt"})
     ->ArgsProduct({{0, 1}, {0, 1}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK_CAPTURE(BM_TrainStep, paper_x224, std::string("paper_x224"))
+BENCHMARK_CAPTURE(BM_TrainStep, paper_x224, std::string("paper_x224"), TrainShape{})
     ->ArgNames({"bf16", "ckpt"})
     ->ArgsProduct({{0, 1}, {0, 1}})
     ->Unit(benchmark::kSecond)
     ->UseRealTime()
     ->Iterations(2);
+BENCHMARK_CAPTURE(BM_TrainStep, demo, std::string("demo"), (TrainShape{8, 3}))
+    ->ArgNames({"bf16", "ckpt"})
+    ->ArgsProduct({{0, 1}, {0}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(5.0);
 
 }  // namespace

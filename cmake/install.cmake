@@ -14,6 +14,7 @@ set(UPLVSM_PUBLIC_HEADERS
     uplvsm.h
     core/config.h core/runtime.h core/autocast.h
     io/safetensors.h io/torch_file.h io/torch_pickle.h io/image.h io/video.h
+    io/gif_writer.h io/mp4_writer.h
     geometry/camera.h
     data/scene.h data/preprocess.h data/photo.h data/chunk_dataset.h data/dataset_info.h data/lvsm_layout.h
     model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h model/pretrained_weights.h

@@ -1,15 +1,53 @@
 // Shared helpers for the tests: where the fixtures are, temporary directories, tensor comparison.
 #pragma once
+#include <gtest/gtest.h>
 #include <torch/torch.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
+#include <optional>
 #include <string>
+
+#include "uplvsm/core/runtime.h"
 
 namespace uplvsm::test {
 
 inline std::string fixture(const std::string& relative) { return std::string(UPLVSM_FIXTURES) + "/" + relative; }
+
+// Why the reference fixture pack (outside this repository) cannot be used, or nothing when its directory exists.
+inline std::optional<std::string> missing_fixtures() {
+  if (std::filesystem::is_directory(UPLVSM_FIXTURES)) return std::nullopt;
+  return std::string("reference fixture pack not found: ") + UPLVSM_FIXTURES +
+         " (configure with -DUPLVSM_FIXTURES=DIR; what it holds and how it is made: docs/development.md, "
+         "\"The reference fixture pack\")";
+}
+
+// CI runs every test: with CI=true (or 1) or UPLVSM_REQUIRE_FIXTURES=1 a missing pack fails instead of skipping.
+inline bool fixtures_required() {
+  const char* ci = std::getenv("CI");
+  const char* required = std::getenv("UPLVSM_REQUIRE_FIXTURES");
+  return (ci && (std::string(ci) == "true" || std::string(ci) == "1")) || (required && std::string(required) == "1");
+}
+
+// The first statement of a test (or SetUp) that reads fixture(...).
+#define UPLVSM_NEEDS_FIXTURES()                                                     \
+  do {                                                                              \
+    if (const auto uplvsm_missing_ = ::uplvsm::test::missing_fixtures()) {          \
+      if (::uplvsm::test::fixtures_required()) FAIL() << *uplvsm_missing_;          \
+      GTEST_SKIP() << *uplvsm_missing_;                                             \
+    }                                                                               \
+  } while (false)
+
+// Why the OpenBLAS checks do not apply (LibTorch loads no shared BLAS: PyPI's has MKL built in), or nothing. A
+// reference libblas.so.3 is a shared BLAS, so the checks still run there and fail.
+inline std::optional<std::string> no_shared_blas() {
+  const auto info = runtime_info();
+  if (!info.blas_config.empty() || info.blas_library != "unknown") return std::nullopt;
+  return std::string("LibTorch loads no shared BLAS library (") + (at::hasMKL() ? "MKL is built in" : "none found") +
+         "): the OpenBLAS checks apply to LibTorch builds that load OpenBLAS (Debian's)";
+}
 
 // A fresh, empty directory under the system temp dir, unique per test.
 inline std::filesystem::path temp_dir(const std::string& name) {

@@ -30,6 +30,7 @@ std::string render_images(const fs::path& a, const fs::path& b, const fs::path& 
 }  // namespace
 
 TEST(RobustnessCli, DecompressionBombAmongImagesIsRefusedFromItsHeader) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto dir = uplvsm::test::temp_dir("cli_bomb");
   write_bytes(dir / "bomb.png", uplvsm::test::png_declaring(30000, 30000));
   write_bytes(dir / "ok.png", uplvsm::test::small_image_bytes(true));
@@ -59,8 +60,9 @@ TEST(RobustnessCli, ConfigThatCannotFitInMemoryIsRefusedInOneLine) {
   config.model.transformer.d = config.model.dinov2.embed_dim = 100032;
   std::ofstream(dir / "huge.json") << uplvsm::config_to_json(config).dump(2);
   std::string out;
-  const auto cmd = "train --config " + (dir / "huge.json").string() + " --data " + dir.string() + " --run " +
-                   (dir / "run").string();
+  // --device cpu: on a CUDA machine the default (auto) would compare with the GPU's free memory instead.
+  const auto cmd = "train --device cpu --config " + (dir / "huge.json").string() + " --data " + dir.string() +
+                   " --run " + (dir / "run").string();
   EXPECT_NE(uplvsm::test::run_cli(cmd, &out), 0);
   EXPECT_EQ(out.rfind("error: config huge: training needs at least ", 0), 0u) << out;
   EXPECT_NE(out.find("available (MemAvailable in /proc/meminfo)"), std::string::npos) << out;
@@ -69,6 +71,7 @@ TEST(RobustnessCli, ConfigThatCannotFitInMemoryIsRefusedInOneLine) {
 }
 
 TEST(RobustnessCli, LibTorchErrorsPrintTheirMessageWithoutBacktraceUnlessVerbose) {
+  UPLVSM_NEEDS_FIXTURES();
   // A camera path needs a camera mapper, which the official UP-LVSM checkpoint lacks: LibTorch's TORCH_CHECK raises
   // the error deep in the renderer.
   const auto dir = uplvsm::test::temp_dir("cli_libtorch_error");
@@ -85,6 +88,7 @@ TEST(RobustnessCli, LibTorchErrorsPrintTheirMessageWithoutBacktraceUnlessVerbose
 }
 
 TEST(RobustnessCli, VideoThatCannotFitInMemoryIsRefusedBeforeRendering) {
+  UPLVSM_NEEDS_FIXTURES();
   // 100000 frames at 224 x 224 with side-by-side copies: ~224 GiB of frames, refused before the first one.
   const auto dir = uplvsm::test::temp_dir("cli_video_memory");
   write_bytes(dir / "a.png", uplvsm::test::small_image_bytes(true));

@@ -3,6 +3,7 @@
 #include <cstdlib>
 #include <stdexcept>
 
+#include "test_util.h"
 #include "uplvsm/core/runtime.h"
 
 using namespace uplvsm;
@@ -59,6 +60,7 @@ TEST(Runtime, BlasWarningNamesTheCauseAndTheFix) {
 TEST(Runtime, LoadedOpenBlasUsesVectorKernelsTheCpuSupports) {
   // The tests run through the same start-up as the binary, so a fallback core must have been fixed by now
   // (unless the environment pins OPENBLAS_CORETYPE, which always wins).
+  if (const auto why = test::no_shared_blas()) GTEST_SKIP() << *why;
   auto info = runtime_info();
   ASSERT_FALSE(info.blas_core.empty()) << "OpenBLAS is not the loaded BLAS";
   if (std::getenv("OPENBLAS_CORETYPE") == nullptr)

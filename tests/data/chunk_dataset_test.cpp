@@ -62,6 +62,7 @@ void write_split(const fs::path& root, const std::string& split, const std::vect
 }
 
 TEST(ChunkDataset, FixtureKeysAndFrames) {
+  UPLVSM_NEEDS_FIXTURES();
   ChunkDataset train(fixture(kRoot), "train");
   ChunkDataset test_split(fixture(kRoot), "test");
   ASSERT_EQ(train.size(), 3);
@@ -82,6 +83,7 @@ TEST(ChunkDataset, FixtureKeysAndFrames) {
 }
 
 TEST(ChunkDataset, FixtureCamerasMatchTruth) {
+  UPLVSM_NEEDS_FIXTURES();
   for (const char* split : {"train", "test"}) {
     ChunkDataset ds(fixture(kRoot), split);
     for (int64_t i = 0; i < ds.size(); ++i) {
@@ -95,6 +97,7 @@ TEST(ChunkDataset, FixtureCamerasMatchTruth) {
 }
 
 TEST(ChunkDataset, FixtureLoadViewsOfficial224) {
+  UPLVSM_NEEDS_FIXTURES();
   ChunkDataset ds(fixture(kRoot), "test");
   int64_t i = ds.find("20e408dd375292a1");
   std::vector<int64_t> frames = {1, 13, 4, 8, 11};
@@ -142,6 +145,7 @@ TEST(ChunkDataset, WriteReadRoundTrip) {
 }
 
 TEST(ChunkDataset, BadFilesThrowNamingFileAndField) {
+  UPLVSM_NEEDS_FIXTURES();
   auto dir = test::temp_dir("chunk_bad");
   // Truncated file.
   auto full = io::read_file(fixture(kRoot + "/test/000000.torch"));

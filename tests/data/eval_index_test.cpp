@@ -29,6 +29,7 @@ TEST(EvalIndex, OverlapBuckets) {
 }
 
 TEST(EvalIndex, ReadsFixtureIndex) {
+  UPLVSM_NEEDS_FIXTURES();
   int64_t nulls = -1;
   auto entries = read_eval_index(fixture("re10k_chunks/root/evaluation_index.json"), &nulls);
   ASSERT_EQ(entries.size(), 1u);
@@ -42,6 +43,7 @@ TEST(EvalIndex, ReadsFixtureIndex) {
 }
 
 TEST(EvalIndex, ReadsSharedSplitFiles) {
+  UPLVSM_NEEDS_FIXTURES();
   struct Expect {
     const char* file;
     size_t non_null;

@@ -20,6 +20,7 @@ using namespace uplvsm::data;
 namespace fs = std::filesystem;
 
 TEST(LvsmLayout, ChunksToLvsmAndBackKeepPixelsAndCameras) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto dir = test::temp_dir("lvsm_layout");
   const auto chunks = test::fixture("re10k_chunks/root/test");
   const auto lvsm = (dir / "lvsm/test").string(), back = (dir / "back/test").string();
@@ -61,6 +62,7 @@ TEST(LvsmLayout, ChunksToLvsmAndBackKeepPixelsAndCameras) {
 }
 
 TEST(LvsmLayout, BadMetadataNamesTheFileAndField) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto dir = test::temp_dir("lvsm_bad");
   auto scene = read_chunk(test::fixture("re10k_chunks/root/test/000000.torch")).at(0);
   scene.images.resize(2);
@@ -120,6 +122,7 @@ TEST(DatasetStats, CountsScenesFramesSizesAndSkips) {
 }
 
 TEST(LvsmLayout, DatasetReadsTheLayoutInPlaceLikeTheChunks) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto dir = test::temp_dir("lvsm_direct");
   chunks_to_lvsm(test::fixture("re10k_chunks/root/test"), (dir / "lvsm/test").string());
   ChunkDataset chunks(test::fixture("re10k_chunks/root"), "test");
@@ -156,6 +159,7 @@ TEST(LvsmLayout, DatasetReadsTheLayoutInPlaceLikeTheChunks) {
 }
 
 TEST(LvsmLayout, MovedDatasetAndMissingFramesAreHandled) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto dir = test::temp_dir("lvsm_moved");
   chunks_to_lvsm(test::fixture("re10k_chunks/root/test"), (dir / "a/test").string());
   // full_list.txt and the metadata hold absolute paths into a/: after a move they are stale.

@@ -38,6 +38,7 @@ TEST(Preprocess, ResizedWidthFollowsOfficialRounding) {
 }
 
 TEST(Preprocess, FixtureCropMatchesPillow) {
+  UPLVSM_NEEDS_FIXTURES();
   auto [frame, cams] = fixture_frame0();
   Views v = preprocess({frame}, cams, PreprocessOptions{});
   ASSERT_EQ(v.images.sizes(), (std::vector<int64_t>{1, 3, 224, 224}));

@@ -54,6 +54,7 @@ size_t count_lines(const fs::path& path) {
 }
 
 TEST(Evaluator, TinyModelOnFixtureDataset) {
+  UPLVSM_NEEDS_FIXTURES();
   torch::manual_seed(0);
   auto net = model::make_model(tiny_config());
   net->train();
@@ -121,6 +122,7 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
 }
 
 TEST(Evaluator, LpipsOnlyWithItsWeights) {
+  UPLVSM_NEEDS_FIXTURES();
   torch::manual_seed(0);
   auto net = model::make_model(tiny_config());
   data::ChunkDataset dataset(root(), "test");
@@ -174,6 +176,7 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
 }
 
 TEST(Evaluator, Bf16ForwardCloseToFp32) {
+  UPLVSM_NEEDS_FIXTURES();
   torch::manual_seed(0);
   auto net = model::make_model(tiny_config());
   data::ChunkDataset dataset(root(), "test");
@@ -189,6 +192,7 @@ TEST(Evaluator, Bf16ForwardCloseToFp32) {
 }
 
 TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto dir = test::temp_dir("eval_index");
   std::vector<data::EvalEntry> entries = {{kKey, {1, 13}, {4, 8, 11}, std::nullopt},
                                           {"ffffffffffffffff", {0, 2}, {1, 1, 1}, 0.2}};
@@ -214,6 +218,7 @@ TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
 }
 
 TEST(Evaluator, RunsOnCuda) {
+  UPLVSM_NEEDS_FIXTURES();
   if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device";
   torch::manual_seed(0);
   auto net = model::make_model(tiny_config());

@@ -20,6 +20,7 @@ const std::vector<Case> kCases = {
 }  // namespace
 
 TEST(Lpips, MatchesOfficialPackage) {
+  UPLVSM_NEEDS_FIXTURES();
   auto io = io::read_safetensors(test::fixture("lpips/io.safetensors")).tensors;
   torch::NoGradGuard no_grad;
   for (const auto& c : kCases) {
@@ -48,6 +49,7 @@ TEST(Lpips, MatchesOfficialPackage) {
 }
 
 TEST(Lpips, IdenticalImagesScoreZeroAndErrorsAreNamed) {
+  UPLVSM_NEEDS_FIXTURES();
   auto lpips = eval::load_lpips(eval::LpipsNet::Alex, test::fixture("lpips/alexnet_features.safetensors"),
                                 test::fixture("lpips/alex.pth"));
   torch::NoGradGuard no_grad;

@@ -33,6 +33,7 @@ std::vector<Pair> fixture_pairs() {
 }
 
 TEST(Metrics, PsnrMatchesReference) {
+  UPLVSM_NEEDS_FIXTURES();
   for (const auto& p : fixture_pairs()) {
     auto value = psnr(p.pred, p.gt);
     EXPECT_EQ(value.dim(), 0);
@@ -42,6 +43,7 @@ TEST(Metrics, PsnrMatchesReference) {
 }
 
 TEST(Metrics, SsimMatchesScikitImageFloat32) {
+  UPLVSM_NEEDS_FIXTURES();
   double worst = 0;
   for (const auto& p : fixture_pairs()) {
     ASSERT_EQ(p.pred.scalar_type(), torch::kFloat32);
@@ -53,6 +55,7 @@ TEST(Metrics, SsimMatchesScikitImageFloat32) {
 }
 
 TEST(Metrics, SsimMatchesScikitImageFloat64) {
+  UPLVSM_NEEDS_FIXTURES();
   for (const auto& p : fixture_pairs()) {
     const double got = ssim(p.pred.to(torch::kFloat64), p.gt.to(torch::kFloat64)).item<double>();
     EXPECT_NEAR(got, p.ssim_f64, 1e-9);
@@ -60,6 +63,7 @@ TEST(Metrics, SsimMatchesScikitImageFloat64) {
 }
 
 TEST(Metrics, BatchedShapesGiveTheSameValues) {
+  UPLVSM_NEEDS_FIXTURES();
   auto pairs = fixture_pairs();
   // Pairs 0-2 are 64x64: [3] and [1, 3] leading shapes.
   auto pred = torch::stack({pairs[0].pred, pairs[1].pred, pairs[2].pred});
@@ -153,6 +157,7 @@ TEST(Metrics, GradientEnergyRatioOfKnownImages) {
 }
 
 TEST(Metrics, CudaMatchesCpu) {
+  UPLVSM_NEEDS_FIXTURES();
   if (!torch::cuda::is_available()) GTEST_SKIP() << "no CUDA device";
   auto pairs = fixture_pairs();
   for (const auto& p : pairs) {

@@ -8,6 +8,7 @@
 using namespace uplvsm;
 
 TEST(Plucker, MatchesLvsmFixture) {
+  UPLVSM_NEEDS_FIXTURES();
   auto f = io::read_safetensors(test::fixture("lvsm/rays.safetensors")).tensors;
   for (std::string prefix : {"", "offcenter."}) {
     auto k = f.at(prefix.empty() ? "fxfycxcy" : prefix + "fxfycxcy");

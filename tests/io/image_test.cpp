@@ -32,6 +32,7 @@ torch::Tensor gradient_image(int h, int w) {
 }
 
 TEST(Image, DecodeFixtureFrameMatchesPil) {
+  UPLVSM_NEEDS_FIXTURES();
   auto scenes = data::read_chunk(fixture("re10k_chunks/root/test/000000.torch"));
   const data::RawScene* scene = nullptr;
   for (const auto& s : scenes)

@@ -64,6 +64,7 @@ TEST(AtomicFile, WriteReadAndCreateParents) {
 }
 
 TEST(Safetensors, ReadsTransformerWeightsFixture) {
+  UPLVSM_NEEDS_FIXTURES();
   auto st = read_safetensors(fixture("lvsm/transformer_weights.safetensors"));
   ASSERT_EQ(st.tensors.size(), 16u);
   EXPECT_EQ(st.tensors.at("transformer_blocks.0.attn.to_qkv.weight").sizes(), (std::vector<int64_t>{384, 128}));
@@ -80,6 +81,7 @@ TEST(Safetensors, ReadsTransformerWeightsFixture) {
 }
 
 TEST(Safetensors, ReadsHalfPrecisionDinoWeights) {
+  UPLVSM_NEEDS_FIXTURES();
   auto st = read_safetensors(fixture("dinov2/weights.safetensors"));
   const auto& pos = st.tensors.at("pos_embed");
   EXPECT_EQ(pos.scalar_type(), torch::kHalf);
@@ -91,6 +93,7 @@ TEST(Safetensors, ReadsHalfPrecisionDinoWeights) {
 }
 
 TEST(Safetensors, ReadsOfficialModelWithMetadata) {
+  UPLVSM_NEEDS_FIXTURES();
   std::map<std::string, std::string> md;
   auto header = read_safetensors_header(fixture("official_uplvsm/model.safetensors"), &md);
   EXPECT_EQ(header.size(), 93u);

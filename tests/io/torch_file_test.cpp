@@ -27,6 +27,7 @@ void write_bytes(const std::string& path, const std::string& bytes) {
 }  // namespace
 
 TEST(TorchFile, OfficialCheckpointModelEqualsSafetensors) {
+  UPLVSM_NEEDS_FIXTURES();
   io::TorchFile file(test::fixture("official_uplvsm/checkpoint.pt"));
   EXPECT_EQ(file.format(), "zip");
   const auto& root = file.root();
@@ -63,6 +64,7 @@ TEST(TorchFile, OfficialCheckpointModelEqualsSafetensors) {
 }
 
 TEST(TorchFile, Dinov2PthEqualsSafetensors) {
+  UPLVSM_NEEDS_FIXTURES();
   auto pth = io::read_torch_state_dict(test::fixture("dinov2/weights.pth"));
   auto st = io::read_safetensors(test::fixture("dinov2/weights.safetensors")).tensors;
   ASSERT_EQ(pth.size(), st.size());
@@ -70,6 +72,7 @@ TEST(TorchFile, Dinov2PthEqualsSafetensors) {
 }
 
 TEST(TorchFile, LegacyLpipsWeights) {
+  UPLVSM_NEEDS_FIXTURES();
   for (std::string net : {"alex", "vgg"}) {
     io::TorchFile file(test::fixture("lpips/" + net + ".pth"));
     EXPECT_EQ(file.format(), "legacy");
@@ -98,6 +101,7 @@ TEST(TorchFile, NotATorchFileIsNamed) {
 }
 
 TEST(TorchFile, TruncatedFilesGiveClearErrors) {
+  UPLVSM_NEEDS_FIXTURES();
   auto dir = test::temp_dir("torch_file_truncated");
   for (std::string name : {"official_uplvsm/checkpoint.pt", "lpips/vgg.pth"}) {
     auto bytes = read_bytes(test::fixture(name));
@@ -126,6 +130,7 @@ TEST(TorchFile, Protocol2BytesAreBytes) {
 }
 
 TEST(TorchFile, PickleFuzz) {
+  UPLVSM_NEEDS_FIXTURES();
   caffe2::serialize::PyTorchStreamReader zip(test::fixture("official_uplvsm/checkpoint.pt"));
   auto [ptr, n] = zip.getRecord("data.pkl");
   const std::string original(static_cast<const char*>(ptr.get()), n);
@@ -156,6 +161,7 @@ TEST(TorchFile, PickleFuzz) {
 }
 
 TEST(TorchFile, LegacyFuzz) {
+  UPLVSM_NEEDS_FIXTURES();
   auto dir = test::temp_dir("torch_file_fuzz");
   const auto original = read_bytes(test::fixture("lpips/alex.pth"));
   std::mt19937 rng(11);

@@ -1,16 +1,18 @@
 // GIF and MP4 writers: byte structure, an exact GIF decode with a small reference LZW decoder, and an MP4 reopened
-// and decoded with libavformat/libavcodec.
+// and decoded with libavformat/libavcodec (a build without FFmpeg skips those and checks write_mp4's error).
 #include <gtest/gtest.h>
 
 #include "test_util.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/video.h"
 
+#ifdef UPLVSM_WITH_FFMPEG
 extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
 #include <libswscale/swscale.h>
 }
+#endif
 
 namespace uplvsm::io {
 namespace {
@@ -218,6 +220,7 @@ struct DecodedVideo {
   torch::Tensor first;  // RGB
 };
 
+#ifdef UPLVSM_WITH_FFMPEG
 DecodedVideo decode_mp4(const std::string& path) {
   DecodedVideo out;
   AVFormatContext* fmt = nullptr;
@@ -259,6 +262,12 @@ DecodedVideo decode_mp4(const std::string& path) {
   avformat_close_input(&fmt);
   return out;
 }
+#else
+// Nothing here decodes MP4 without FFmpeg; the tests that would call this skip first (mp4_available() is false).
+DecodedVideo decode_mp4(const std::string& path) {
+  throw std::runtime_error("built without FFmpeg: cannot decode " + path);
+}
+#endif  // UPLVSM_WITH_FFMPEG
 
 double psnr(const torch::Tensor& a, const torch::Tensor& b) {
   double mse = (a.to(torch::kFloat64) - b.to(torch::kFloat64)).pow(2).mean().item<double>();
@@ -266,7 +275,7 @@ double psnr(const torch::Tensor& a, const torch::Tensor& b) {
 }
 
 TEST(Mp4, WritesDecodableVideo) {
-  if (!mp4_available()) GTEST_SKIP() << "no mp4 encoder in this FFmpeg";
+  if (!mp4_available()) GTEST_SKIP() << "no MP4 output here (no encoder in this FFmpeg, or built without FFmpeg)";
   std::cout << "mp4 encoder: " << mp4_encoder_name() << "\n";
   auto dir = temp_dir("mp4");
   std::string path = (dir / "anim.mp4").string();
@@ -288,7 +297,7 @@ TEST(Mp4, WritesDecodableVideo) {
 }
 
 TEST(Mp4, OddSizesArePaddedToEven) {
-  if (!mp4_available()) GTEST_SKIP() << "no mp4 encoder in this FFmpeg";
+  if (!mp4_available()) GTEST_SKIP() << "no MP4 output here (no encoder in this FFmpeg, or built without FFmpeg)";
   auto dir = temp_dir("mp4_odd");
   std::string path = (dir / "odd.mp4").string();
   auto frames = gradient_frames(5, 35, 63, false);
@@ -298,6 +307,23 @@ TEST(Mp4, OddSizesArePaddedToEven) {
   EXPECT_EQ(v.height, 36);
   EXPECT_EQ(v.frames, 5);
   EXPECT_GT(psnr(v.first.narrow(0, 0, 35).narrow(1, 0, 63), frames[0]), 30.0);
+  std::filesystem::remove_all(dir);
+}
+
+TEST(Mp4, UnavailableIsAClearError) {
+  if (mp4_available()) GTEST_SKIP() << "this build writes MP4 (encoder " << mp4_encoder_name() << ")";
+  EXPECT_EQ(mp4_encoder_name(), "");
+  auto dir = temp_dir("mp4_off");
+  std::string path = (dir / "off.mp4").string();
+  try {
+    write_mp4(path, gradient_frames(2), 10);
+    FAIL() << "write_mp4 wrote without an encoder";
+  } catch (const std::runtime_error& e) {
+    std::string msg = e.what();
+    EXPECT_NE(msg.find(path), std::string::npos) << msg;
+    EXPECT_TRUE(msg.find("without FFmpeg") != std::string::npos || msg.find("encoder") != std::string::npos) << msg;
+  }
+  EXPECT_FALSE(std::filesystem::exists(path));
   std::filesystem::remove_all(dir);
 }
 

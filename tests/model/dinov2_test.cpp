@@ -31,6 +31,7 @@ model::Dinov2 fixture_dinov2() {
 }  // namespace
 
 TEST(Dinov2, MatchesMetaForwardSquareAndNonSquare) {
+  UPLVSM_NEEDS_FIXTURES();
   auto vit = fixture_dinov2();
   auto io = io::read_safetensors(test::fixture("dinov2/io.safetensors")).tensors;
   torch::NoGradGuard no_grad;

@@ -39,6 +39,7 @@ void expect_meta_tokens(model::Dinov2Impl& vit, const std::string& what) {
 }  // namespace
 
 TEST(PretrainedWeights, Dinov2FromAllThreeFiles) {
+  UPLVSM_NEEDS_FIXTURES();
   for (std::string file : {"weights.pth", "weights.safetensors", "weights_hf.safetensors"}) {
     auto w = model::read_pretrained_weights(test::fixture("dinov2/" + file));
     EXPECT_EQ(w.source, file == "weights_hf.safetensors" ? model::WeightSource::Dinov2HuggingFace
@@ -61,6 +62,7 @@ TEST(PretrainedWeights, HuggingFaceUnknownKeyIsAnError) {
 }
 
 TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
+  UPLVSM_NEEDS_FIXTURES();
   // A UP-LVSM whose tokenizer has the fixture ViT's size; Meta's file lacks the official QK-norm weights, which stay
   // at ones and are reported — and the tokenizer then reproduces Meta's tokens when QK-norm is off.
   for (bool qk_norm : {false, true}) {
@@ -85,6 +87,7 @@ TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
 }
 
 TEST(PretrainedWeights, InferConfigFromOfficialCheckpoint) {
+  UPLVSM_NEEDS_FIXTURES();
   auto w = model::read_pretrained_weights(test::fixture("official_uplvsm/checkpoint.pt"));
   EXPECT_EQ(w.source, model::WeightSource::Uplvsm);
   EXPECT_EQ(w.container, "torch zip");
@@ -107,6 +110,7 @@ TEST(PretrainedWeights, InferConfigFromOfficialCheckpoint) {
 
 // The official training checkpoint, loaded with its config inferred, gives the official forward's poses and renders.
 TEST(PretrainedWeights, OfficialCheckpointPtMatchesOfficialForward) {
+  UPLVSM_NEEDS_FIXTURES();
   Config config;
   auto loaded = model::load_model(test::fixture("official_uplvsm/checkpoint.pt"), torch::kCPU, &config);
   auto net = model::require_uplvsm(loaded, "official checkpoint");
@@ -132,6 +136,7 @@ TEST(PretrainedWeights, OfficialCheckpointPtMatchesOfficialForward) {
 }
 
 TEST(PretrainedWeights, WrongShapeMissingAndExtraKeysAreListed) {
+  UPLVSM_NEEDS_FIXTURES();
   auto weights = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
   weights["transformer_decoder.1.attn.fc.weight"] = torch::zeros({64, 32});
   weights.erase("estimator.quaR_head.fc2.bias");
@@ -155,6 +160,7 @@ TEST(PretrainedWeights, WrongShapeMissingAndExtraKeysAreListed) {
 }
 
 TEST(PretrainedWeights, Dinov2FileIsNotAModel) {
+  UPLVSM_NEEDS_FIXTURES();
   auto msg = test::error_of([&] { model::load_model(test::fixture("dinov2/weights.pth"), torch::kCPU); });
   EXPECT_NE(msg.find("uplvsm convert --input"), std::string::npos) << msg;
 }

@@ -8,6 +8,7 @@
 using namespace uplvsm;
 
 TEST(Transformer, MatchesLvsmFixture) {
+  UPLVSM_NEEDS_FIXTURES();
   // Two LVSM QK-norm blocks, d 128, d_head 32, QK RMSNorm eps 1e-5, official key names.
   auto stack = model::make_transformer_stack(2, 128, 32, 1e-5, true);
   torch::nn::Module holder;

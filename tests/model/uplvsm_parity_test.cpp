@@ -13,6 +13,7 @@ using torch::indexing::Slice;
 
 
 TEST(OfficialParity, ForwardMatchesOfficialUplvsm) {
+  UPLVSM_NEEDS_FIXTURES();
   model::UPLVSM net(test::official_fixture_model_config());
   auto weights = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
   auto report = model::load_state_dict(*net, weights, "official_uplvsm/model.safetensors");

@@ -7,19 +7,19 @@ import torch
 import torch.utils.data
 import uplvsm
 
-from conftest import CLI, FIXTURES
+from conftest import CLI, FIXTURES, needs_fixtures
 
 ROOT = FIXTURES / "re10k_chunks" / "root"
 TEST_KEYS = ["09d9882a954acbf1", "20e408dd375292a1"]  # one chunk, read in index order (by key)
 
 
 @pytest.fixture(scope="module")
-def truth():
+def truth(fixture_pack):
     return uplvsm.io.read_safetensors(str(FIXTURES / "re10k_chunks" / "truth.safetensors"))
 
 
 @pytest.fixture(scope="module")
-def lvsm_root(tmp_path_factory):
+def lvsm_root(tmp_path_factory, fixture_pack):
     root = tmp_path_factory.mktemp("lvsm")
     subprocess.run([CLI, "dataset", "convert", "--from", "chunks", "--input", str(ROOT / "test"), "--output",
                     str(root / "test")], check=True, capture_output=True)
@@ -54,6 +54,7 @@ def test_chunks_to_lvsm_layout_round_trip_keeps_every_pixel(lvsm_root):
         assert torch.allclose(a["fxfycxcy"], b["fxfycxcy"], atol=1e-4) and torch.allclose(a["c2w"], b["c2w"], atol=1e-5)
 
 
+@needs_fixtures
 def test_dataloader_with_two_workers():
     data = uplvsm.data.Dataset(ROOT, "train", frames=lambda i, n: [0, n // 2, n - 1], image_size=56)
     serial = [data[i] for i in range(len(data))]
@@ -66,6 +67,7 @@ def test_dataloader_with_two_workers():
     assert sum((b["key"] for b in batches), []) == [s["key"] for s in serial]
 
 
+@needs_fixtures
 def test_dataset_errors_name_the_problem(tmp_path):
     with pytest.raises(RuntimeError, match=str(tmp_path / "nowhere")):
         uplvsm.data.Dataset(tmp_path / "nowhere", "test")

@@ -5,7 +5,7 @@ import pytest
 import torch
 import uplvsm
 
-from conftest import FIXTURES
+from conftest import FIXTURES, needs_fixtures
 
 
 def ssim_pairs():
@@ -14,6 +14,7 @@ def ssim_pairs():
     return [(tensors[f"pair{v['pair']}.pred"], tensors[f"pair{v['pair']}.gt"], v) for v in values]
 
 
+@needs_fixtures
 def test_psnr_and_ssim_match_the_fixture():
     pairs = ssim_pairs()
     assert len(pairs) == 6
@@ -23,6 +24,7 @@ def test_psnr_and_ssim_match_the_fixture():
         assert uplvsm.metrics.ssim(pred.double(), gt.double()).item() == pytest.approx(ref["ssim_f64"], abs=1e-9)
 
 
+@needs_fixtures
 def test_metrics_take_leading_dimensions():
     pairs = [p for p in ssim_pairs() if list(p[0].shape) == [3, 64, 64]]
     pred = torch.stack([p[0] for p in pairs]).unsqueeze(0)  # [1, 3, 3, 64, 64]
@@ -34,6 +36,7 @@ def test_metrics_take_leading_dimensions():
         assert ssim[0, i].item() == pytest.approx(ref["ssim"], abs=1e-6)
 
 
+@needs_fixtures
 @pytest.mark.parametrize("net,backbone", [("vgg", "vgg16_features.safetensors"), ("alex", "alexnet_features.safetensors")])
 def test_lpips_matches_the_official_values(net, backbone):
     folder = FIXTURES / "lpips"

@@ -8,9 +8,10 @@ import time
 import torch
 import uplvsm
 
-from conftest import OFFICIAL
+from conftest import OFFICIAL, needs_fixtures
 
 
+@needs_fixtures
 def test_two_threads_render_concurrently():
     model = uplvsm.load(str(OFFICIAL / "checkpoint.pt"))
     images = torch.rand(2, 3, 126, 126, generator=torch.Generator().manual_seed(0))

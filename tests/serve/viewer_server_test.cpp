@@ -307,7 +307,7 @@ TEST_F(ViewerServerTest, NewestFrameWinsStaleOnesAreDropped) {
 }
 
 TEST_F(ViewerServerTest, RecordedPathBecomesAnMp4AndPresetsArePoses) {
-  if (!io::mp4_available()) GTEST_SKIP() << "this FFmpeg has no MP4 encoder";
+  if (!io::mp4_available()) GTEST_SKIP() << "no MP4 output here (no encoder in this FFmpeg, or built without FFmpeg)";
   auto s = open_scene();
   auto cli = server_->client();
   json poses = {s["key_latent"][0], s["key_latent"][1], s["key_latent"][0]};

@@ -55,6 +55,7 @@ double scalar(const model::NamedTensors& steps, int k, const std::string& name) 
 }  // namespace
 
 TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
+  UPLVSM_NEEDS_FIXTURES();
   const auto params = fixture_parameters();
   ASSERT_EQ(params.at("training").at("perceptual_loss_weight").get<double>(), 0.0);
   const auto initial = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;

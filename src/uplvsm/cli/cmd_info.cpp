@@ -1,5 +1,5 @@
-// `uplvsm info`: what this binary computes with (LibTorch, BLAS, threads, OpenMP policy, devices) and, given a
-// config or checkpoint, the model's size.
+// `uplvsm info`: what this binary computes with (LibTorch, BLAS, threads, OpenMP policy, devices, MP4 output) and,
+// given a config or checkpoint, the model's size.
 #include <iostream>
 
 #include <fmt/format.h>
@@ -7,6 +7,7 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/config.h"
 #include "uplvsm/core/runtime.h"
+#include "uplvsm/io/mp4_writer.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 
@@ -26,6 +27,16 @@ void print_model_summary(const Config& c) {
                            net->parameter_count() / 1e6);
   for (const auto& [name, n] : by_module) std::cout << fmt::format("  {:<38} {:>10.3f} M\n", name, n / 1e6);
 }
+
+// MP4 is optional at build time (UPLVSM_WITH_FFMPEG), and FFmpeg builds differ in which encoders they carry.
+std::string mp4_output_description() {
+  if (io::mp4_available()) return io::mp4_encoder_name();
+#ifdef UPLVSM_WITH_FFMPEG
+  return "off: this FFmpeg has no libx264 or mpeg4 encoder";
+#else
+  return "off: built without FFmpeg";
+#endif
+}
 }  // namespace
 
 void add_info_command(CLI::App& app) {
@@ -42,6 +53,7 @@ void add_info_command(CLI::App& app) {
     std::cout << format_runtime_info(runtime_info());
     auto device = parse_device(common->device);
     std::cout << fmt::format("device       {}\n", device.str());
+    std::cout << fmt::format("MP4 output   {}\n", mp4_output_description());
     if (!config->empty()) print_model_summary(load_config(*config));
     if (!checkpoint->empty()) {
       auto ckpt = model::read_checkpoint(*checkpoint);

@@ -62,7 +62,7 @@ ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
     t.d_head = require(w, "transformer_blocks.0.attn.q_norm.weight").size(0);
     t.n_layer = count_indexed(w, "transformer_blocks.");
   } else {
-    const auto& latents = require(w, "n_light_field_latent");
+    const torch::Tensor latents = require(w, "n_light_field_latent");
     c.variant = "uplvsm";
     c.pose_mapper = has_key(w, "pose_mapper.A");
     t.n_latent_vectors = latents.size(0);
@@ -72,7 +72,7 @@ ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
     t.decoder_n_layer = count_indexed(w, "transformer_decoder.");
     t.estimator_n_layer = count_indexed(w, "estimator.transformer_estimator.");
   }
-  const auto& pose = require(w, "target_pose_tokenizer.1.weight");  // [d, 6 p^2]
+  const torch::Tensor pose = require(w, "target_pose_tokenizer.1.weight");  // [d, 6 p^2]
   c.patch_size = int64_t(std::lround(std::sqrt(double(pose.size(1)) / 6.0)));
   if (6 * c.patch_size * c.patch_size != pose.size(1))
     throw std::runtime_error(fmt::format("target_pose_tokenizer.1.weight has {} inputs, not 6 p^2", pose.size(1)));

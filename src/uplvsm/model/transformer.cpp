@@ -32,10 +32,10 @@ torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const to
   const auto dtype = autocast_active(q.device()) ? torch::kBFloat16 : q.scalar_type();
   if (q.dim() == 4 && fused_attention_applies(q.device(), dtype, q.size(3)))
     return fused_attention(q.to(dtype), k.to(dtype), v.to(dtype));
-  const double scale = 1.0 / std::sqrt(static_cast<double>(q.size(-1)));
 #if TORCH_VERSION_MAJOR >= 2
   return at::scaled_dot_product_attention(q, k, v);
 #else
+  const double scale = 1.0 / std::sqrt(static_cast<double>(q.size(-1)));
   auto scores = torch::matmul(q, k.transpose(-2, -1)).mul_(scale);
   return torch::matmul(torch::softmax(scores, -1), v);
 #endif

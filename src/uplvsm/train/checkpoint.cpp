@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <filesystem>
+#include <sstream>
 #include <type_traits>
 
 #include <fmt/format.h>
@@ -45,9 +46,11 @@ namespace {
 // LibTorch keys optimiser state by the parameter's TensorImpl: a string in 1.x, a pointer in newer releases.
 template <typename Map>
 typename Map::key_type state_key(const Map&, const torch::Tensor& p) {
-  if constexpr (std::is_same_v<typename Map::key_type, std::string>)
-    return c10::guts::to_string(p.unsafeGetTensorImpl());
-  else
+  if constexpr (std::is_same_v<typename Map::key_type, std::string>) {
+    std::ostringstream key;  // what 1.x's c10::guts::to_string wrote (gone from 2.x)
+    key << p.unsafeGetTensorImpl();
+    return key.str();
+  } else
     return static_cast<typename Map::key_type>(p.unsafeGetTensorImpl());
 }
 

@@ -7,13 +7,19 @@
 #include <map>
 #include <stdexcept>
 
-// Debian's LibTorch has Gloo but its CMake config does not export the flag that enables the Gloo header.
+// Debian's LibTorch has Gloo but its CMake config does not export the flag that enables the Gloo header. PyPI's
+// LibTorch links Gloo in but ships no Gloo headers, and keeps nccl.h in its own package: each backend is compiled
+// where its headers are, and a missing one is a clear error at run time.
+#if __has_include(<gloo/algorithm.h>)
+#define UPLVSM_HAVE_GLOO
 #ifndef USE_C10D_GLOO
 #define USE_C10D_GLOO
 #endif
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
+#endif
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
-#ifdef USE_C10D_NCCL
+#if defined(USE_C10D_NCCL) && __has_include(<nccl.h>)
+#define UPLVSM_HAVE_NCCL
 #include <torch/csrc/distributed/c10d/ProcessGroupNCCL.hpp>
 #endif
 
@@ -52,6 +58,14 @@ DistributedEnv distributed_env_from_environment() {
   return env;
 }
 
+bool gloo_available() {
+#ifdef UPLVSM_HAVE_GLOO
+  return true;
+#else
+  return false;
+#endif
+}
+
 torch::Device rank_device(torch::Device requested, const DistributedEnv& env) {
   if (requested.is_cuda() && !requested.has_index() && env.distributed())
     return torch::Device(torch::kCUDA, static_cast<c10::DeviceIndex>(env.local_rank));
@@ -76,6 +90,7 @@ void bind_group(Communicator::Impl& impl, c10::intrusive_ptr<Group> group) {
   impl.barrier = [group] { return group->barrier(); };
 }
 
+#ifdef UPLVSM_HAVE_GLOO
 std::shared_ptr<::gloo::transport::Device> gloo_device(const DistributedEnv& env) {
   if (const char* ifname = std::getenv("GLOO_SOCKET_IFNAME"); ifname && *ifname)
     return c10d::ProcessGroupGloo::createDeviceForInterface(ifname);
@@ -84,6 +99,7 @@ std::shared_ptr<::gloo::transport::Device> gloo_device(const DistributedEnv& env
     return c10d::ProcessGroupGloo::createDeviceForHostname(env.master_addr);
   return c10d::ProcessGroupGloo::createDefaultDevice();
 }
+#endif
 
 }  // namespace
 
@@ -101,19 +117,25 @@ Communicator::Communicator(const DistributedEnv& env, torch::Device device, std:
                                          env.rank, env.master_addr, env.master_port, e.what()));
   }
   if (device.is_cuda()) {
-#ifdef USE_C10D_NCCL
+#ifdef UPLVSM_HAVE_NCCL
     auto opts = c10d::ProcessGroupNCCL::Options::create();
     opts->timeout = timeout;
     bind_group(*impl_, c10::make_intrusive<c10d::ProcessGroupNCCL>(impl_->store, env.rank, env.world_size, opts));
     backend_ = "nccl";
 #else
-    throw std::runtime_error("multi-process training on CUDA needs a LibTorch built with NCCL (USE_C10D_NCCL)");
+    throw std::runtime_error("multi-process training on CUDA needs a LibTorch built with NCCL (USE_C10D_NCCL) and "
+                             "nccl.h on the include path; this uplvsm was built without them");
 #endif
   } else {
+#ifdef UPLVSM_HAVE_GLOO
     auto opts = c10d::ProcessGroupGloo::Options::create(timeout);
     opts->devices.push_back(gloo_device(env));
     bind_group(*impl_, c10::make_intrusive<c10d::ProcessGroupGloo>(impl_->store, env.rank, env.world_size, opts));
     backend_ = "gloo";
+#else
+    throw std::runtime_error("multi-process training on the CPU needs Gloo's headers (Debian: libgloo-dev); this "
+                             "uplvsm was built against a LibTorch without them");
+#endif
   }
   spdlog::info("rank {}/{} joined {}:{} ({}, local rank {})", env.rank, env.world_size, env.master_addr,
                env.master_port, backend_, env.local_rank);

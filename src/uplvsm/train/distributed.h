@@ -23,6 +23,9 @@ struct DistributedEnv {
 // Reads the launch variables; a single process when none are set. Errors name the variable and its value.
 DistributedEnv distributed_env_from_environment();
 
+// Whether CPU ranks can join: the Gloo backend is compiled only where Gloo's headers are (PyPI's LibTorch has none).
+bool gloo_available();
+
 // The device of this rank: `requested`, except that "cuda" means cuda:LOCAL_RANK for a multi-process run.
 torch::Device rank_device(torch::Device requested, const DistributedEnv& env);
 
