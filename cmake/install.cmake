@@ -12,7 +12,7 @@ include(CMakePackageConfigHelpers)
 # fused attention kernels, the PCH) stays private. tests/install checks the set is closed under #include.
 set(UPLVSM_PUBLIC_HEADERS
     uplvsm.h
-    core/config.h core/runtime.h core/autocast.h
+    core/config.h core/runtime.h core/autocast.h core/psnr.h
     io/safetensors.h io/torch_file.h io/torch_pickle.h io/image.h io/video.h
     io/gif_writer.h io/mp4_writer.h
     geometry/camera.h

@@ -31,10 +31,8 @@ int64_t checked_index(const data::ChunkDataset& d, int64_t i) {
   return i;
 }
 
-}  // namespace
-
-void bind_data(py::module_& root) {
-  auto m = root.def_submodule("data", "Datasets (pixelSplat chunks, LVSM layout) and photos as tensors.");
+// One split of a dataset, read in place: keys, frame counts and preprocessed views by scene index.
+void bind_chunk_dataset(py::module_& m) {
   py::class_<data::ChunkDataset>(m, "ChunkDataset",
                                  "One split of a dataset, read in place (native; use uplvsm.data.Dataset).")
       .def(py::init([](const std::string& root, const std::string& split, int cache_chunks) {
@@ -81,6 +79,9 @@ void bind_data(py::module_& root) {
             return views_dict(v);
           },
           py::arg("i"), py::arg("frames"), py::arg("image_size"), py::arg("patch_size"), py::arg("square_crop"));
+}
+
+void bind_photos(py::module_& m) {
   m.def(
       "load_photos",
       [](const std::vector<std::string>& paths, int image_size, double fov, int patch_size, bool square_crop) {
@@ -97,6 +98,14 @@ void bind_data(py::module_& root) {
       R"(Your own photos (JPEG/PNG paths) as views of one scene, preprocessed like the training data (PIL-exact
 LANCZOS resize to image_size rows, centred square crop), with a pinhole camera of horizontal field of view `fov`
 degrees: {"images": [V, 3, H, W], "fxfycxcy": [V, 4] pixels, "c2w": [V, 4, 4] identity, "frames": [V]}.)");
+}
+
+}  // namespace
+
+void bind_data(py::module_& root) {
+  auto m = root.def_submodule("data", "Datasets (pixelSplat chunks, LVSM layout) and photos as tensors.");
+  bind_chunk_dataset(m);
+  bind_photos(m);
 }
 
 }  // namespace uplvsm::python

@@ -90,10 +90,8 @@ std::vector<torch::Tensor> video_frames(const torch::Tensor& frames) {
   return out;
 }
 
-}  // namespace
-
-void bind_io(py::module_& root) {
-  auto m = root.def_submodule("io", "Tensor files without Python's unpickler, images and video.");
+// torch.save files, read without running their pickle: OpaqueCall stands for any call it does not run.
+void bind_torch_file(py::module_& m) {
   py::class_<OpaqueCall>(m, "OpaqueCall",
                          "A call in a torch.save file that read_torch_file did not run: its function's name and "
                          "arguments.")
@@ -117,6 +115,9 @@ void bind_io(py::module_& root) {
 the file is executed. dicts (also OrderedDicts), lists, tuples, sets, numbers, strings, bytes and tensors come back
 as themselves; any other call (optimizer or argparse objects...) as an OpaqueCall naming the function and holding its
 arguments. Tensors are CPU tensors in the file's dtype; views of one storage share memory, as with torch.load.)");
+}
+
+void bind_safetensors(py::module_& m) {
   m.def(
       "read_safetensors",
       [](const std::string& path, bool with_metadata) -> py::object {
@@ -143,6 +144,10 @@ errors name the field). with_metadata=True returns (tensors, metadata) with the 
       },
       py::arg("path"), py::arg("tensors"), py::arg("metadata") = std::map<std::string, std::string>{},
       "Writes {name: tensor} (and optional string metadata) as a safetensors file, atomically.");
+}
+
+// Images and video: PNG/JPEG in, PNG and MP4 out.
+void bind_images(py::module_& m) {
   m.def(
       "read_image",
       [](const std::string& path) {
@@ -173,6 +178,15 @@ errors name the field). with_metadata=True returns (tensors, metadata) with the 
       py::arg("path"), py::arg("frames"), py::arg("fps") = 12.0,
       R"(Writes frames (float [F, 3, H, W] in [0, 1], or uint8 [F, H, W, 3]) as an MP4 (H.264 when FFmpeg has
 libx264, else MPEG-4), atomically.)");
+}
+
+}  // namespace
+
+void bind_io(py::module_& root) {
+  auto m = root.def_submodule("io", "Tensor files without Python's unpickler, images and video.");
+  bind_torch_file(m);
+  bind_safetensors(m);
+  bind_images(m);
 }
 
 }  // namespace uplvsm::python

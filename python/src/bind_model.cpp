@@ -64,14 +64,11 @@ py::dict forward(Model& m, const torch::Tensor& input_images, const torch::Tenso
   return out;
 }
 
-}  // namespace
+using ModelClass = py::class_<Model, std::shared_ptr<Model>>;
 
-void bind_model(py::module_& m) {
-  py::class_<Model, std::shared_ptr<Model>>(m, "Model", R"(A UP-LVSM (or a posed PT-LVSM / LVSM) model, ready for
-inference on its device. Get one with uplvsm.load(). Images are float [0, 1] tensors [b, v, 3, H, W], intrinsics
-fxfycxcy in pixels [b, v, 4], poses the model's 7-D latent poses (tx, ty, tz, qx, qy, qz, qw). Inputs are moved to
-the model's device (no copy when they are already there). Gradients flow unless you call under torch.no_grad().
-amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
+// What the model is: its config, device, variant, name, size and weights.
+void bind_model_properties(ModelClass& c) {
+  c
       .def_property_readonly("config", [](const Model& s) { return to_python(config_to_json(s.config())); },
                              "The full config (model, training, eval, dataset sections) as a dict.")
       .def_property_readonly("device", &Model::device)
@@ -82,7 +79,12 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
       .def("parameter_count", &Model::parameter_count, "Number of parameters.")
       .def("state_dict", [](const Model& s) { return tensor_dict(s.state_dict()); },
            "Parameters and buffers by checkpoint name, sharing the model's memory (an in-place change is the "
-           "model's).")
+           "model's).");
+}
+
+// The three stages of UP-LVSM on their own: encode the scene, estimate target poses, render from latent poses.
+void bind_model_stages(ModelClass& c) {
+  c
       .def(
           "encode_scene",
           [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, const std::string& amp) {
@@ -117,7 +119,12 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)")
           },
           py::arg("scene_latents"), py::arg("poses"), py::arg("fxfycxcy"), py::arg("height"), py::arg("width"),
           py::arg("amp") = "none",
-          "Renders [b, v, 3, H, W] from scene latents, latent poses and intrinsics. UP-LVSM only.")
+          "Renders [b, v, 3, H, W] from scene latents, latent poses and intrinsics. UP-LVSM only.");
+}
+
+// The evaluation forward, also as __call__.
+void bind_model_forward(ModelClass& c) {
+  c
       .def("forward", &forward, py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("target_images"),
            py::arg("target_fxfycxcy"), py::arg("target_poses") = "auto", py::arg("input_c2w") = py::none(),
            py::arg("target_c2w") = py::none(), py::arg("amp") = "none",
@@ -127,7 +134,12 @@ model's own protocol: the estimator reads the target images for UP-LVSM, dataset
 {"render": tensor, "poses": latent poses [b, v_t, 7] or None for the posed variants}.)")
       .def("__call__", &forward, py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("target_images"),
            py::arg("target_fxfycxcy"), py::arg("target_poses") = "auto", py::arg("input_c2w") = py::none(),
-           py::arg("target_c2w") = py::none(), py::arg("amp") = "none", "Same as forward().")
+           py::arg("target_c2w") = py::none(), py::arg("amp") = "none", "Same as forward().");
+}
+
+// Videos: between two unposed photos, or along a real camera path.
+void bind_model_videos(ModelClass& c) {
+  c
       .def(
           "render_interpolation",
           [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, int64_t num_frames, int64_t chunk,
@@ -169,11 +181,11 @@ gradients; UP-LVSM only. Returns {"frames": [F, 3, H, W] CPU, "poses": [F, 7], "
           py::arg("c2w") = py::none(), py::arg("chunk") = 4, py::arg("amp") = "none",
           R"(Frames [F, 3, H, W] (CPU) at real cameras: poses [F, 7] in camera-control units (first input view at the
 origin, translations in input baselines, OpenCV axes), path_fxfycxcy [F, 4] pixels. Needs a camera mapper
-(`uplvsm train --stage mapper`) for UP-LVSM, or a posed variant with the inputs' c2w [v, 4, 4].)")
-      .def("__repr__", [](const Model& s) {
-        return "uplvsm.Model(variant='" + s.config().model.variant + "', parameters=" +
-               std::to_string(s.parameter_count()) + ", device='" + s.device().str() + "')";
-      });
+(`uplvsm train --stage mapper`) for UP-LVSM, or a posed variant with the inputs' c2w [v, 4, 4].)");
+}
+
+// uplvsm.init and uplvsm.load, registered after the class so their signatures name uplvsm.Model.
+void bind_model_constructors(py::module_& m) {
   m.def("init", &init, py::arg("config"), py::arg("device") = "cpu", py::arg("seed") = 0,
         R"(A freshly initialised model of a config (a dict or a path to a config JSON, e.g. configs/paper_x224.json):
 the model's own initialisation drawn after torch.manual_seed(seed) (the global generator is reseeded), in eval mode.
@@ -184,6 +196,25 @@ the authors' UP-LVSM / PT-LVSM .pt/.pth/.safetensors (dimensions inferred from t
 says otherwise), loaded strictly (missing, unexpected and mis-shaped keys are listed by name). device: "cpu",
 "cuda", "cuda:N", "auto" or a torch.device. config: None, a dict or a path to a config JSON (its model section
 applies to the authors' files only).)");
+}
+
+}  // namespace
+
+void bind_model(py::module_& m) {
+  ModelClass c(m, "Model", R"(A UP-LVSM (or a posed PT-LVSM / LVSM) model, ready for
+inference on its device. Get one with uplvsm.load(). Images are float [0, 1] tensors [b, v, 3, H, W], intrinsics
+fxfycxcy in pixels [b, v, 4], poses the model's 7-D latent poses (tx, ty, tz, qx, qy, qz, qw). Inputs are moved to
+the model's device (no copy when they are already there). Gradients flow unless you call under torch.no_grad().
+amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)");
+  bind_model_properties(c);
+  bind_model_stages(c);
+  bind_model_forward(c);
+  bind_model_videos(c);
+  c.def("__repr__", [](const Model& s) {
+    return "uplvsm.Model(variant='" + s.config().model.variant + "', parameters=" +
+           std::to_string(s.parameter_count()) + ", device='" + s.device().str() + "')";
+  });
+  bind_model_constructors(m);
 }
 
 }  // namespace uplvsm::python

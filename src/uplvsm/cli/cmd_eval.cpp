@@ -14,6 +14,119 @@
 
 namespace uplvsm::cli {
 
+namespace {
+
+struct EvalArgs {
+  CommonOptions common;
+  ModelSource model;
+  std::string data, split = "test", index, out;
+  std::string lpips_net = "vgg", lpips_backbone, lpips_lin, amp = "none", target_poses = "auto";
+  int64_t max_scenes = 0, batch = 4, visualise = 8;
+};
+
+void add_eval_options(CLI::App* cmd, EvalArgs& a) {
+  add_common_options(cmd, a.common);
+  add_model_options(cmd, a.model);
+  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--split", a.split, "dataset split")->capture_default_str();
+  cmd->add_option("--index", a.index, "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
+                                       "<data>/evaluation_index.json");
+  cmd->add_option("--max-scenes", a.max_scenes, "evaluate at most this many scenes (0: all)")->capture_default_str();
+  cmd->add_option("--batch", a.batch, "scenes per forward pass")->check(CLI::PositiveNumber)->capture_default_str();
+  cmd->add_option("--visualise", a.visualise, "PNG grids for this many scenes")->capture_default_str();
+  cmd->add_option("--out", a.out, "output directory")->required();
+  cmd->add_option("--amp", a.amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)")
+      ->check(CLI::IsMember({"none", "bf16"}))
+      ->capture_default_str();
+  cmd->add_option("--target-poses", a.target_poses,
+                  "where target cameras come from: auto (the protocol the model was trained with, its "
+                  "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the mapper "
+                  "after the camera-control stage), estimator, mapper (dataset cameras through the camera-control "
+                  "mapper) or dataset")
+      ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
+      ->capture_default_str();
+  cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
+      ->check(CLI::IsMember({"vgg", "alex"}))
+      ->capture_default_str();
+  auto* backbone = cmd->add_option("--lpips-backbone", a.lpips_backbone,
+                                   "torchvision-format VGG16 / AlexNet weights (features.N.*; .pth, .pt or "
+                                   "safetensors); without it LPIPS is reported as unavailable")
+                       ->check(CLI::ExistingFile);
+  cmd->add_option("--lpips-lin", a.lpips_lin, "the official lpips v0.1 lin weights (lpips/weights/v0.1/<net>.pth) "
+                                               "or a safetensors copy")
+      ->check(CLI::ExistingFile)
+      ->needs(backbone);
+  backbone->needs("--lpips-lin");
+}
+
+// The evaluator's options from the command line and the checkpoint's config; with a communicator, this process
+// scores its shard of the scenes and the results are gathered.
+eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::NovelViewModel& net,
+                               torch::Device device, const std::shared_ptr<train::Communicator>& comm) {
+  eval::EvalOptions opt;
+  opt.index_path = a.index;
+  opt.max_scenes = a.max_scenes;
+  opt.batch_size = a.batch;
+  opt.device = device;
+  opt.num_visualised = a.visualise;
+  opt.out_dir = a.out;
+  opt.bf16 = parse_amp(a.amp);
+  // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
+  opt.target_poses =
+      model::parse_target_poses(a.target_poses == "auto" ? config.training.target_poses : a.target_poses, *net);
+  if (comm) {
+    opt.shard_rank = comm->rank();
+    opt.shard_count = comm->world_size();
+    opt.gather = [comm](const std::string& mine) { return comm->all_gather(mine); };
+  }
+  if (!a.lpips_backbone.empty()) {
+    opt.lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
+    opt.lpips->to(device);
+  }
+  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)}, {"data", a.data}, {"split", a.split},
+               {"config", config.name},
+               {"variant", config.model.variant}, {"target_poses", model::to_string(opt.target_poses)}};
+  return opt;
+}
+
+void print_eval_summary(const EvalArgs& a, const Config& config, const eval::EvalOptions& opt,
+                        const eval::EvalSummary& summary) {
+  const auto& t = summary.table;
+  auto line = [&](const std::string& name, const std::string& row) {
+    const auto& r = t.at(row);
+    const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
+    return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.at("psnr"),
+                       r.at("ssim"), r.at("grad_ratio"), lpips);
+  };
+  std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
+                           summary.seconds, a.out)
+            << line(config.model.variant + " (" + model::to_string(opt.target_poses) + ")", "model")
+            << line("copy nearest", "copy_nearest")
+            << line("mean colour", "mean_colour");
+  if (!opt.lpips)
+    std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
+}
+
+void run_eval(const EvalArgs& a) {
+  apply_common_options(a.common);
+  Config config;
+  // torchrun / SLURM variables make this process one shard of a multi-process evaluation (results merged).
+  const auto env = train::distributed_env_from_environment();
+  auto device = train::rank_device(parse_device(a.common.device), env);
+  std::shared_ptr<train::Communicator> comm;
+  if (env.distributed()) comm = std::make_shared<train::Communicator>(env, device);
+  auto net = load_model(a.model, device, &config);
+  data::ChunkDataset dataset(a.data, a.split);
+  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+                               config.dataset.square_crop};
+  const auto opt = eval_options(a, config, net, device, comm);
+  auto summary = eval::evaluate(net, dataset, prep, opt);
+  if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
+  print_eval_summary(a, config, opt, summary);
+}
+
+}  // namespace
+
 void add_eval_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "eval", "Evaluate a checkpoint on held-out scenes (unposed protocol: the estimator sees each target image), "
@@ -21,97 +134,9 @@ void add_eval_command(CLI::App& app) {
               "overlap bucket when the index has overlaps. Multi-process: launch one process per device with "
               "torchrun's variables (RANK, WORLD_SIZE, ...); the scenes are sharded and rank 0 writes the merged "
               "results.");
-  struct Args {
-    CommonOptions common;
-    ModelSource model;
-    std::string data, split = "test", index, out;
-    std::string lpips_net = "vgg", lpips_backbone, lpips_lin, amp = "none", target_poses = "auto";
-    int64_t max_scenes = 0, batch = 4, visualise = 8;
-  };
-  auto a = std::make_shared<Args>();
-  add_common_options(cmd, a->common);
-  add_model_options(cmd, a->model);
-  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks)")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
-  cmd->add_option("--index", a->index, "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
-                                       "<data>/evaluation_index.json");
-  cmd->add_option("--max-scenes", a->max_scenes, "evaluate at most this many scenes (0: all)")->capture_default_str();
-  cmd->add_option("--batch", a->batch, "scenes per forward pass")->check(CLI::PositiveNumber)->capture_default_str();
-  cmd->add_option("--visualise", a->visualise, "PNG grids for this many scenes")->capture_default_str();
-  cmd->add_option("--out", a->out, "output directory")->required();
-  cmd->add_option("--amp", a->amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)")
-      ->check(CLI::IsMember({"none", "bf16"}))
-      ->capture_default_str();
-  cmd->add_option("--target-poses", a->target_poses,
-                  "where target cameras come from: auto (the protocol the model was trained with, its "
-                  "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the mapper "
-                  "after the camera-control stage), estimator, mapper (dataset cameras through the camera-control "
-                  "mapper) or dataset")
-      ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
-      ->capture_default_str();
-  cmd->add_option("--lpips-net", a->lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
-      ->check(CLI::IsMember({"vgg", "alex"}))
-      ->capture_default_str();
-  auto* backbone = cmd->add_option("--lpips-backbone", a->lpips_backbone,
-                                   "torchvision-format VGG16 / AlexNet weights (features.N.*; .pth, .pt or "
-                                   "safetensors); without it LPIPS is reported as unavailable")
-                       ->check(CLI::ExistingFile);
-  cmd->add_option("--lpips-lin", a->lpips_lin, "the official lpips v0.1 lin weights (lpips/weights/v0.1/<net>.pth) "
-                                               "or a safetensors copy")
-      ->check(CLI::ExistingFile)
-      ->needs(backbone);
-  backbone->needs("--lpips-lin");
-  cmd->callback([a] {
-    apply_common_options(a->common);
-    Config config;
-    // torchrun / SLURM variables make this process one shard of a multi-process evaluation (results merged).
-    const auto env = train::distributed_env_from_environment();
-    auto device = train::rank_device(parse_device(a->common.device), env);
-    std::shared_ptr<train::Communicator> comm;
-    if (env.distributed()) comm = std::make_shared<train::Communicator>(env, device);
-    auto net = load_model(a->model, device, &config);
-    data::ChunkDataset dataset(a->data, a->split);
-    data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                                 config.dataset.square_crop};
-    eval::EvalOptions opt;
-    opt.index_path = a->index;
-    opt.max_scenes = a->max_scenes;
-    opt.batch_size = a->batch;
-    opt.device = device;
-    opt.num_visualised = a->visualise;
-    opt.out_dir = a->out;
-    opt.bf16 = parse_amp(a->amp);
-    // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
-    opt.target_poses =
-        model::parse_target_poses(a->target_poses == "auto" ? config.training.target_poses : a->target_poses, *net);
-    if (comm) {
-      opt.shard_rank = comm->rank();
-      opt.shard_count = comm->world_size();
-      opt.gather = [comm](const std::string& mine) { return comm->all_gather(mine); };
-    }
-    if (!a->lpips_backbone.empty()) {
-      opt.lpips = eval::load_lpips(eval::parse_lpips_net(a->lpips_net), a->lpips_backbone, a->lpips_lin);
-      opt.lpips->to(device);
-    }
-    opt.extra = {{"checkpoint", model::resolve_checkpoint(a->model.checkpoint)}, {"data", a->data}, {"split", a->split},
-                 {"config", config.name},
-                 {"variant", config.model.variant}, {"target_poses", model::to_string(opt.target_poses)}};
-    auto summary = eval::evaluate(net, dataset, prep, opt);
-    if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
-    const auto& t = summary.table;
-    auto line = [&](const std::string& name, const std::string& row) {
-      const auto& r = t.at(row);
-      const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
-      return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.at("psnr"),
-                         r.at("ssim"), r.at("grad_ratio"), lpips);
-    };
-    std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
-                             summary.seconds, a->out)
-              << line(config.model.variant + " (" + model::to_string(opt.target_poses) + ")", "model") << line("copy nearest", "copy_nearest")
-              << line("mean colour", "mean_colour");
-    if (!opt.lpips)
-      std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
-  });
+  auto a = std::make_shared<EvalArgs>();
+  add_eval_options(cmd, *a);
+  cmd->callback([a] { run_eval(*a); });
 }
 
 }  // namespace uplvsm::cli

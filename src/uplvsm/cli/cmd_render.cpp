@@ -117,6 +117,72 @@ void render_one(model::NovelViewModel& net, const data::Views& views, bool posed
   listing.push_back(entry);
 }
 
+void add_render_options(CLI::App* cmd, RenderArgs& a) {
+  add_common_options(cmd, a.common);
+  add_model_options(cmd, a.model);
+  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks)");
+  cmd->add_option("--split", a.split, "dataset split")->capture_default_str();
+  cmd->add_option("--index", a.index,
+                  "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
+  cmd->add_option("--scenes", a.scenes, "how many dataset scenes to render")->capture_default_str();
+  cmd->add_option("--images", a.images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
+  cmd->add_option("--fov", a.fov, "horizontal field of view in degrees for --images")->capture_default_str();
+  cmd->add_option("--frames", a.frames, "frames of the video")
+      ->check(CLI::Range(int64_t{2}, render::kMaxVideoFrames))->capture_default_str();
+  cmd->add_option("--fps", a.fps, "frames per second")->capture_default_str();
+  cmd->add_option("--trajectory", a.trajectory,
+                  "interpolate, orbit, spiral, dolly, or a camera-path JSON file ({\"frames\": [{\"pose\": [tx, ty, "
+                  "tz, qx, qy, qz, qw]} or {\"c2w\": 4x4}, optional \"fxfycxcy\" normalised], first input view "
+                  "canonical, OpenCV axes, translations in input baselines; or \"units\": \"latent\": latent poses "
+                  "recorded in `uplvsm serve`)")
+      ->capture_default_str();
+  cmd->add_option("--focus", a.focus, "presets: distance of the looked-at point in front of the first view (baselines)")
+      ->capture_default_str();
+  cmd->add_option("--radius", a.radius, "presets: spiral radius / dolly travel (baselines)")->capture_default_str();
+  cmd->add_option("--arc", a.arc, "orbit: total swing in degrees")->capture_default_str();
+  cmd->add_flag("--side-by-side", a.side_by_side, "video frames show [input 0 | input 1 | render]");
+  cmd->add_option("--amp", a.amp, "model precision: none (fp32) or bf16 autocast")
+      ->check(CLI::IsMember({"none", "bf16"}))
+      ->capture_default_str();
+  cmd->add_option("--out", a.out, "output directory")->required();
+}
+
+// One video per scene of the evaluation index (its context views), up to --scenes of those in the split.
+void render_dataset_scenes(model::NovelViewModel& net, const RenderArgs& a, const data::PreprocessOptions& prep,
+                           nlohmann::json& listing) {
+  data::ChunkDataset dataset(a.data, a.split);
+  auto index = a.index.empty() ? (fs::path(a.data) / "evaluation_index.json").string() : a.index;
+  auto entries = data::read_eval_index(index);
+  ProgressBar bar("render", std::min<int64_t>(a.scenes, static_cast<int64_t>(entries.size())), "scene");
+  int64_t done = 0;
+  for (const auto& e : entries) {
+    if (done >= a.scenes) break;
+    const int64_t scene = dataset.find(e.key);
+    if (scene < 0) continue;
+    render_one(net, dataset.load_views(scene, e.context, prep), true, (fs::path(a.out) / e.key).string(), a,
+               listing, e.key);
+    bar.update(++done);
+  }
+  bar.finish();
+  if (done == 0) throw std::runtime_error("render: no scene of " + index + " is in " + a.data + "/" + a.split);
+}
+
+void run_render(const RenderArgs& a) {
+  apply_common_options(a.common);
+  if (a.images.empty() == a.data.empty())
+    throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
+  Config config;
+  auto net = load_model(a.model, parse_device(a.common.device), &config);
+  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+                               true};
+  nlohmann::json listing = nlohmann::json::array();
+  if (!a.images.empty()) render_one(net, data::load_photos(a.images, a.fov, prep), false, a.out, a, listing, "images");
+  else render_dataset_scenes(net, a, prep, listing);
+  fs::create_directories(a.out);
+  std::ofstream(fs::path(a.out) / "videos.json") << listing.dump(2) << "\n";
+  std::cout << fmt::format("rendered {} video(s) into {}\n", listing.size(), a.out);
+}
+
 }  // namespace
 
 void add_render_command(CLI::App& app) {
@@ -128,64 +194,8 @@ void add_render_command(CLI::App& app) {
                 "JSON: real cameras relative to the first input view (units: the input baseline), which need a "
                 "camera mapper (`train --stage mapper`) or a posed variant.");
   auto a = std::make_shared<RenderArgs>();
-  add_common_options(cmd, a->common);
-  add_model_options(cmd, a->model);
-  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks)");
-  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
-  cmd->add_option("--index", a->index, "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
-  cmd->add_option("--scenes", a->scenes, "how many dataset scenes to render")->capture_default_str();
-  cmd->add_option("--images", a->images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
-  cmd->add_option("--fov", a->fov, "horizontal field of view in degrees for --images")->capture_default_str();
-  cmd->add_option("--frames", a->frames, "frames of the video")
-      ->check(CLI::Range(int64_t{2}, render::kMaxVideoFrames))->capture_default_str();
-  cmd->add_option("--fps", a->fps, "frames per second")->capture_default_str();
-  cmd->add_option("--trajectory", a->trajectory,
-                  "interpolate, orbit, spiral, dolly, or a camera-path JSON file ({\"frames\": [{\"pose\": [tx, ty, "
-                  "tz, qx, qy, qz, qw]} or {\"c2w\": 4x4}, optional \"fxfycxcy\" normalised], first input view "
-                  "canonical, OpenCV axes, translations in input baselines; or \"units\": \"latent\": latent poses "
-                  "recorded in `uplvsm serve`)")
-      ->capture_default_str();
-  cmd->add_option("--focus", a->focus, "presets: distance of the looked-at point in front of the first view (baselines)")
-      ->capture_default_str();
-  cmd->add_option("--radius", a->radius, "presets: spiral radius / dolly travel (baselines)")->capture_default_str();
-  cmd->add_option("--arc", a->arc, "orbit: total swing in degrees")->capture_default_str();
-  cmd->add_flag("--side-by-side", a->side_by_side, "video frames show [input 0 | input 1 | render]");
-  cmd->add_option("--amp", a->amp, "model precision: none (fp32) or bf16 autocast")
-      ->check(CLI::IsMember({"none", "bf16"}))
-      ->capture_default_str();
-  cmd->add_option("--out", a->out, "output directory")->required();
-  cmd->callback([a] {
-    apply_common_options(a->common);
-    if (a->images.empty() == a->data.empty())
-      throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
-    Config config;
-    auto net = load_model(a->model, parse_device(a->common.device), &config);
-    data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                                 true};
-    nlohmann::json listing = nlohmann::json::array();
-    if (!a->images.empty()) {
-      render_one(net, data::load_photos(a->images, a->fov, prep), false, a->out, *a, listing, "images");
-    } else {
-      data::ChunkDataset dataset(a->data, a->split);
-      auto index = a->index.empty() ? (fs::path(a->data) / "evaluation_index.json").string() : a->index;
-      auto entries = data::read_eval_index(index);
-      ProgressBar bar("render", std::min<int64_t>(a->scenes, static_cast<int64_t>(entries.size())), "scene");
-      int64_t done = 0;
-      for (const auto& e : entries) {
-        if (done >= a->scenes) break;
-        const int64_t scene = dataset.find(e.key);
-        if (scene < 0) continue;
-        render_one(net, dataset.load_views(scene, e.context, prep), true, (fs::path(a->out) / e.key).string(), *a,
-                   listing, e.key);
-        bar.update(++done);
-      }
-      bar.finish();
-      if (done == 0) throw std::runtime_error("render: no scene of " + index + " is in " + a->data + "/" + a->split);
-    }
-    fs::create_directories(a->out);
-    std::ofstream(fs::path(a->out) / "videos.json") << listing.dump(2) << "\n";
-    std::cout << fmt::format("rendered {} video(s) into {}\n", listing.size(), a->out);
-  });
+  add_render_options(cmd, *a);
+  cmd->callback([a] { run_render(*a); });
 }
 
 }  // namespace uplvsm::cli

@@ -217,76 +217,93 @@ void add_tsne(CLI::App& study) {
   });
 }
 
+struct AttentionArgs {
+  CommonOptions common;
+  ModelSource model;
+  std::string data, split = "test", out;
+  std::vector<std::string> images;
+  std::vector<int64_t> patch;  // row col; default: the centre patch
+  int64_t scenes = 1;
+  double fov = 60;
+};
+
+void add_attention_options(CLI::App* cmd, AttentionArgs& a) {
+  add_common_options(cmd, a.common);
+  add_model_options(cmd, a.model);
+  cmd->add_option("--data", a.data, "dataset root: the evaluation index's context views of the first --scenes")
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--split", a.split, "dataset split")->capture_default_str();
+  cmd->add_option("--scenes", a.scenes, "scenes of the evaluation index")->capture_default_str();
+  cmd->add_option("--images", a.images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
+  cmd->add_option("--fov", a.fov, "horizontal field of view in degrees for --images")->capture_default_str();
+  cmd->add_option("--patch", a.patch, "query patch of view 1: ROW COL in the patch grid (default: the centre)")
+      ->expected(2);
+  cmd->add_option("--out", a.out, "output directory")->required();
+}
+
+// The two views to draw, by name: the --images pair, or the first two context views of the index's scenes.
+std::vector<std::pair<std::string, data::Views>> attention_views(const AttentionArgs& a,
+                                                                 const data::PreprocessOptions& prep) {
+  std::vector<std::pair<std::string, data::Views>> pairs;
+  if (!a.images.empty()) {
+    pairs.emplace_back("images", data::load_photos(a.images, a.fov, prep));
+    return pairs;
+  }
+  data::ChunkDataset dataset(a.data, a.split);
+  for (const auto& e : data::read_eval_index((fs::path(a.data) / "evaluation_index.json").string())) {
+    if (static_cast<int64_t>(pairs.size()) >= a.scenes) break;
+    const int64_t scene = dataset.find(e.key);
+    if (scene >= 0 && e.context.size() >= 2)
+      pairs.emplace_back(e.key, dataset.load_views(scene, {e.context[0], e.context[1]}, prep));
+  }
+  if (pairs.empty()) throw std::runtime_error("study attention: no scene of the evaluation index is in " + a.data);
+  return pairs;
+}
+
+// A 2-D map as JSON rows.
+std::vector<std::vector<double>> matrix_rows(const torch::Tensor& m) {
+  auto c = m.to(torch::kFloat64).contiguous();
+  std::vector<std::vector<double>> rows(c.size(0));
+  for (int64_t i = 0; i < c.size(0); ++i)
+    rows[i] = std::vector<double>(c[i].data_ptr<double>(), c[i].data_ptr<double>() + c.size(1));
+  return rows;
+}
+
+void run_attention(const AttentionArgs& a) {
+  apply_common_options(a.common);
+  if (a.images.empty() == a.data.empty())
+    throw std::runtime_error("study attention: give either --data (dataset scenes) or --images A B (two photos)");
+  Config config;
+  const auto device = parse_device(a.common.device);
+  auto net = model::require_uplvsm(load_model(a.model, device, &config), "study attention");
+  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
+                               config.dataset.square_crop};
+  const auto pairs = attention_views(a, prep);
+  const int64_t grid = config.model.image_size / config.model.patch_size;
+  const int64_t row = a.patch.empty() ? grid / 2 : a.patch[0], col = a.patch.empty() ? grid / 2 : a.patch[1];
+  fs::create_directories(a.out);
+  nlohmann::json listing = nlohmann::json::array();
+  for (const auto& [name, views] : pairs) {
+    auto r = study::cross_view_attention(net, views.images.to(device), views.fxfycxcy.to(device), row, col);
+    const auto png = (fs::path(a.out) / ("attention_" + name + ".png")).string();
+    io::write_png(png, study::attention_figure(views.images, r));
+    listing.push_back({{"scene", name}, {"patch", {row, col}}, {"png", png}, {"attention", matrix_rows(r.attention)},
+                       {"similarity", matrix_rows(r.similarity)}});
+    std::cout << fmt::format("{}: patch ({}, {}), attention on view 2 sums to {:.3f} -> {}\n", name, row, col,
+                             r.attention.sum().item<double>(), png);
+  }
+  const auto text = listing.dump(1);
+  io::write_file_atomic((fs::path(a.out) / "attention.json").string(), text.data(), text.size());
+}
+
 void add_attention(CLI::App& study) {
   auto* cmd = study.add_subcommand(
       "attention", "Cross-view attention figure (paper): for a patch of input view 1, the last encoder layer's "
                    "attention over view 2 (mean over heads) beside the tokenizer-feature cosine similarity; "
                    "attention_<scene>.png per scene and attention.json with the maps");
-  struct Args {
-    CommonOptions common;
-    ModelSource model;
-    std::string data, split = "test", out;
-    std::vector<std::string> images;
-    std::vector<int64_t> patch;  // row col; default: the centre patch
-    int64_t scenes = 1;
-    double fov = 60;
-  };
-  auto a = std::make_shared<Args>();
-  add_common_options(cmd, a->common);
-  add_model_options(cmd, a->model);
-  cmd->add_option("--data", a->data, "dataset root: the evaluation index's context views of the first --scenes")
-      ->check(CLI::ExistingDirectory);
-  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
-  cmd->add_option("--scenes", a->scenes, "scenes of the evaluation index")->capture_default_str();
-  cmd->add_option("--images", a->images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
-  cmd->add_option("--fov", a->fov, "horizontal field of view in degrees for --images")->capture_default_str();
-  cmd->add_option("--patch", a->patch, "query patch of view 1: ROW COL in the patch grid (default: the centre)")
-      ->expected(2);
-  cmd->add_option("--out", a->out, "output directory")->required();
-  cmd->callback([a] {
-    apply_common_options(a->common);
-    if (a->images.empty() == a->data.empty())
-      throw std::runtime_error("study attention: give either --data (dataset scenes) or --images A B (two photos)");
-    Config config;
-    const auto device = parse_device(a->common.device);
-    auto net = model::require_uplvsm(load_model(a->model, device, &config), "study attention");
-    data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                                 config.dataset.square_crop};
-    std::vector<std::pair<std::string, data::Views>> pairs;
-    if (!a->images.empty()) {
-      pairs.emplace_back("images", data::load_photos(a->images, a->fov, prep));
-    } else {
-      data::ChunkDataset dataset(a->data, a->split);
-      for (const auto& e : data::read_eval_index((fs::path(a->data) / "evaluation_index.json").string())) {
-        if (static_cast<int64_t>(pairs.size()) >= a->scenes) break;
-        const int64_t scene = dataset.find(e.key);
-        if (scene >= 0 && e.context.size() >= 2)
-          pairs.emplace_back(e.key, dataset.load_views(scene, {e.context[0], e.context[1]}, prep));
-      }
-      if (pairs.empty()) throw std::runtime_error("study attention: no scene of the evaluation index is in " + a->data);
-    }
-    const int64_t grid = config.model.image_size / config.model.patch_size;
-    const int64_t row = a->patch.empty() ? grid / 2 : a->patch[0], col = a->patch.empty() ? grid / 2 : a->patch[1];
-    fs::create_directories(a->out);
-    nlohmann::json listing = nlohmann::json::array();
-    for (const auto& [name, views] : pairs) {
-      auto r = study::cross_view_attention(net, views.images.to(device), views.fxfycxcy.to(device), row, col);
-      const auto png = (fs::path(a->out) / ("attention_" + name + ".png")).string();
-      io::write_png(png, study::attention_figure(views.images, r));
-      auto as_rows = [](const torch::Tensor& m) {
-        auto c = m.to(torch::kFloat64).contiguous();
-        std::vector<std::vector<double>> rows(c.size(0));
-        for (int64_t i = 0; i < c.size(0); ++i) rows[i] = std::vector<double>(c[i].data_ptr<double>(), c[i].data_ptr<double>() + c.size(1));
-        return rows;
-      };
-      listing.push_back({{"scene", name}, {"patch", {row, col}}, {"png", png}, {"attention", as_rows(r.attention)},
-                         {"similarity", as_rows(r.similarity)}});
-      std::cout << fmt::format("{}: patch ({}, {}), attention on view 2 sums to {:.3f} -> {}\n", name, row, col,
-                               r.attention.sum().item<double>(), png);
-    }
-    const auto text = listing.dump(1);
-    io::write_file_atomic((fs::path(a->out) / "attention.json").string(), text.data(), text.size());
-  });
+  auto a = std::make_shared<AttentionArgs>();
+  add_attention_options(cmd, *a);
+  cmd->callback([a] { run_attention(*a); });
 }
 
 }  // namespace

@@ -55,6 +55,98 @@ std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluati
   };
 }
 
+struct TrainArgs {
+  CommonOptions common;
+  std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
+  std::vector<std::string> set;
+  int64_t steps = -1, stop_after = -1;
+};
+
+void add_train_options(CLI::App* cmd, TrainArgs& a) {
+  add_common_options(cmd, a.common);
+  cmd->add_option("--config", a.config, "config JSON (configs/tiny.json, configs/paper_x224.json)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks with a train/ split)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
+  cmd->add_option("--run", a.run, "run directory (config snapshot, metrics.jsonl, checkpoints/)")->required();
+  cmd->add_option("--resume", a.resume,
+                  "auto (the newest checkpoint in --run that reads, if any: a damaged newer one is skipped with a "
+                  "warning), none, or a checkpoint path (an error if it does not read)")
+      ->capture_default_str();
+  cmd->add_option("--init", a.init,
+                  "start a new run from these weights: UP-LVSM (ours or official, loaded strictly) or DINOv2 "
+                  "(Meta .pth or HuggingFace safetensors, into the image tokenizer, as the official code does); a "
+                  "run or checkpoints directory means its latest checkpoint")
+      ->check(CLI::ExistingPath);
+  cmd->add_option("--vgg19", a.vgg19,
+                  "VGG19 weights for the perceptual loss (torchvision features.N.*: torchvision vgg19 .pth, or the "
+                  "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); without it "
+                  "a config with training.perceptual_loss_weight > 0 trains with MSE only")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--amp", a.amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
+      ->check(CLI::IsMember({"none", "bf16"}));
+  cmd->add_option("--stage", a.stage,
+                  "main: the config as given; mapper: camera-control fine-tuning (paper appendix) - adds the linear "
+                  "pose mapper (model.pose_mapper), fitted by least squares to the --init model's estimator, and "
+                  "trains the whole model with target poses from dataset cameras through the mapper "
+                  "(training.target_poses = mapper); use a mapper config for the paper's lr 1e-4 / 8K steps "
+                  "(configs/*_mapper.json)")
+      ->check(CLI::IsMember({"main", "mapper"}))
+      ->capture_default_str();
+  cmd->add_option("--set", a.set,
+                  "override a config field, section.field=value (repeatable), e.g. --set training.warmup=500 --set "
+                  "model.transformer.n_latent_vectors=64; the run's config.json records the result");
+  cmd->add_option("--steps", a.steps, "override training.train_steps");
+  cmd->add_option("--stop-after", a.stop_after, "stop after this many steps of this invocation (checkpointed)");
+  cmd->add_option("--subset", a.subset,
+                  "override training.subset: a manifest from `uplvsm dataset subset` (little/medium/large/full)")
+      ->check(CLI::ExistingFile);
+}
+
+// The config file with --set and the command-line overrides applied; --stage mapper turns on the pose mapper.
+Config train_config(const TrainArgs& a) {
+  auto config = apply_config_overrides(load_config(a.config), a.set, a.config);
+  if (a.steps > 0) config.training.train_steps = a.steps;
+  if (!a.amp.empty()) config.training.amp = a.amp;
+  // Absolute, so a resume from another working directory reads the same manifest from the run's config.
+  if (!a.subset.empty()) config.training.subset = std::filesystem::absolute(a.subset).string();
+  if (a.stage == "mapper") {
+    if (a.init.empty() && a.resume == "none")
+      throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");
+    config.model.pose_mapper = true;
+    config.training.target_poses = "mapper";
+    validate_config(config, a.config + " (--stage mapper)");
+  }
+  return config;
+}
+
+train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
+  train::TrainOptions opt;
+  opt.data_root = a.data;
+  opt.run_dir = a.run;
+  opt.resume = a.resume;
+  opt.init_weights = std::filesystem::is_directory(a.init) ? model::resolve_checkpoint(a.init) : a.init;
+  opt.perceptual_weights = a.vgg19;
+  // torchrun / SLURM launch variables make this process one rank of a data-parallel run.
+  const auto env = train::distributed_env_from_environment();
+  opt.device = train::rank_device(parse_device(a.common.device), env);
+  if (env.distributed()) opt.comm = std::make_shared<train::Communicator>(env, opt.device);
+  opt.stop_after_steps = a.stop_after;
+  if (config.training.eval_every > 0) opt.periodic_eval = periodic_evaluation(config, a.data, a.run, opt.device);
+  return opt;
+}
+
+void run_train(const TrainArgs& a) {
+  apply_common_options(a.common);
+  const auto config = train_config(a);
+  auto r = train::train(config, train_options(a, config));
+  std::cout << fmt::format("trained to step {} in {:.1f} s: loss {:.5f}, PSNR {:.2f} dB; checkpoint {}\n", r.step,
+                           r.seconds, r.last_loss, r.last_psnr, r.last_checkpoint.empty() ? "-" : r.last_checkpoint);
+  if (r.interrupted) throw std::runtime_error("training interrupted by a signal (resume with --resume auto)");
+}
+
 }  // namespace
 
 void add_train_command(CLI::App& app) {
@@ -63,82 +155,9 @@ void add_train_command(CLI::App& app) {
                "skip rules; checkpoints <run>/checkpoints/ckpt_*.safetensors; --resume auto continues exactly. "
                "Data parallel: start one process per device with torchrun's variables (RANK, WORLD_SIZE, "
                "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process.");
-  struct Args {
-    CommonOptions common;
-    std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
-    std::vector<std::string> set;
-    int64_t steps = -1, stop_after = -1;
-  };
-  auto a = std::make_shared<Args>();
-  add_common_options(cmd, a->common);
-  cmd->add_option("--config", a->config, "config JSON (configs/tiny.json, configs/paper_x224.json)")
-      ->required()
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks with a train/ split)")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("--run", a->run, "run directory (config snapshot, metrics.jsonl, checkpoints/)")->required();
-  cmd->add_option("--resume", a->resume,
-                  "auto (the newest checkpoint in --run that reads, if any: a damaged newer one is skipped with a "
-                  "warning), none, or a checkpoint path (an error if it does not read)")
-      ->capture_default_str();
-  cmd->add_option("--init", a->init,
-                  "start a new run from these weights: UP-LVSM (ours or official, loaded strictly) or DINOv2 "
-                  "(Meta .pth or HuggingFace safetensors, into the image tokenizer, as the official code does); a "
-                  "run or checkpoints directory means its latest checkpoint")
-      ->check(CLI::ExistingPath);
-  cmd->add_option("--vgg19", a->vgg19,
-                  "VGG19 weights for the perceptual loss (torchvision features.N.*: torchvision vgg19 .pth, or the "
-                  "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); without it "
-                  "a config with training.perceptual_loss_weight > 0 trains with MSE only")
-      ->check(CLI::ExistingFile);
-  cmd->add_option("--amp", a->amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
-      ->check(CLI::IsMember({"none", "bf16"}));
-  cmd->add_option("--stage", a->stage,
-                  "main: the config as given; mapper: camera-control fine-tuning (paper appendix) - adds the linear "
-                  "pose mapper (model.pose_mapper), fitted by least squares to the --init model's estimator, and "
-                  "trains the whole model with target poses from dataset cameras through the mapper "
-                  "(training.target_poses = mapper); use a mapper config for the paper's lr 1e-4 / 8K steps "
-                  "(configs/*_mapper.json)")
-      ->check(CLI::IsMember({"main", "mapper"}))
-      ->capture_default_str();
-  cmd->add_option("--set", a->set,
-                  "override a config field, section.field=value (repeatable), e.g. --set training.warmup=500 --set "
-                  "model.transformer.n_latent_vectors=64; the run's config.json records the result");
-  cmd->add_option("--steps", a->steps, "override training.train_steps");
-  cmd->add_option("--stop-after", a->stop_after, "stop after this many steps of this invocation (checkpointed)");
-  cmd->add_option("--subset", a->subset,
-                  "override training.subset: a manifest from `uplvsm dataset subset` (little/medium/large/full)")
-      ->check(CLI::ExistingFile);
-  cmd->callback([a] {
-    apply_common_options(a->common);
-    auto config = apply_config_overrides(load_config(a->config), a->set, a->config);
-    if (a->steps > 0) config.training.train_steps = a->steps;
-    if (!a->amp.empty()) config.training.amp = a->amp;
-    // Absolute, so a resume from another working directory reads the same manifest from the run's config.
-    if (!a->subset.empty()) config.training.subset = std::filesystem::absolute(a->subset).string();
-    if (a->stage == "mapper") {
-      if (a->init.empty() && a->resume == "none")
-        throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");
-      config.model.pose_mapper = true;
-      config.training.target_poses = "mapper";
-      validate_config(config, a->config + " (--stage mapper)");
-    }
-    train::TrainOptions opt;
-    opt.data_root = a->data;
-    opt.run_dir = a->run;
-    opt.resume = a->resume;
-    opt.init_weights = std::filesystem::is_directory(a->init) ? model::resolve_checkpoint(a->init) : a->init;
-    opt.perceptual_weights = a->vgg19;
-    // torchrun / SLURM launch variables make this process one rank of a data-parallel run.
-    const auto env = train::distributed_env_from_environment();
-    opt.device = train::rank_device(parse_device(a->common.device), env);
-    if (env.distributed()) opt.comm = std::make_shared<train::Communicator>(env, opt.device);
-    opt.stop_after_steps = a->stop_after;
-    if (config.training.eval_every > 0) opt.periodic_eval = periodic_evaluation(config, a->data, a->run, opt.device);
-    auto r = train::train(config, opt);
-    std::cout << fmt::format("trained to step {} in {:.1f} s: loss {:.5f}, PSNR {:.2f} dB; checkpoint {}\n", r.step,
-                             r.seconds, r.last_loss, r.last_psnr, r.last_checkpoint.empty() ? "-" : r.last_checkpoint);
-    if (r.interrupted) throw std::runtime_error("training interrupted by a signal (resume with --resume auto)");
-  });
+  auto a = std::make_shared<TrainArgs>();
+  add_train_options(cmd, *a);
+  cmd->callback([a] { run_train(*a); });
 }
 
 }  // namespace uplvsm::cli

@@ -103,9 +103,10 @@ std::vector<float> camera_row(const PinholeIntrinsics& k, const Pose& w2c) {
   return row;
 }
 
-ImportedScene import_scene(const SceneImportOptions& opt) {
-  ImportedScene out;
-  auto& warnings = out.warnings;
+namespace {
+
+// Checks the options; returns the image folder, absolute, normalised and without a trailing slash.
+fs::path checked_images_dir(const SceneImportOptions& opt) {
   if (opt.images_dir.empty()) throw std::runtime_error("import: no image folder given");
   fs::path dir = fs::absolute(opt.images_dir).lexically_normal();
   if (dir.filename().empty()) dir = dir.parent_path();  // "photos/" -> "photos"
@@ -114,144 +115,210 @@ ImportedScene import_scene(const SceneImportOptions& opt) {
     throw std::runtime_error("import: give a COLMAP model or a transforms.json, not both");
   if (!(opt.fov_deg > 0 && opt.fov_deg < 180))
     throw std::runtime_error(fmt::format("import: field of view {} is not in (0, 180) degrees", opt.fov_deg));
+  return dir;
+}
 
-  // The folder's photos (top level only), sorted by name.
+// The folder's photos (top level only), sorted by name.
+std::vector<fs::path> folder_images(const fs::path& dir) {
   std::vector<fs::path> files;
   for (const auto& e : fs::directory_iterator(dir))
     if (e.is_regular_file() && is_image_file(e.path())) files.push_back(e.path().lexically_normal());
   std::sort(files.begin(), files.end());
+  return files;
+}
 
+// The images a model describes (or the folder's own, without a model).
+struct ModelImages {
   std::vector<Entry> entries;
-  std::string model_file;  // names the model in messages
-  if (!opt.colmap_dir.empty()) {
-    const fs::path cdir(opt.colmap_dir);
-    const auto cameras_txt = (cdir / "cameras.txt").string(), images_txt = (cdir / "images.txt").string();
-    for (const auto& f : {cameras_txt, images_txt})
-      if (!fs::exists(f))
-        throw std::runtime_error(fmt::format(
-            "import: {} not found{}", f,
-            fs::exists(cdir / "cameras.bin") ? " (this is a binary model: convert it with `colmap model_converter "
-                                               "--input_path M --output_path M --output_type TXT`)"
-                                             : " (expected a COLMAP text model: cameras.txt, images.txt)"));
-    const auto cameras = read_colmap_cameras(cameras_txt, &warnings);
-    model_file = images_txt;
-    for (const auto& img : read_colmap_images(images_txt)) {
-      const auto cam = cameras.find(img.camera_id);
-      if (cam == cameras.end())
-        throw std::runtime_error(fmt::format("import: {}: image '{}' uses camera {}, which {} does not define",
-                                             images_txt, img.name, img.camera_id, cameras_txt));
-      entries.push_back({img.name, (dir / img.name).lexically_normal(), img.w2c, cam->second.intrinsics, {}});
-    }
-  } else if (!opt.transforms_path.empty()) {
-    model_file = opt.transforms_path;
-    for (const auto& f : read_transforms(opt.transforms_path, &warnings)) {
-      const fs::path p = fs::absolute(f.resolved).lexically_normal();
-      const auto rel = p.lexically_relative(dir);
-      const bool inside = !rel.empty() && rel.begin()->string() != "..";
-      entries.push_back({inside ? rel.string() : f.file_path, p, f.w2c, std::nullopt, f.intrinsics});
-    }
-  } else {
-    for (const auto& f : files) entries.push_back({f.filename().string(), f, std::nullopt, std::nullopt, {}});
-  }
+  std::string model_file;  // names the model in messages; empty without a model
+};
 
-  if (!model_file.empty()) {
-    // Both directions of mismatch between the folder and the model: refuse, or skip and count when allowed.
-    std::set<fs::path> mentioned;
-    for (const auto& e : entries)
-      if (!mentioned.insert(e.path).second)
-        throw std::runtime_error(fmt::format("import: {}: image {} is listed twice", model_file, e.path.string()));
-    std::vector<std::string> unmentioned, missing;
-    for (const auto& f : files)
-      if (!mentioned.count(f)) unmentioned.push_back(f.filename().string());
-    std::vector<Entry> present;
-    for (auto& e : entries) {
-      if (fs::is_regular_file(e.path)) present.push_back(std::move(e));
-      else missing.push_back(e.name);
-    }
-    entries = std::move(present);
-    if (!opt.skip_unmatched && !missing.empty())
-      throw std::runtime_error(fmt::format("import: {} image(s) of the model {} are not files under {}: {} (pass "
-                                           "--skip-unmatched to leave them out)",
-                                           missing.size(), model_file, dir.string(), list_some(missing)));
-    if (!opt.skip_unmatched && !unmentioned.empty())
-      throw std::runtime_error(fmt::format("import: {} image(s) of {} are not in the model {}: {} (remove them, or "
-                                           "pass --skip-unmatched to leave them out)",
-                                           unmentioned.size(), dir.string(), model_file, list_some(unmentioned)));
-    if (!unmentioned.empty())
-      warnings.push_back(fmt::format("skipped {} image(s) the model does not mention: {}", unmentioned.size(),
-                                     list_some(unmentioned)));
-    if (!missing.empty())
-      warnings.push_back(fmt::format("skipped {} model image(s) without a file: {}", missing.size(), list_some(missing)));
-    out.skipped = static_cast<int64_t>(unmentioned.size() + missing.size());
-    std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) { return a.name < b.name; });
+ModelImages colmap_images(const fs::path& dir, const fs::path& cdir, std::vector<std::string>& warnings) {
+  const auto cameras_txt = (cdir / "cameras.txt").string(), images_txt = (cdir / "images.txt").string();
+  for (const auto& f : {cameras_txt, images_txt})
+    if (!fs::exists(f))
+      throw std::runtime_error(fmt::format(
+          "import: {} not found{}", f,
+          fs::exists(cdir / "cameras.bin") ? " (this is a binary model: convert it with `colmap model_converter "
+                                             "--input_path M --output_path M --output_type TXT`)"
+                                           : " (expected a COLMAP text model: cameras.txt, images.txt)"));
+  const auto cameras = read_colmap_cameras(cameras_txt, &warnings);
+  ModelImages out{{}, images_txt};
+  for (const auto& img : read_colmap_images(images_txt)) {
+    const auto cam = cameras.find(img.camera_id);
+    if (cam == cameras.end())
+      throw std::runtime_error(fmt::format("import: {}: image '{}' uses camera {}, which {} does not define",
+                                           images_txt, img.name, img.camera_id, cameras_txt));
+    out.entries.push_back({img.name, (dir / img.name).lexically_normal(), img.w2c, cam->second.intrinsics, {}});
   }
-  if (entries.empty())
-    throw std::runtime_error(model_file.empty()
-                                 ? fmt::format("import: no JPEG/PNG images (*.jpg, *.jpeg, *.png) in {}", dir.string())
-                                 : fmt::format("import: no image of the model {} is a file under {}", model_file,
-                                               dir.string()));
+  return out;
+}
 
-  // Decode every image once (validates it and gives its size), then pick its intrinsics.
-  const int64_t n = static_cast<int64_t>(entries.size());
-  out.poses_known = !model_file.empty();
-  auto cameras = torch::empty({n, 18}, torch::kFloat32);
-  std::set<std::string> sources;
+// Frames inside the image folder are named relative to it, others as the JSON writes them.
+ModelImages transforms_images(const fs::path& dir, const std::string& transforms_path,
+                              std::vector<std::string>& warnings) {
+  ModelImages out{{}, transforms_path};
+  for (const auto& f : read_transforms(transforms_path, &warnings)) {
+    const fs::path p = fs::absolute(f.resolved).lexically_normal();
+    const auto rel = p.lexically_relative(dir);
+    const bool inside = !rel.empty() && rel.begin()->string() != "..";
+    out.entries.push_back({inside ? rel.string() : f.file_path, p, f.w2c, std::nullopt, f.intrinsics});
+  }
+  return out;
+}
+
+ModelImages model_images(const SceneImportOptions& opt, const fs::path& dir, const std::vector<fs::path>& files,
+                         std::vector<std::string>& warnings) {
+  if (!opt.colmap_dir.empty()) return colmap_images(dir, fs::path(opt.colmap_dir), warnings);
+  if (!opt.transforms_path.empty()) return transforms_images(dir, opt.transforms_path, warnings);
+  ModelImages out;
+  for (const auto& f : files) out.entries.push_back({f.filename().string(), f, std::nullopt, std::nullopt, {}});
+  return out;
+}
+
+// Both directions of mismatch between the folder and the model: refuse, or skip and count when allowed. Keeps the
+// entries whose file exists, sorted by name; returns how many were skipped.
+int64_t match_model_to_folder(ModelImages& model, const std::vector<fs::path>& files, const fs::path& dir,
+                              bool skip_unmatched, std::vector<std::string>& warnings) {
+  const std::string& model_file = model.model_file;
+  std::set<fs::path> mentioned;
+  for (const auto& e : model.entries)
+    if (!mentioned.insert(e.path).second)
+      throw std::runtime_error(fmt::format("import: {}: image {} is listed twice", model_file, e.path.string()));
+  std::vector<std::string> unmentioned, missing;
+  for (const auto& f : files)
+    if (!mentioned.count(f)) unmentioned.push_back(f.filename().string());
+  std::vector<Entry> present;
+  for (auto& e : model.entries) {
+    if (fs::is_regular_file(e.path)) present.push_back(std::move(e));
+    else missing.push_back(e.name);
+  }
+  model.entries = std::move(present);
+  if (!skip_unmatched && !missing.empty())
+    throw std::runtime_error(fmt::format("import: {} image(s) of the model {} are not files under {}: {} (pass "
+                                         "--skip-unmatched to leave them out)",
+                                         missing.size(), model_file, dir.string(), list_some(missing)));
+  if (!skip_unmatched && !unmentioned.empty())
+    throw std::runtime_error(fmt::format("import: {} image(s) of {} are not in the model {}: {} (remove them, or "
+                                         "pass --skip-unmatched to leave them out)",
+                                         unmentioned.size(), dir.string(), model_file, list_some(unmentioned)));
+  if (!unmentioned.empty())
+    warnings.push_back(fmt::format("skipped {} image(s) the model does not mention: {}", unmentioned.size(),
+                                   list_some(unmentioned)));
+  if (!missing.empty())
+    warnings.push_back(fmt::format("skipped {} model image(s) without a file: {}", missing.size(), list_some(missing)));
+  std::sort(model.entries.begin(), model.entries.end(), [](const Entry& a, const Entry& b) { return a.name < b.name; });
+  return static_cast<int64_t>(unmentioned.size() + missing.size());
+}
+
+// What the decode pass learns across the images, for the warnings written after it.
+struct CameraTally {
+  std::set<std::string> sources;  // where intrinsics came from: colmap, transforms, exif, default-fov
   int64_t no_model_focal = 0, other_size = 0;
   bool warned_rescale = false;
-  int w0 = 0, h0 = 0;
-  for (int64_t i = 0; i < n; ++i) {
-    const auto& e = entries[i];
-    const std::string path = e.path.string();
-    const auto bytes = io::read_file(path);
-    const auto hwc = io::decode_image(bytes.data(), bytes.size(), path);  // throws naming the file
-    const int h = static_cast<int>(hwc.size(0)), w = static_cast<int>(hwc.size(1));
-    if (i == 0) w0 = w, h0 = h;
-    if (w != w0 || h != h0) ++other_size;
+  int w0 = 0, h0 = 0;  // the first image's size
+};
 
-    std::optional<PinholeIntrinsics> k;
-    std::string source;
-    if (e.model_k) {
-      k = fit_to_image(*e.model_k, w, h, path, warnings, warned_rescale), source = "colmap";
-    } else if (e.model_tk) {
-      if (auto tk = transforms_intrinsics(*e.model_tk, w, h)) {
-        k = fit_to_image(*tk, w, h, path, warnings, warned_rescale), source = "transforms";
-      } else {
-        ++no_model_focal;
-      }
+// One image's camera and where it came from: the model's (fitted to the file), else EXIF, else the default field
+// of view.
+PinholeIntrinsics pick_intrinsics(const Entry& e, const std::vector<uint8_t>& bytes, int w, int h, double fov_deg,
+                                  std::vector<std::string>& warnings, CameraTally& tally) {
+  const std::string path = e.path.string();
+  std::optional<PinholeIntrinsics> k;
+  std::string source;
+  if (e.model_k) {
+    k = fit_to_image(*e.model_k, w, h, path, warnings, tally.warned_rescale), source = "colmap";
+  } else if (e.model_tk) {
+    if (auto tk = transforms_intrinsics(*e.model_tk, w, h)) {
+      k = fit_to_image(*tk, w, h, path, warnings, tally.warned_rescale), source = "transforms";
+    } else {
+      ++tally.no_model_focal;
     }
-    if (!k && (k = exif_intrinsics(bytes.data(), bytes.size(), w, h))) source = "exif";
-    if (!k) k = default_fov_intrinsics(w, h, opt.fov_deg), source = "default-fov";
-    sources.insert(source);
-
-    const auto row = camera_row(*k, e.w2c.value_or(Pose{}));
-    check_finite(row, path);
-    std::copy(row.begin(), row.end(), cameras[i].data_ptr<float>());
-    auto t = torch::empty({static_cast<int64_t>(bytes.size())}, torch::kUInt8);
-    std::copy(bytes.begin(), bytes.end(), t.data_ptr<uint8_t>());
-    out.scene.images.push_back(t);
-    out.image_names.push_back(e.name);
   }
-  if (no_model_focal > 0)
+  if (!k && (k = exif_intrinsics(bytes.data(), bytes.size(), w, h))) source = "exif";
+  if (!k) k = default_fov_intrinsics(w, h, fov_deg), source = "default-fov";
+  tally.sources.insert(source);
+  return *k;
+}
+
+// Decodes image i once (validates it and gives its size), then stores its camera row and its bytes.
+void add_scene_image(int64_t i, const Entry& e, double fov_deg, torch::Tensor& cameras, ImportedScene& out,
+               CameraTally& tally) {
+  const std::string path = e.path.string();
+  const auto bytes = io::read_file(path);
+  const auto hwc = io::decode_image(bytes.data(), bytes.size(), path);  // throws naming the file
+  const int h = static_cast<int>(hwc.size(0)), w = static_cast<int>(hwc.size(1));
+  if (i == 0) tally.w0 = w, tally.h0 = h;
+  if (w != tally.w0 || h != tally.h0) ++tally.other_size;
+
+  const auto k = pick_intrinsics(e, bytes, w, h, fov_deg, out.warnings, tally);
+  const auto row = camera_row(k, e.w2c.value_or(Pose{}));
+  check_finite(row, path);
+  std::copy(row.begin(), row.end(), cameras[i].data_ptr<float>());
+  auto t = torch::empty({static_cast<int64_t>(bytes.size())}, torch::kUInt8);
+  std::copy(bytes.begin(), bytes.end(), t.data_ptr<uint8_t>());
+  out.scene.images.push_back(t);
+  out.image_names.push_back(e.name);
+}
+
+// "exif+default-fov": the sources in a fixed order, whatever order the images came in.
+std::string joined_sources(const std::set<std::string>& sources) {
+  std::string out;
+  for (const char* s : {"colmap", "transforms", "exif", "default-fov"})
+    if (sources.count(s)) out += (out.empty() ? "" : "+") + std::string(s);
+  return out;
+}
+
+void warn_about_cameras(const CameraTally& tally, int64_t n, const std::string& model_file, double fov_deg,
+                        std::vector<std::string>& warnings) {
+  if (tally.no_model_focal > 0)
     warnings.push_back(fmt::format("{}: no focal length (fl_x / camera_angle_x) for {} frame(s): EXIF or the "
                                    "default field of view used",
-                                   model_file, no_model_focal));
-  if (other_size > 0)
+                                   model_file, tally.no_model_focal));
+  if (tally.other_size > 0)
     warnings.push_back(fmt::format("{} image(s) are not {}x{} like the first: loaders skip frames whose size differs "
                                    "from frame 0's",
-                                   other_size, w0, h0));
+                                   tally.other_size, tally.w0, tally.h0));
   if (n < 2) warnings.push_back("only one image: a scene needs at least two views (the model's context pair)");
-
-  for (const char* s : {"colmap", "transforms", "exif", "default-fov"})
-    if (sources.count(s)) out.intrinsics_source += (out.intrinsics_source.empty() ? "" : "+") + std::string(s);
-  if (sources.count("default-fov"))
+  if (tally.sources.count("default-fov"))
     warnings.push_back(fmt::format("no focal length known for some images: a {:g} degree horizontal field of view "
                                    "assumed (--fov)",
-                                   opt.fov_deg));
+                                   fov_deg));
+}
 
+// The scene key: the user's name or the folder's, sanitised (a warning when the user's name had to change).
+std::string imported_scene_key(const SceneImportOptions& opt, const fs::path& dir, std::vector<std::string>& warnings) {
   const std::string wanted = opt.scene_name.empty() ? folder_scene_name(dir) : opt.scene_name;
-  out.scene.key = sanitize_scene_key(wanted);
-  if (!opt.scene_name.empty() && out.scene.key != opt.scene_name)
-    warnings.push_back(fmt::format("scene name '{}' stored as '{}'", opt.scene_name, out.scene.key));
+  std::string key = sanitize_scene_key(wanted);
+  if (!opt.scene_name.empty() && key != opt.scene_name)
+    warnings.push_back(fmt::format("scene name '{}' stored as '{}'", opt.scene_name, key));
+  return key;
+}
+
+}  // namespace
+
+ImportedScene import_scene(const SceneImportOptions& opt) {
+  ImportedScene out;
+  auto& warnings = out.warnings;
+  const fs::path dir = checked_images_dir(opt);
+  const std::vector<fs::path> files = folder_images(dir);
+  ModelImages model = model_images(opt, dir, files, warnings);
+  if (!model.model_file.empty()) out.skipped = match_model_to_folder(model, files, dir, opt.skip_unmatched, warnings);
+  if (model.entries.empty())
+    throw std::runtime_error(model.model_file.empty()
+                                 ? fmt::format("import: no JPEG/PNG images (*.jpg, *.jpeg, *.png) in {}", dir.string())
+                                 : fmt::format("import: no image of the model {} is a file under {}", model.model_file,
+                                               dir.string()));
+
+  const int64_t n = static_cast<int64_t>(model.entries.size());
+  out.poses_known = !model.model_file.empty();
+  auto cameras = torch::empty({n, 18}, torch::kFloat32);
+  CameraTally tally;
+  for (int64_t i = 0; i < n; ++i) add_scene_image(i, model.entries[i], opt.fov_deg, cameras, out, tally);
+  out.intrinsics_source = joined_sources(tally.sources);
+  warn_about_cameras(tally, n, model.model_file, opt.fov_deg, warnings);
+
+  out.scene.key = imported_scene_key(opt, dir, warnings);
   out.scene.url = "file://" + dir.string();
   out.scene.timestamps = torch::arange(n, torch::kInt64);
   out.scene.cameras = cameras;

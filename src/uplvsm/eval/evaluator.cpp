@@ -19,7 +19,7 @@
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/eval/baselines.h"
 #include "uplvsm/eval/metrics.h"
-#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/eval/result_files.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/eval_mode.h"
 
@@ -28,21 +28,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// The twelve numbers of a view or scene, in the order model, copy-nearest, mean-colour x PSNR, SSIM, LPIPS, gradient-
-// energy ratio; shared by ViewMetrics and SceneResult, which name the same fields.
-using Values = std::array<double, 12>;
-template <class M>
-Values values_of(const M& m) {
-  return {m.psnr,       m.ssim,      m.lpips,     m.grad_ratio,      //
-          m.psnr_copy,  m.ssim_copy, m.lpips_copy, m.grad_ratio_copy,  //
-          m.psnr_mean,  m.ssim_mean, m.lpips_mean, m.grad_ratio_mean};
-}
-template <class M>
-void assign_values(M& m, const Values& v) {
-  m.psnr = v[0], m.ssim = v[1], m.lpips = v[2], m.grad_ratio = v[3];
-  m.psnr_copy = v[4], m.ssim_copy = v[5], m.lpips_copy = v[6], m.grad_ratio_copy = v[7];
-  m.psnr_mean = v[8], m.ssim_mean = v[9], m.lpips_mean = v[10], m.grad_ratio_mean = v[11];
-}
 const char* const kTableRows[] = {"model", "copy_nearest", "mean_colour"};
 const char* const kTableMetrics[] = {"psnr", "ssim", "lpips", "grad_ratio"};
 constexpr size_t kNumMetrics = std::size(kTableMetrics);
@@ -147,9 +132,9 @@ SceneResult scene_result(const Job& job, torch::TensorAccessor<double, 2> m) {
     ViewMetrics v;
     v.frame = r.target[t];
     v.extrapolated = !r.context.empty() && (v.frame < *lo || v.frame > *hi);
-    Values x;
+    MetricValues x;
     for (size_t i = 0; i < x.size(); ++i) x[i] = m[static_cast<int64_t>(i)][static_cast<int64_t>(t)];
-    assign_values(v, x);
+    set_metric_values(v, x);
     r.views.push_back(v);
   }
   finalise_scene(r);
@@ -213,7 +198,7 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
   for (const auto* x : {&pred, &copy, &mean})
     for (auto&& m : {psnr(*x, gt), ssim(*x, gt), lp(*x), gradient_energy_ratio(*x, gt)})
       rows.push_back(m.to(torch::kCPU));
-  auto metrics = torch::stack(rows, 1).to(torch::kFloat64).contiguous();  // [b, 12, vt], rows in Values order
+  auto metrics = torch::stack(rows, 1).to(torch::kFloat64).contiguous();  // [b, 12, vt], rows as MetricValues
   auto acc = metrics.accessor<double, 3>();
   for (size_t b = 0; b < scenes.size(); ++b) {
     const Job& job = *scenes[b]->job;
@@ -236,9 +221,9 @@ void run_loaded(model::NovelViewModel& net, const std::vector<Loaded>& loaded, c
 }
 
 std::map<std::string, std::map<std::string, double>> mean_table(const std::vector<const SceneResult*>& scenes) {
-  Values sums{};
+  MetricValues sums{};
   for (const auto* s : scenes) {
-    const auto v = values_of(*s);
+    const auto v = metric_values(*s);
     for (size_t i = 0; i < sums.size(); ++i) sums[i] += v[i];
   }
   const double n = static_cast<double>(scenes.size());
@@ -249,57 +234,17 @@ std::map<std::string, std::map<std::string, double>> mean_table(const std::vecto
   return table;
 }
 
-// A CSV number; unavailable values (LPIPS without weights) are empty fields.
-std::string csv_number(double v) { return std::isnan(v) ? "" : fmt::format("{:.6f}", v); }
-
-std::string csv_values(const Values& v) {
-  std::string out;
-  for (size_t i = 0; i < v.size(); ++i) out += (i ? "," : "") + csv_number(v[i]);
-  return out;
-}
-
-const char* const kValueColumns =
-    "psnr,ssim,lpips,grad_ratio,psnr_copy,ssim_copy,lpips_copy,grad_ratio_copy,psnr_mean,ssim_mean,lpips_mean,"
-    "grad_ratio_mean";
-
-std::string csv_field(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string out = "\"";
-  for (char ch : s) out += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-  return out + "\"";
-}
-
-void write_text(const std::string& path, const std::string& text) {
-  io::write_file_atomic(path, text.data(), text.size());
-}
-
-std::string per_scene_csv(const EvalSummary& s) {
-  std::string out = "key,bucket,overlap,num_targets," + std::string(kValueColumns) + "\n";
-  for (const auto& r : s.per_scene)
-    out += fmt::format("{},{},{},{},{}\n", csv_field(r.key), r.bucket,
-                       r.overlap ? fmt::format("{:.6g}", *r.overlap) : "", r.views.size(), csv_values(values_of(r)));
-  return out;
-}
-
-std::string per_view_csv(const EvalSummary& s) {
-  std::string out = "key,frame,extrapolated," + std::string(kValueColumns) + "\n";
-  for (const auto& r : s.per_scene)
-    for (const auto& v : r.views)
-      out += fmt::format("{},{},{},{}\n", csv_field(r.key), v.frame, v.extrapolated ? 1 : 0, csv_values(values_of(v)));
-  return out;
-}
-
 }  // namespace
 
 void finalise_scene(SceneResult& r) {
   if (r.views.empty()) throw std::runtime_error("eval: scene " + r.key + " has no target views");
-  Values sums{};
+  MetricValues sums{};
   for (const auto& v : r.views) {
-    const auto x = values_of(v);
+    const auto x = metric_values(v);
     for (size_t i = 0; i < sums.size(); ++i) sums[i] += x[i];
   }
   for (auto& x : sums) x /= static_cast<double>(r.views.size());
-  assign_values(r, sums);
+  set_metric_values(r, sums);
 }
 
 EvalSummary summarise(std::vector<SceneResult> scenes) {
@@ -339,50 +284,6 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
   return s;
 }
 
-nlohmann::json summary_to_json(const EvalSummary& s) {
-  int64_t views = 0;
-  for (const auto& r : s.per_scene) views += static_cast<int64_t>(r.views.size());
-  nlohmann::json j;
-  j["scenes"] = s.scenes;
-  j["views"] = views;
-  j["skipped"] = {{"null_entries", s.skipped_null}, {"missing_keys", s.skipped_missing},
-                  {"bad_frames", s.skipped_bad_frames}};
-  j["table"] = s.table;
-  j["buckets"] = s.buckets;
-  j["bucket_scenes"] = s.bucket_scenes;
-  j["spans"] = s.spans;
-  j["span_scenes"] = s.span_scenes;
-  j["lpips"] = s.lpips;
-  j["seconds"] = s.seconds;
-  j["scenes_per_second"] = s.seconds > 0 ? static_cast<double>(s.scenes) / s.seconds : 0.0;
-  j["scene_grids"] = s.scene_grids;
-  j["conventions"] = {
-      {"psnr", "clamp to [0,1], MSE over C,H,W per image (float64), mse clamped at 1e-10, -10 log10(mse)"},
-      {"ssim", "skimage structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0, "
-               "data_range=1.0)"},
-      {"lpips", "lpips.LPIPS(net, version='0.1')(pred, gt, normalize=True), float32, unclamped; null when the "
-                "backbone/lin weights were not given"},
-      {"grad_ratio", "gradient-energy ratio mean|grad pred| / mean|grad gt|: mean absolute forward difference along x "
-                     "and y over all channels of the [0,1]-clamped images (float64), per image; gt floored at 1e-6"},
-      {"averaging", "mean over each scene's targets, then mean over scenes"},
-      {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
-      {"spans", "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
-                "scene mean over its targets of each kind, then mean over the scenes that have such targets"},
-      {"copy_nearest", "each target predicted by the input view nearest in frame index (ordered views) or in "
-                       "viewing direction (unordered views: dataset.json view_order)"},
-      {"mean_colour", "oracle: each target predicted by its own per-channel mean colour"}};
-  return j;
-}
-
-void write_results(const std::string& out_dir, const EvalSummary& s, const nlohmann::json& extra) {
-  fs::create_directories(out_dir);
-  auto j = summary_to_json(s);
-  if (extra.is_object()) j.update(extra);
-  write_text((fs::path(out_dir) / "metrics.json").string(), j.dump(2) + "\n");
-  write_text((fs::path(out_dir) / "per_scene.csv").string(), per_scene_csv(s));
-  write_text((fs::path(out_dir) / "per_view.csv").string(), per_view_csv(s));
-}
-
 // Every shard's scenes, bad-frame counts and grids into every rank's state (results by index position).
 static void merge_shards(const EvalOptions& opt, RunState& state) {
   nlohmann::json mine{{"bad_frames", state.bad_frames}, {"grids", state.grids}, {"scenes", nlohmann::json::array()}};
@@ -402,6 +303,36 @@ static void merge_shards(const EvalOptions& opt, RunState& state) {
   }
 }
 
+// This shard's scenes in batches, in eval mode without gradients; the next batch is decoded on a helper thread
+// while one runs.
+static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& dataset,
+                     const data::PreprocessOptions& prep, const std::vector<Job>& jobs, const EvalOptions& opt,
+                     RunState& state) {
+  model::EvalModeGuard mode(*net);
+  torch::NoGradGuard no_grad;
+  ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
+  const auto batches = make_batches(jobs, opt.batch_size);
+  auto load = [&](size_t k) {
+    return std::async(std::launch::async, [&, k] { return load_batch(dataset, batches[k], prep); });
+  };
+  std::future<LoadedBatch> next;
+  if (!batches.empty()) next = load(0);
+  for (size_t k = 0; k < batches.size(); ++k) {
+    LoadedBatch current = next.get();
+    if (k + 1 < batches.size()) next = load(k + 1);  // decode the next batch while this one runs
+    state.bad_frames += current.bad_frames;
+    if (!current.scenes.empty()) run_loaded(net, current.scenes, opt, state);
+    state.done += static_cast<int64_t>(batches[k].size());
+    const auto ok = static_cast<double>(state.done - state.bad_frames);
+    std::vector<std::pair<std::string, std::string>> fields = {
+        {"psnr", fmt::format("{:.2f}", ok > 0 ? state.psnr_sum / ok : 0.0)},
+        {"ssim", fmt::format("{:.4f}", ok > 0 ? state.ssim_sum / ok : 0.0)}};
+    if (opt.lpips) fields.emplace_back("lpips", fmt::format("{:.4f}", ok > 0 ? state.lpips_sum / ok : 0.0));
+    bar.update(state.done, fields);
+  }
+  bar.finish();
+}
+
 EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -417,31 +348,7 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   RunState state;
   state.ordered_views = dataset.info().ordered_views;
   state.results.resize(all_jobs.size());
-  {
-    model::EvalModeGuard mode(*net);
-    torch::NoGradGuard no_grad;
-    ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
-    const auto batches = make_batches(jobs, opt.batch_size);
-    auto load = [&](size_t k) {
-      return std::async(std::launch::async, [&, k] { return load_batch(dataset, batches[k], prep); });
-    };
-    std::future<LoadedBatch> next;
-    if (!batches.empty()) next = load(0);
-    for (size_t k = 0; k < batches.size(); ++k) {
-      LoadedBatch current = next.get();
-      if (k + 1 < batches.size()) next = load(k + 1);  // decode the next batch while this one runs
-      state.bad_frames += current.bad_frames;
-      if (!current.scenes.empty()) run_loaded(net, current.scenes, opt, state);
-      state.done += static_cast<int64_t>(batches[k].size());
-      const auto ok = static_cast<double>(state.done - state.bad_frames);
-      std::vector<std::pair<std::string, std::string>> fields = {
-          {"psnr", fmt::format("{:.2f}", ok > 0 ? state.psnr_sum / ok : 0.0)},
-          {"ssim", fmt::format("{:.4f}", ok > 0 ? state.ssim_sum / ok : 0.0)}};
-      if (opt.lpips) fields.emplace_back("lpips", fmt::format("{:.4f}", ok > 0 ? state.lpips_sum / ok : 0.0));
-      bar.update(state.done, fields);
-    }
-    bar.finish();
-  }
+  run_jobs(net, dataset, prep, jobs, opt, state);
   if (opt.shard_count > 1 && opt.gather) merge_shards(opt, state);
   std::vector<SceneResult> results;
   for (auto& r : state.results)

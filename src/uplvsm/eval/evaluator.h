@@ -2,12 +2,14 @@
 // NoPoSplat format), render every scene's target views from its two context views, score each target with PSNR
 // and SSIM (eval/metrics.h), and LPIPS (eval/lpips.h) when its weights are given, next to two trivial baselines
 // (eval/baselines.h), average per scene then over scenes (full set and NoPoSplat overlap buckets), and write
-// metrics.json, per_scene.csv, per_view.csv and labelled PNG grids of a few scenes.
+// labelled PNG grids of a few scenes and the result files (metrics.json, per_scene.csv, per_view.csv:
+// eval/result_files.h).
 #pragma once
 #include <torch/torch.h>
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <limits>
@@ -67,6 +69,22 @@ struct SceneResult {
   double grad_ratio = 0, grad_ratio_copy = 0, grad_ratio_mean = 0;
 };
 
+// A view's or scene's twelve numbers in one order: model, copy-nearest, mean-colour x PSNR, SSIM, LPIPS, gradient-
+// energy ratio. ViewMetrics and SceneResult name the same fields; averaging and the CSV columns walk them as one array.
+using MetricValues = std::array<double, 12>;
+template <class M>
+MetricValues metric_values(const M& m) {
+  return {m.psnr,       m.ssim,      m.lpips,      m.grad_ratio,       //
+          m.psnr_copy,  m.ssim_copy, m.lpips_copy, m.grad_ratio_copy,  //
+          m.psnr_mean,  m.ssim_mean, m.lpips_mean, m.grad_ratio_mean};
+}
+template <class M>
+void set_metric_values(M& m, const MetricValues& v) {
+  m.psnr = v[0], m.ssim = v[1], m.lpips = v[2], m.grad_ratio = v[3];
+  m.psnr_copy = v[4], m.ssim_copy = v[5], m.lpips_copy = v[6], m.grad_ratio_copy = v[7];
+  m.psnr_mean = v[8], m.ssim_mean = v[9], m.lpips_mean = v[10], m.grad_ratio_mean = v[11];
+}
+
 struct EvalSummary {
   int64_t scenes = 0;
   // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim", "lpips", "grad_ratio" (mean over scenes of
@@ -104,13 +122,6 @@ SceneResult scene_from_json(const nlohmann::json& j);
 // results can be re-aggregated (tests, merging runs).
 void finalise_scene(SceneResult& scene);
 EvalSummary summarise(std::vector<SceneResult> scenes);
-
-// metrics.json content: scenes, views, skipped counts, table, buckets, bucket_scenes, spans, span_scenes, lpips,
-// seconds, conventions.
-nlohmann::json summary_to_json(const EvalSummary& summary);
-// Writes metrics.json (summary_to_json merged with `extra`, e.g. checkpoint/config info), per_scene.csv and
-// per_view.csv into out_dir (created if needed), atomically.
-void write_results(const std::string& out_dir, const EvalSummary& summary, const nlohmann::json& extra = {});
 
 // Visualisations. error_heatmap: mean |pred - gt| over channels, x`gain`, clamped, through a black-purple-orange-
 // yellow colormap: float [3, H, W] in [0, 1] (same device). scene_grid: a labelled uint8 [H, W, 3] grid, one row per

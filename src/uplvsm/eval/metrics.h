@@ -4,15 +4,13 @@
 #pragma once
 #include <torch/torch.h>
 
+#include "uplvsm/core/psnr.h"
+
 namespace uplvsm::eval {
 
-// Smallest MSE used by psnr(): a perfect prediction (mse 0) scores -10 log10(1e-10) = 100 dB instead of +inf, so
-// means over scenes stay finite.
-constexpr double kMinMse = 1e-10;
-
 // pred, gt: [..., 3, H, W] (any float dtype, same shape and device). Both are clamped to [0, 1], the MSE over
-// (C, H, W) of each image is computed in float64, clamped below at kMinMse, and -10 log10(mse) returned:
-// float64 [...].
+// (C, H, W) of each image is computed in float64, clamped below at kMinMse (core/psnr.h), and -10 log10(mse)
+// returned: float64 [...].
 torch::Tensor psnr(const torch::Tensor& pred, const torch::Tensor& gt);
 
 // scikit-image 0.19 `structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0,

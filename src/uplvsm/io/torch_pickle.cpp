@@ -303,7 +303,15 @@ class Machine {
     else push(make_text(Kind::BigInt, bytes));
   }
 
+  // One opcode. Each group below handles its opcodes and returns false for any other; an opcode no group knows is
+  // refused, so the groups together accept exactly the opcodes listed in them.
   void step();
+  bool step_stack();
+  bool step_scalar();
+  bool step_text();
+  bool step_memo();
+  bool step_container();
+  bool step_call();
 
   const uint8_t* d_;
   size_t n_, p_, op_at_ = 0;
@@ -316,14 +324,27 @@ class Machine {
 };
 
 void Machine::step() {
+  if (step_stack() || step_scalar() || step_text() || step_memo() || step_container() || step_call()) return;
+  fail("unsupported opcode");
+}
+
+// Framing, marks and plain stack manipulation.
+bool Machine::step_stack() {
   switch (op_) {
     case 0x80: byte(); break;          // PROTO
     case 0x95: uint_le(8); break;      // FRAME: framing is only a read-ahead hint
     case '(': marks_.push_back(stack_.size()); break;
-    case '}': push(make(Kind::Dict)); break;
-    case ']': push(make(Kind::List)); break;
-    case ')': push(make(Kind::Tuple)); break;
-    case 0x8f: push(make(Kind::Set)); break;
+    case '0': pop(); break;
+    case '1': pop_mark(); break;
+    case '2': push(top()); break;
+    default: return false;
+  }
+  return true;
+}
+
+// None, booleans, integers (binary, long and protocol-0 text) and floats.
+bool Machine::step_scalar() {
+  switch (op_) {
     case 'N': push(make(Kind::None)); break;
     case 0x88: case 0x89: { auto b = make(Kind::Bool); b->boolean = op_ == 0x88; push(b); break; }
     case 'J': push(make_int(int32_t(uint32_t(uint_le(4))))); break;
@@ -348,6 +369,14 @@ void Machine::step() {
       push(f);
       break;
     }
+    default: return false;
+  }
+  return true;
+}
+
+// Strings, bytes and globals (module.name).
+bool Machine::step_text() {
+  switch (op_) {
     case 'X': push(make_text(Kind::Str, take(uint_le(4)))); break;
     case 0x8c: push(make_text(Kind::Str, take(uint_le(1)))); break;
     case 0x8d: push(make_text(Kind::Str, take(uint_le(8)))); break;
@@ -363,6 +392,14 @@ void Machine::step() {
       push(make_text(Kind::Global, module->text + "." + name->text));
       break;
     }
+    default: return false;
+  }
+  return true;
+}
+
+// The memo: PUT / GET in their binary and text forms.
+bool Machine::step_memo() {
+  switch (op_) {
     case 'q': memo_put(uint_le(1)); break;
     case 'r': memo_put(uint_le(4)); break;
     case 0x94: memo_put(memo_.size()); break;
@@ -370,6 +407,18 @@ void Machine::step() {
     case 'h': memo_get(uint_le(1)); break;
     case 'j': memo_get(uint_le(4)); break;
     case 'g': { auto s = line(); try { memo_get(std::stoull(s)); } catch (const std::logic_error&) { fail("bad GET"); } break; }
+    default: return false;
+  }
+  return true;
+}
+
+// Tuples, lists, dicts and sets: empty ones, built from the stack, and filled in place.
+bool Machine::step_container() {
+  switch (op_) {
+    case '}': push(make(Kind::Dict)); break;
+    case ']': push(make(Kind::List)); break;
+    case ')': push(make(Kind::Tuple)); break;
+    case 0x8f: push(make(Kind::Set)); break;
     case 't': push(tuple(pop_mark())); break;
     case 0x85: { auto a = pop(); push(tuple({a})); break; }
     case 0x86: { auto b = pop(), a = pop(); push(tuple({a, b})); break; }
@@ -381,6 +430,14 @@ void Machine::step() {
     case 's': { auto v = pop(), k = pop(); set_items(*top(), {k, v}); break; }
     case 'u': { auto items = pop_mark(); set_items(*top(), items); break; }
     case 0x91: { auto s = make(Kind::Set); s->items = pop_mark(); push(s); break; }
+    default: return false;
+  }
+  return true;
+}
+
+// Calls (REDUCE / NEWOBJ), object state and persistent ids (the tensors' storages).
+bool Machine::step_call() {
+  switch (op_) {
     case 'R': case 0x81: {  // REDUCE / NEWOBJ
       auto args = pop(), callee = pop();
       try { push(call(callee, args)); } catch (const std::runtime_error& e) { fail(e.what()); }
@@ -394,11 +451,9 @@ void Machine::step() {
       break;
     }
     case 'P': fail("text persistent ids (protocol 0) are not used by torch.save");
-    case '0': pop(); break;
-    case '1': pop_mark(); break;
-    case '2': push(top()); break;
-    default: fail("unsupported opcode");
+    default: return false;
   }
+  return true;
 }
 
 }  // namespace

@@ -80,6 +80,12 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torc
   return estimator->heads(pooled).view({b, v, 7});
 }
 
+UPLVSMImpl::EncodedInputs UPLVSMImpl::encode_with_input_poses(const torch::Tensor& images,
+                                                               const torch::Tensor& fxfycxcy) {
+  auto latents = encode_scene(images, fxfycxcy);
+  return {latents, estimate_poses(images, latents)};
+}
+
 torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
                                        const torch::Tensor& fxfycxcy, int64_t H, int64_t W, ForwardTrace* trace) {
   TORCH_CHECK(pose_enc.dim() == 3 && pose_enc.size(2) == 7, "render_views: poses must be [b, v, 7], got ",

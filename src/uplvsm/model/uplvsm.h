@@ -35,6 +35,12 @@ struct UPLVSMImpl : NovelViewModelImpl {
   // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner).
   torch::Tensor estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                ForwardTrace* trace = nullptr);
+  // The scene latents of unposed inputs and the latent poses [b, v_in, 7] the estimator reads from those same
+  // inputs: what rendering between (or around) the inputs starts from (render/renderer, serve/viewer_model).
+  struct EncodedInputs {
+    torch::Tensor latents, input_poses;
+  };
+  EncodedInputs encode_with_input_poses(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy);
   // Renders [b, v_t, 3, H, W] from latent poses [b, v_t, 7] and target intrinsics [b, v_t, 4].
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
                              const torch::Tensor& target_fxfycxcy, int64_t height, int64_t width,

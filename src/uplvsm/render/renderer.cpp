@@ -41,11 +41,11 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   auto inputs = images.unsqueeze(0).to(device);
   auto k = fxfycxcy.unsqueeze(0).to(device);
   const int64_t H = images.size(2), W = images.size(3);
-  auto latents = net->encode_scene(inputs, k);
-  auto key_poses = net->estimate_poses(inputs, latents)[0];  // [2, 7]
+  const auto scene = net->encode_with_input_poses(inputs, k);
+  auto key_poses = scene.input_poses[0];  // [2, 7]
   auto poses = interpolate_poses(key_poses, num_frames);
   auto intrinsics = interpolate_intrinsics(k[0], num_frames);
-  return {decode_path(net, latents, poses, intrinsics, H, W, chunk), poses.cpu(), key_poses.cpu()};
+  return {decode_path(net, scene.latents, poses, intrinsics, H, W, chunk), poses.cpu(), key_poses.cpu()};
 }
 
 torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
@@ -113,7 +113,8 @@ VideoFiles write_video(const std::string& dir, const std::string& name, const to
     files.mp4 = (fs::path(dir) / (name + ".mp4")).string();
     io::write_mp4(files.mp4, u8, fps);
   } else {
-    spdlog::warn("no MP4 encoder in this FFmpeg build: wrote only {}", files.gif);
+    spdlog::warn("no MP4 encoder here (built without FFmpeg, or its FFmpeg lacks libx264 and mpeg4): wrote only {}",
+                 files.gif);
   }
   return files;
 }

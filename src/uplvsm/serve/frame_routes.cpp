@@ -89,7 +89,8 @@ void ViewerServer::video(const httplib::Request& req, httplib::Response& res) {
   auto poses = read_poses(body["poses"], "poses", 2, static_cast<size_t>(options_.max_video_frames));
   const auto space = space_of(body, model_);
   const double fps = read_number(body, "fps", 12, 1, 60);
-  if (!io::mp4_available()) throw HttpError(501, "this FFmpeg build has no MP4 encoder");
+  if (!io::mp4_available())
+    throw HttpError(501, "no MP4 encoder here (built without FFmpeg, or its FFmpeg lacks libx264 and mpeg4)");
   std::vector<torch::Tensor> frames;
   // A few frames per turn on the model, so that other clients' frames are not held up for the whole video.
   for (int64_t s = 0; s < poses.size(0); s += 4) {

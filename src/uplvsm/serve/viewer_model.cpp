@@ -68,8 +68,9 @@ SceneEncoding ViewerModel::encode(const data::Views& views, bool posed) const {
   SceneEncoding s;
   auto images = views.images.unsqueeze(0).to(device_);
   auto k = views.fxfycxcy.unsqueeze(0).to(device_, torch::kFloat32);
-  s.latents = net_->encode_scene(images, k);
-  s.key_latent = net_->estimate_poses(images, s.latents)[0].to(torch::kCPU, torch::kFloat64);
+  auto encoded = net_->encode_with_input_poses(images, k);
+  s.latents = encoded.latents;
+  s.key_latent = encoded.input_poses[0].to(torch::kCPU, torch::kFloat64);
   s.fxfycxcy = views.fxfycxcy[0].to(torch::kCPU, torch::kFloat32).clone();
   s.height = views.images.size(2);
   s.width = views.images.size(3);

@@ -1,6 +1,6 @@
 // The viewer's one door into the model: everything `uplvsm serve` asks of UP-LVSM goes through this adapter —
-// encode_scene once per scene (the scene latents are cached by the caller), estimate_poses for the inputs' latent
-// poses, render_views per frame, and, when the checkpoint has a camera mapper, pose_mapper + camera_control_poses
+// encode_with_input_poses once per scene (the scene latents, cached by the caller, and the inputs' latent poses),
+// render_views per frame, and, when the checkpoint has a camera mapper, pose_mapper + camera_control_poses
 // for cameras in real units. Keeping it here keeps the rest of serve/ independent of the model's class layout.
 #pragma once
 #include <torch/torch.h>

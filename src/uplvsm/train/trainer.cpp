@@ -12,6 +12,7 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
+#include "uplvsm/core/psnr.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
@@ -329,8 +330,6 @@ void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator*
 }
 
 }  // namespace
-
-double psnr_from_mse(double mse) { return -10.0 * std::log10(std::max(mse, 1e-10)); }
 
 TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto& tc = config.training;

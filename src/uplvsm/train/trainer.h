@@ -47,7 +47,4 @@ struct TrainResult {
 
 TrainResult train(const Config& config, const TrainOptions& options);
 
-// The MSE/PSNR of a prediction, as the official LossComputer logs them.
-double psnr_from_mse(double mse);
-
 }  // namespace uplvsm::train
