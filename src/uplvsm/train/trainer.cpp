@@ -329,6 +329,55 @@ void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator*
                  state.skipped_gradnorm, tc.allowed_gradnorm_factor);
 }
 
+// The model on its device in train mode, its optimiser and the state to go on from (a checkpoint or step 0).
+struct ModelStart {
+  model::NovelViewModel net;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  TrainState state;
+};
+
+ModelStart start_model(const Config& config, const TrainOptions& opt, const std::string& checkpoint_dir) {
+  torch::manual_seed(static_cast<uint64_t>(config.training.seed));
+  auto net = model::make_model(config.model);
+  net->to(opt.device);
+  net->train();
+  auto optimizer = make_optimizer(*net, config.training);
+  TrainState state = resume_or_initialise(*net, *optimizer, config, opt, checkpoint_dir);
+  return {net, std::move(optimizer), state};
+}
+
+// One line on what is trained on what, and how the views are drawn when the frames are unordered.
+void announce_training(const Config& config, const TrainOptions& opt, const data::ChunkDataset& dataset,
+                       const data::LoaderOptions& loader_opt, int64_t parameters, int64_t step) {
+  const auto& tc = config.training;
+  const int64_t scenes = tc.max_train_scenes > 0 ? tc.max_train_scenes : dataset.size();
+  spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, parameters, scenes,
+               opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
+               step, tc.train_steps);
+  if (!loader_opt.ordered_views) spdlog::info("views: unordered (any {} distinct frames per scene)", tc.num_views);
+}
+
+// Every rank starts from rank 0's weights.
+void join_ranks(Communicator* comm, model::NovelViewModelImpl& net, const TrainingConfig& tc) {
+  if (!comm) return;
+  comm->broadcast(net.parameters());
+  spdlog::info("data parallel: rank {} of {} ({}), {} scenes per rank and step", comm->rank(), comm->world_size(),
+               comm->backend(), tc.batch_size);
+}
+
+// Whether a signal stopped the run (its checkpoint is written by then); says so.
+bool warn_if_interrupted(const StepResult& r, const std::string& checkpoint) {
+  if (r.stop) spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), checkpoint);
+  return r.stop;
+}
+
+// The progress bar's fields for a step: smoothed loss and PSNR, and the step's learning rate.
+void update_progress(ProgressBar& bar, int64_t step, const RunningMeans& means, const StepResult& r) {
+  bar.update(step, {{"loss", fmt::format("{:.4f}", means.loss)},
+                    {"psnr", fmt::format("{:.2f}", psnr_from_mse(means.mse))},
+                    {"lr", fmt::format("{:.2e}", r.lr)}});
+}
+
 }  // namespace
 
 TrainResult train(const Config& config, const TrainOptions& opt) {
@@ -339,18 +388,9 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
 
-  torch::manual_seed(static_cast<uint64_t>(tc.seed));
-  auto net = model::make_model(config.model);
-  net->to(opt.device);
-  net->train();
-  auto optimizer = make_optimizer(*net, tc);
-  TrainState state = resume_or_initialise(*net, *optimizer, config, opt, files.checkpoint_dir);
+  auto [net, optimizer, state] = start_model(config, opt, files.checkpoint_dir);
   if (lead) truncate_metrics(files.metrics, state.step);
-  if (comm) {
-    comm->broadcast(net->parameters());  // every rank starts from rank 0's weights
-    spdlog::info("data parallel: rank {} of {} ({}), {} scenes per rank and step", comm->rank(), comm->world_size(),
-                 comm->backend(), tc.batch_size);
-  }
+  join_ranks(comm, *net, tc);
   TrainResult result;
   result.step = state.step;
   if (state.step >= tc.train_steps) {
@@ -360,12 +400,8 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
 
   data::ChunkDataset dataset(opt.data_root, "train");
   prepare_training_data(dataset, config, opt, *net);
-  const int64_t scenes = tc.max_train_scenes > 0 ? tc.max_train_scenes : dataset.size();
-  spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, net->parameter_count(),
-               scenes, opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
-               state.step, tc.train_steps);
   const auto loader_opt = loader_options(config, dataset, comm);
-  if (!loader_opt.ordered_views) spdlog::info("views: unordered (any {} distinct frames per scene)", tc.num_views);
+  announce_training(config, opt, dataset, loader_opt, net->parameter_count(), state.step);
   data::TrainingLoader loader(dataset, loader_opt, state.step);
   StepContext ctx = make_step_context(*net, *optimizer, config, opt);
 
@@ -386,10 +422,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
     result.last_psnr = psnr_from_mse(r.mse);
     if (lead && (state.step % tc.log_every == 0 || state.step == tc.train_steps || state.step == first_step + 1))
       log_step(metrics, state, r, step_seconds, loader, dataset);
-    if (show_progress)
-      bar.update(state.step, {{"loss", fmt::format("{:.4f}", means.loss)},
-                              {"psnr", fmt::format("{:.2f}", psnr_from_mse(means.mse))},
-                              {"lr", fmt::format("{:.2e}", r.lr)}});
+    if (show_progress) update_progress(bar, state.step, means, r);
     const bool stop_now = r.stop || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
     // Evaluation first, so the checkpoint of this step carries its best-so-far record.
     if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || state.step == tc.train_steps))
@@ -398,9 +431,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
       result.last_checkpoint =
           save_training_checkpoint(files.checkpoint_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
     if (stop_now) {
-      result.interrupted = r.stop;
-      if (result.interrupted)
-        spdlog::warn("signal {}: checkpoint written to {}, exiting", int(g_signal), result.last_checkpoint);
+      result.interrupted = warn_if_interrupted(r, result.last_checkpoint);
       break;
     }
   }
