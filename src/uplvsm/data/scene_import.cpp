@@ -1,6 +1,6 @@
 // import_scene: a user's photo folder (+ optional COLMAP / transforms.json model) -> one RawScene. Decides which
 // images belong to the scene, where each camera comes from (model, EXIF, default field of view) and validates
-// everything before a chunk is written. The format parsers live in scene_import_formats.cpp.
+// everything before a chunk is written. The format parsers: scene_import_colmap, _transforms and _exif.cpp.
 #include "uplvsm/data/scene_import.h"
 
 #include <algorithm>

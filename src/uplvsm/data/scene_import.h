@@ -1,7 +1,8 @@
 // "Bring your own scenes": a folder of photos (JPEG/PNG), optionally with a COLMAP text model or a nerfstudio
 // transforms.json, turned into one RawScene (the pixelSplat chunk record) for evaluation, camera-control fine-tuning
 // and rendering. The parsers are free functions so tests and other tools can use them alone; every error names the
-// file, the line or field and what was expected. Parsers: scene_import_formats.cpp; the import: scene_import.cpp.
+// file, the line or field and what was expected. Parsers: scene_import_{colmap,transforms,exif}.cpp; the import:
+// scene_import.cpp.
 //
 // Intrinsics come from, in this order of preference: the model (COLMAP cameras.txt / transforms.json), the JPEG's
 // EXIF focal length, or a default horizontal field of view (60 degrees, the default of `uplvsm render --images`).
