@@ -35,7 +35,7 @@ void BM_ViewerFrame(benchmark::State& state, const std::string& config_name) {
   model::UPLVSM net(config.model);
   serve::ViewerModel viewer(net.ptr(), config, bf16);
   const int64_t size = config.model.image_size;
-  data::Views views{torch::rand({2, 3, size, size}),
+  data::SceneViews views{torch::rand({2, 3, size, size}),
                     torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({2, 4}).contiguous(),
                     torch::Tensor(), {0, 1}};
   auto scene = viewer.encode(views, false);

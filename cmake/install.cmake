@@ -15,7 +15,7 @@ set(UPLVSM_PUBLIC_HEADERS
     core/config.h core/runtime.h core/autocast.h core/psnr.h
     io/safetensors.h io/torch_file.h io/torch_pickle.h io/image.h io/video.h
     io/gif_writer.h io/mp4_writer.h
-    geometry/camera.h
+    geometry/camera.h geometry/camera_control.h
     data/scene.h data/preprocess.h data/photo.h data/chunk_dataset.h data/dataset_info.h data/lvsm_layout.h
     model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h model/pretrained_weights.h
     model/checkpoint_io.h model/state_dict.h model/flops.h model/dinov2.h model/transformer.h model/rgb_head.h

@@ -8,7 +8,7 @@ namespace uplvsm::python {
 
 namespace {
 
-py::dict views_dict(const data::Views& v) {
+py::dict views_dict(const data::SceneViews& v) {
   py::dict out;
   out["images"] = v.images;
   out["fxfycxcy"] = v.fxfycxcy;
@@ -71,7 +71,7 @@ void bind_chunk_dataset(py::module_& m) {
             checked_index(d, i);
             if (frames.empty()) throw py::value_error("load_views: frames is empty");
             const auto opt = preprocess_options(image_size, patch_size, square_crop, "load_views");
-            data::Views v;
+            data::SceneViews v;
             {
               py::gil_scoped_release release;
               v = d.load_views(i, frames, opt);
@@ -86,7 +86,7 @@ void bind_photos(py::module_& m) {
       "load_photos",
       [](const std::vector<std::string>& paths, int image_size, double fov, int patch_size, bool square_crop) {
         const auto opt = preprocess_options(image_size, patch_size, square_crop, "load_photos");
-        data::Views v;
+        data::SceneViews v;
         {
           py::gil_scoped_release release;
           v = data::load_photos(paths, fov, opt);

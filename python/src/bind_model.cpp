@@ -72,7 +72,7 @@ void bind_model_properties(ModelClass& c) {
       .def_property_readonly("config", [](const Model& s) { return to_python(config_to_json(s.config())); },
                              "The full config (model, training, eval, dataset sections) as a dict.")
       .def_property_readonly("device", &Model::device)
-      .def_property_readonly("variant", [](const Model& s) { return s.config().model.variant; },
+      .def_property_readonly("variant", [](const Model& s) { return to_string(s.config().model.variant); },
                              "\"uplvsm\", \"ptlvsm\" or \"lvsm\".")
       .def_property_readonly("name", &Model::name,
                              "The paper's name of the model: \"UP-LVSM\", \"PT-LVSM\" or \"LVSM\".")
@@ -175,7 +175,7 @@ gradients; UP-LVSM only. Returns {"frames": [F, 3, H, W] CPU, "poses": [F, 7], "
             if (c2w) check_tensor(*c2w, "render_camera_path", "c2w", {images.size(0), 4, 4}, "[v, 4, 4]");
             if (chunk < 1) throw py::value_error("render_camera_path: chunk must be >= 1");
             py::gil_scoped_release release;
-            return s.render_camera_path({images, fxfycxcy, optional_tensor(c2w)}, poses, path_fxfycxcy, chunk, amp);
+            return s.render_camera_path({images, fxfycxcy, optional_tensor(c2w), {}}, poses, path_fxfycxcy, chunk, amp);
           },
           py::arg("images"), py::arg("fxfycxcy"), py::arg("poses"), py::arg("path_fxfycxcy"),
           py::arg("c2w") = py::none(), py::arg("chunk") = 4, py::arg("amp") = "none",
@@ -211,7 +211,7 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)");
   bind_model_forward(c);
   bind_model_videos(c);
   c.def("__repr__", [](const Model& s) {
-    return "uplvsm.Model(variant='" + s.config().model.variant + "', parameters=" +
+    return "uplvsm.Model(variant='" + to_string(s.config().model.variant) + "', parameters=" +
            std::to_string(s.parameter_count()) + ", device='" + s.device().str() + "')";
   });
   bind_model_constructors(m);

@@ -11,7 +11,7 @@ namespace {
 // "none" | "bf16"; a bad value is the caller's argument error (ValueError in Python).
 bool amp_enabled(const std::string& amp) {
   try {
-    return parse_amp(amp);
+    return parse_amp(amp) == Amp::Bf16;
   } catch (const std::runtime_error& e) {
     throw std::invalid_argument(e.what());
   }
@@ -77,7 +77,13 @@ torch::Tensor ModelAdapter::render_views(const torch::Tensor& scene_latents, con
 
 ForwardResult ModelAdapter::forward(const model::Views& inputs, const model::Views& targets,
                                     const std::string& target_poses, const std::string& amp) {
-  const auto source = model::parse_target_poses(target_poses, *net_);
+  TargetPoseChoice choice;
+  try {
+    choice = parse_target_pose_choice(target_poses, "target_poses");
+  } catch (const std::runtime_error& e) {
+    throw std::invalid_argument(e.what());
+  }
+  const auto source = model::resolve_target_poses(choice, *net_);
   model::Views in{on_device(inputs.images), on_device(inputs.fxfycxcy), on_device(inputs.c2w)};
   model::Views out{on_device(targets.images), on_device(targets.fxfycxcy), on_device(targets.c2w)};
   AutocastGuard guard(device_, amp_enabled(amp));
@@ -93,7 +99,7 @@ render::InterpolationVideo ModelAdapter::render_interpolation(const torch::Tenso
   return render::render_interpolation(net, images, fxfycxcy, num_frames, chunk);
 }
 
-torch::Tensor ModelAdapter::render_camera_path(const model::Views& inputs, const torch::Tensor& poses,
+torch::Tensor ModelAdapter::render_camera_path(const data::SceneViews& inputs, const torch::Tensor& poses,
                                                const torch::Tensor& fxfycxcy, int64_t chunk, const std::string& amp) {
   AutocastGuard guard(device_, amp_enabled(amp));
   return render::render_camera_path(net_, inputs, poses, fxfycxcy, chunk);

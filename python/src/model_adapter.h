@@ -42,12 +42,12 @@ class ModelAdapter {
                                const std::string& amp);
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& poses,
                              const torch::Tensor& fxfycxcy, int64_t height, int64_t width, const std::string& amp);
-  // target_poses: "auto" | "estimator" | "mapper" | "dataset" (model::parse_target_poses).
+  // target_poses: "auto" | "estimator" | "mapper" | "dataset" (parse_target_pose_choice).
   ForwardResult forward(const model::Views& inputs, const model::Views& targets, const std::string& target_poses,
                         const std::string& amp);
   render::InterpolationVideo render_interpolation(const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                                   int64_t num_frames, int64_t chunk, const std::string& amp);
-  torch::Tensor render_camera_path(const model::Views& inputs, const torch::Tensor& poses,
+  torch::Tensor render_camera_path(const data::SceneViews& inputs, const torch::Tensor& poses,
                                    const torch::Tensor& fxfycxcy, int64_t chunk, const std::string& amp);
 
  private:

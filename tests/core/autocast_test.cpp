@@ -42,9 +42,3 @@ TEST(Autocast, LinearLayerCloseToFp32AndGradientsFp32) {
   y.to(torch::kFloat32).sum().backward();
   EXPECT_EQ(lin->weight.grad().scalar_type(), torch::kFloat32);  // fp32 master weights get fp32 gradients
 }
-
-TEST(Autocast, ParseAmp) {
-  EXPECT_TRUE(parse_amp("bf16"));
-  EXPECT_FALSE(parse_amp("none"));
-  EXPECT_NE(test::error_of([] { parse_amp("fp16"); }).find("'fp16'"), std::string::npos);
-}

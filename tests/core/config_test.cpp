@@ -46,7 +46,7 @@ TEST(Config, CommandLineOverridesSetFieldsAndNameTheirMistakes) {
                                   "tiny.json");
   EXPECT_EQ(c.training.warmup, 500);
   EXPECT_EQ(c.model.transformer.n_latent_vectors, 64);
-  EXPECT_EQ(c.training.amp, "bf16");
+  EXPECT_EQ(c.training.amp, Amp::Bf16);
   EXPECT_FALSE(c.dataset.square_crop);
   EXPECT_DOUBLE_EQ(c.training.lr, 3e-4);
   EXPECT_EQ(c.training.batch_size, tiny.training.batch_size);  // untouched
@@ -63,6 +63,39 @@ TEST(Config, CommandLineOverridesSetFieldsAndNameTheirMistakes) {
   expect_error("model.transformer=3", "is a section");
   expect_error("training.amp=fp8", "training.amp must be");
   expect_error("training.warmup=lots", "training");  // a string where a number is expected
+}
+
+// The string choices are parsed once into enums; JSON keeps their names, so a run's config.json reads as before.
+TEST(Config, ChoicesAreEnumsWrittenByName) {
+  auto c = config_from_json({{"model", {{"variant", "lvsm"}}},
+                             {"training", {{"amp", "bf16"}, {"target_poses", "dataset"}}}},
+                            "choices.json");
+  EXPECT_EQ(c.model.variant, Variant::LVSM);
+  EXPECT_EQ(c.training.amp, Amp::Bf16);
+  EXPECT_EQ(c.training.target_poses, TargetPoseChoice::Dataset);
+  const auto j = config_to_json(c);
+  EXPECT_EQ(j["model"]["variant"], "lvsm");
+  EXPECT_EQ(j["training"]["amp"], "bf16");
+  EXPECT_EQ(j["training"]["target_poses"], "dataset");
+  for (auto v : {Variant::UPLVSM, Variant::PTLVSM, Variant::LVSM}) EXPECT_EQ(parse_variant(to_string(v)), v);
+  for (auto a : {Amp::None, Amp::Bf16}) EXPECT_EQ(parse_amp(to_string(a)), a);
+  for (auto t : {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper,
+                 TargetPoseChoice::Dataset})
+    EXPECT_EQ(parse_target_pose_choice(to_string(t)), t);
+  auto message = [](const nlohmann::json& j) {
+    try {
+      config_from_json(j, "bad.json");
+    } catch (const std::runtime_error& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  EXPECT_EQ(message({{"model", {{"variant", "gpt"}}}}),
+            "bad.json: model.variant must be 'uplvsm', 'ptlvsm' or 'lvsm', got 'gpt'");
+  EXPECT_EQ(message({{"training", {{"amp", "fp16"}}}}), "bad.json: training.amp must be 'none' or 'bf16', got 'fp16'");
+  EXPECT_EQ(message({{"training", {{"target_poses", "sfm"}}}}),
+            "bad.json: training.target_poses must be 'auto', 'estimator', 'mapper' or 'dataset', got 'sfm'");
+  EXPECT_NE(message({{"training", {{"amp", 16}}}}).find("training.amp: wrong type"), std::string::npos);
 }
 
 TEST(Config, InconsistentSizesAreRejected) {

@@ -101,7 +101,7 @@ TEST(ChunkDataset, FixtureLoadViewsOfficial224) {
   ChunkDataset ds(fixture(kRoot), "test");
   int64_t i = ds.find("20e408dd375292a1");
   std::vector<int64_t> frames = {1, 13, 4, 8, 11};
-  Views v = ds.load_views(i, frames, PreprocessOptions{});
+  SceneViews v = ds.load_views(i, frames, PreprocessOptions{});
   EXPECT_EQ(v.images.sizes(), (std::vector<int64_t>{5, 3, 224, 224}));
   EXPECT_EQ(v.frames, frames);
   EXPECT_GE(v.images.min().item<float>(), 0.0f);

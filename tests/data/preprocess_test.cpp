@@ -40,7 +40,7 @@ TEST(Preprocess, ResizedWidthFollowsOfficialRounding) {
 TEST(Preprocess, FixtureCropMatchesPillow) {
   UPLVSM_NEEDS_FIXTURES();
   auto [frame, cams] = fixture_frame0();
-  Views v = preprocess({frame}, cams, PreprocessOptions{});
+  SceneViews v = preprocess({frame}, cams, PreprocessOptions{});
   ASSERT_EQ(v.images.sizes(), (std::vector<int64_t>{1, 3, 224, 224}));
   auto u8 = io::to_u8_hwc(v.images[0]);
   // Reference numbers from tools/check_preprocess.py (PIL 9.4: Image.open(jpeg).convert("RGB")
@@ -60,7 +60,7 @@ TEST(Preprocess, FixtureCropMatchesPillow) {
   // Without the crop: 392 wide, cx not shifted.
   PreprocessOptions wide;
   wide.square_crop = false;
-  Views w = preprocess({frame}, cams, wide);
+  SceneViews w = preprocess({frame}, cams, wide);
   EXPECT_EQ(w.images.sizes(), (std::vector<int64_t>{1, 3, 224, 392}));
   EXPECT_NEAR(w.fxfycxcy[0][2].item<double>(), 196.0, 1e-3);
   EXPECT_TRUE(torch::equal(w.images.slice(3, 84, 308), v.images));

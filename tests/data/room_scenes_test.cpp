@@ -167,7 +167,7 @@ TEST(RoomScenes, WriteBuiltinDatasetReadsBack) {
   }
   PreprocessOptions pre;
   pre.image_size = 28;
-  Views v = train.load_views(0, {0, 7, 3}, pre);
+  SceneViews v = train.load_views(0, {0, 7, 3}, pre);
   EXPECT_EQ(v.images.sizes(), (std::vector<int64_t>{3, 3, 28, 28}));
   int64_t nulls = 0;
   auto eval = read_eval_index((dir / "a" / "evaluation_index.json").string(), &nulls);

@@ -86,7 +86,7 @@ TEST(Camera, IntrinsicsPixelsNormalised) {
   auto n = torch::tensor({0.6, 1.0, 0.5, 0.5}, torch::kFloat64);
   auto p = geometry::intrinsics_to_pixels(n, 360, 640);
   EXPECT_LE(test::max_abs_diff(p, torch::tensor({384.0, 360.0, 320.0, 180.0}, torch::kFloat64)), 1e-12);
-  EXPECT_LE(test::max_abs_diff(geometry::intrinsics_to_normalised(p, 360, 640), n), 1e-12);
+  EXPECT_LE(test::max_abs_diff(geometry::intrinsics_to_normalized(p, 360, 640), n), 1e-12);
   auto K = geometry::intrinsics_matrix(p);
   EXPECT_DOUBLE_EQ(K[0][2].item<double>(), 320.0);
   EXPECT_DOUBLE_EQ(K[1][1].item<double>(), 360.0);

@@ -30,7 +30,7 @@ TEST(MemoryEstimate, ParameterCountFromTheConfigEqualsTheBuiltModel) {
 TEST(MemoryEstimate, TrainingMemoryScalesWithBatchAndCheckpointing) {
   auto config = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/paper_x224.json");
   config.training.grad_checkpoint_every = 0;
-  config.training.amp = "none";
+  config.training.amp = Amp::None;
   const auto base = model::training_memory(config);
   EXPECT_EQ(base.state_bytes, 16.0 * static_cast<double>(base.parameters));
   EXPECT_GT(base.activation_bytes, 0.0);
@@ -44,7 +44,7 @@ TEST(MemoryEstimate, TrainingMemoryScalesWithBatchAndCheckpointing) {
   EXPECT_LT(model::training_memory(checkpointed).activation_bytes, base.activation_bytes / 10);
 
   auto bf16 = config;
-  bf16.training.amp = "bf16";
+  bf16.training.amp = Amp::Bf16;
   EXPECT_DOUBLE_EQ(model::training_memory(bf16).activation_bytes, base.activation_bytes / 2);
 
   // The unfittable config: d = 100032 needs terabytes for its state alone.

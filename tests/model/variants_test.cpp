@@ -5,6 +5,7 @@
 #include "test_util.h"
 #include "train/train_test_util.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/posed_lvsm.h"
 #include "uplvsm/model/state_dict.h"
@@ -53,7 +54,7 @@ TEST(Variants, TheFactoryBuildsOneClassPerModel) {
     EXPECT_EQ(p->posed_inputs, posed);
     EXPECT_EQ(net->name(), name);
     EXPECT_EQ(net->default_target_poses(), model::TargetPoses::Dataset);
-    EXPECT_EQ(model::parse_target_poses("auto", *net), model::TargetPoses::Dataset);
+    EXPECT_EQ(model::resolve_target_poses(TargetPoseChoice::Auto, *net), model::TargetPoses::Dataset);
     EXPECT_TRUE(net->has_camera_control());
     EXPECT_NE(test::error_of([&] { model::require_uplvsm(net, "pose pairs"); }).find("pose pairs: only UP-LVSM"),
               std::string::npos);
@@ -78,7 +79,7 @@ TEST(Variants, PosedVariantsHaveTheOfficialPosedTargetLvsmKeys) {
   }
   // The loader recognises the layout and infers the variant and depth.
   auto inferred = model::infer_model_config(sd, ModelConfig{});
-  EXPECT_EQ(inferred.variant, "ptlvsm");
+  EXPECT_EQ(inferred.variant, Variant::PTLVSM);
   EXPECT_EQ(inferred.transformer.n_layer, 2);
   EXPECT_EQ(inferred.transformer.d, 32);
 }
@@ -202,7 +203,7 @@ TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
   auto by_mapper = net->render(s.inputs, s.targets, model::TargetPoses::Mapper);
   EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, by_mapper.pose_enc), 1e-5);
   EXPECT_LT(test::max_abs_diff(by_dataset.render, by_mapper.render), 1e-5);
-  EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, model::camera_control_poses(s.inputs.c2w, s.targets.c2w)), 1e-6);
+  EXPECT_LT(test::max_abs_diff(by_dataset.pose_enc, geometry::camera_control_poses(s.inputs.c2w, s.targets.c2w)), 1e-6);
   // Dataset poses need cameras; a model without a mapper says how to get one.
   auto unposed = s.targets;
   unposed.c2w = torch::Tensor();

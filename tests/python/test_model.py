@@ -95,9 +95,9 @@ def test_bad_arguments_raise_clear_errors(official_model, official_io):
         uplvsm.load(str(OFFICIAL / "checkpoint.pt"), config={"model": {"patch_size": "fourteen"}})
     with pytest.raises(ValueError, match=r"forward: input_fxfycxcy must be \[b, v, 4\] \(\[2, 2\] views\), got \[2, 4\]"):
         m.forward(f["input.images"], f["input.fxfycxcy"][:, 0], f["target.images"], f["target.fxfycxcy"])
-    with pytest.raises(ValueError, match="target poses: expected auto, estimator, mapper or dataset, got 'bogus'"):
+    with pytest.raises(ValueError, match="target_poses must be 'auto', 'estimator', 'mapper' or 'dataset', got 'bogus'"):
         m.forward(f["input.images"], f["input.fxfycxcy"], f["target.images"], f["target.fxfycxcy"], target_poses="bogus")
-    with pytest.raises(ValueError, match="amp 'fp16': expected 'none' or 'bf16'"):
+    with pytest.raises(ValueError, match="amp must be 'none' or 'bf16', got 'fp16'"):
         m.encode_scene(f["input.images"], f["input.fxfycxcy"], amp="fp16")
     with pytest.raises(ValueError, match="render_interpolation: images must be two views"):
         m.render_interpolation(f["batch.image"][0], f["batch.fxfycxcy"][0])

@@ -37,7 +37,7 @@ TEST(IdentityTrajectory, ReproducesTheFirstInputBetterThanItsMeanColour) {
   train::train(config, opt);
 
   config.model.pose_mapper = true;
-  config.training.target_poses = "mapper";
+  config.training.target_poses = TargetPoseChoice::Mapper;
   config.training.train_steps = 100;
   config.training.lr = 5e-4;
   config.training.warmup = 0;
@@ -55,7 +55,7 @@ TEST(IdentityTrajectory, ReproducesTheFirstInputBetterThanItsMeanColour) {
     auto first = views.images[0];
     auto latent = render::render_interpolation(plain, views.images, views.fxfycxcy, 2).frames[0];
     auto identity = torch::tensor({{0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}});
-    auto via_mapper = render::render_camera_path(mapped, {views.images, views.fxfycxcy, {}}, identity,
+    auto via_mapper = render::render_camera_path(mapped, {views.images, views.fxfycxcy, {}, {}}, identity,
                                                  views.fxfycxcy.slice(0, 0, 1))[0];
     auto mean_colour = first.mean({1, 2}, true).expand_as(first);
     psnr_latent += eval::psnr(latent.unsqueeze(0), first.unsqueeze(0)).item<double>() / dataset.size();

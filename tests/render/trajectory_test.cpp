@@ -82,7 +82,7 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
   ASSERT_EQ(path.poses.sizes(), (std::vector<int64_t>{2, 7}));
   EXPECT_NEAR(path.poses[0][6].item<double>(), 1.0, 1e-12);  // quaternion normalised
   EXPECT_NEAR(path.poses[1][0].item<double>(), 0.5, 1e-12);
-  ASSERT_TRUE(path.fxfycxcy_normalised.defined());
+  ASSERT_TRUE(path.fxfycxcy_normalized.defined());
   auto error = [&](const std::string& text) {
     return test::error_of([&] { render::read_camera_path(write("bad.json", text)); });
   };
@@ -140,25 +140,25 @@ TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
   auto poses = render::camera_path_preset("orbit", 5);
   auto kk = k[0].expand({5, 4});
   auto up = model::make_model(micro_model("uplvsm", true));
-  auto frames = render::render_camera_path(up, {images, k, {}}, poses, kk, 2);
+  auto frames = render::render_camera_path(up, {images, k, {}, {}}, poses, kk, 2);
   EXPECT_EQ(frames.sizes(), (std::vector<int64_t>{5, 3, 32, 32}));
   // Chunking does not change frames.
-  EXPECT_LE(test::max_abs_diff(frames, render::render_camera_path(up, {images, k, {}}, poses, kk, 5)), 1e-5);
+  EXPECT_LE(test::max_abs_diff(frames, render::render_camera_path(up, {images, k, {}, {}}, poses, kk, 5)), 1e-5);
   auto no_mapper = model::make_model(micro_model("uplvsm", false));
-  EXPECT_NE(test::error_of([&] { render::render_camera_path(no_mapper, {images, k, {}}, poses, kk); })
+  EXPECT_NE(test::error_of([&] { render::render_camera_path(no_mapper, {images, k, {}, {}}, poses, kk); })
                 .find("--stage mapper"),
             std::string::npos);
   // A posed variant places the path in the inputs' world: its first frame is input view 0's camera.
   auto pt = model::make_model(micro_model("ptlvsm", false));
-  auto posed = render::render_camera_path(pt, {images, k, c2w}, poses, kk, 2);
+  auto posed = render::render_camera_path(pt, {images, k, c2w, {}}, poses, kk, 2);
   model::Views in{images.unsqueeze(0), k.unsqueeze(0), c2w.unsqueeze(0)};
   model::Views first{torch::zeros({1, 1, 3, 32, 32}), k.slice(0, 0, 1).unsqueeze(0), c2w.slice(0, 0, 1).unsqueeze(0)};
   torch::NoGradGuard no_grad;
   auto* pt_lvsm = dynamic_cast<model::PosedLVSMImpl*>(pt.get());
   ASSERT_NE(pt_lvsm, nullptr);
   EXPECT_LE(test::max_abs_diff(posed[0], pt_lvsm->render_posed(in, first, nullptr, false)[0][0]), 1e-5);
-  EXPECT_LE(test::max_abs_diff(posed, render::render_camera_path(pt, {images, k, c2w}, poses, kk, 5)), 1e-5);
-  EXPECT_NE(test::error_of([&] { render::render_camera_path(pt, {images, k, {}}, poses, kk); }).find("c2w"),
+  EXPECT_LE(test::max_abs_diff(posed, render::render_camera_path(pt, {images, k, c2w, {}}, poses, kk, 5)), 1e-5);
+  EXPECT_NE(test::error_of([&] { render::render_camera_path(pt, {images, k, {}, {}}, poses, kk); }).find("c2w"),
             std::string::npos);
   EXPECT_EQ(render::side_by_side(images, frames).sizes(), (std::vector<int64_t>{5, 3, 32, 96}));
 }

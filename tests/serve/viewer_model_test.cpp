@@ -48,7 +48,7 @@ TEST(ViewerModel, WithoutMapperOnlyLatentPoses) {
 
 TEST(ViewerModel, PosedModelsAreRefused) {
   Config c = tiny_config(false);
-  c.model.variant = "ptlvsm";
+  c.model.variant = Variant::PTLVSM;
   c.model.transformer.n_layer = 2;
   const auto dir = temp_dir("viewer_posed");
   const auto path = (dir / "ptlvsm.safetensors").string();

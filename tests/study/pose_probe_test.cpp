@@ -122,7 +122,7 @@ TEST(PosePairs, OneRowPerFrameWithTheFirstContextViewAsIdentity) {
   // A posed model has no latent poses: it cannot become the UP-LVSM that collect_pose_pairs takes.
   auto posed = model::make_model([&] {
     auto m = config.model;
-    m.variant = "ptlvsm";
+    m.variant = Variant::PTLVSM;
     return m;
   }());
   EXPECT_THROW(model::require_uplvsm(posed, "pose pairs"), c10::Error);

@@ -12,7 +12,7 @@ namespace uplvsm::test {
 // A micro model of any variant: 32 px, patch 8, d 32, one block per stack (posed variants: n_layer 2).
 inline ModelConfig micro_model(const std::string& variant = "uplvsm") {
   ModelConfig m;
-  m.variant = variant;
+  m.variant = parse_variant(variant);
   m.image_size = 32;
   m.patch_size = 8;
   m.transformer.d = 32;

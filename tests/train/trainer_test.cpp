@@ -124,7 +124,7 @@ TEST(Trainer, PerceptualLossWithVgg19WeightsElseMseOnly) {
 TEST(Trainer, Bf16AutocastKeepsFp32MasterWeights) {
   auto config = test::micro_config();
   config.training.train_steps = 3;
-  config.training.amp = "bf16";
+  config.training.amp = Amp::Bf16;
   auto run = test::temp_dir("train_bf16").string();
   auto result = train::train(config, options(run));
   EXPECT_EQ(result.step, 3);
@@ -174,7 +174,7 @@ TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
   train::train(config, options(base));
 
   config.model.pose_mapper = true;
-  config.training.target_poses = "mapper";
+  config.training.target_poses = TargetPoseChoice::Mapper;
   config.training.train_steps = 3;
   auto run = test::temp_dir("train_mapper").string();
   auto opt = options(run);
@@ -190,7 +190,7 @@ TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
 
 TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {
   auto config = test::micro_config();
-  config.model.variant = "ptlvsm";
+  config.model.variant = Variant::PTLVSM;
   config.model.transformer.n_layer = 2;
   config.training.train_steps = 20;
   auto run = test::temp_dir("train_ptlvsm").string();
@@ -200,7 +200,7 @@ TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {
   EXPECT_LT(losses[19] + losses[18], losses[0] + losses[1]);
   Config loaded;
   auto net = model::load_model(run, torch::kCPU, &loaded);
-  EXPECT_EQ(loaded.model.variant, "ptlvsm");
+  EXPECT_EQ(loaded.model.variant, Variant::PTLVSM);
   EXPECT_EQ(model::as_uplvsm(*net), nullptr);  // the decoder-only model: no estimator
   EXPECT_NE(dynamic_cast<model::PosedLVSMImpl*>(net.get()), nullptr);
 }

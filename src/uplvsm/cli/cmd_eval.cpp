@@ -5,11 +5,11 @@
 #include <fmt/format.h>
 
 #include "uplvsm/cli/commands.h"
-#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/train/distributed.h"
 
 namespace uplvsm::cli {
@@ -19,32 +19,30 @@ namespace {
 struct EvalArgs {
   CommonOptions common;
   ModelSource model;
-  std::string data, split = "test", index, out;
-  std::string lpips_net = "vgg", lpips_backbone, lpips_lin, amp = "none", target_poses = "auto";
+  SceneSource scenes;
+  std::string out, lpips_net = "vgg", lpips_backbone, lpips_lin;
+  Amp amp = Amp::None;
+  TargetPoseChoice target_poses = TargetPoseChoice::Auto;
   int64_t max_scenes = 0, batch = 4, visualise = 8;
 };
 
 void add_eval_options(CLI::App* cmd, EvalArgs& a) {
   add_common_options(cmd, a.common);
   add_model_options(cmd, a.model);
-  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks)")->required()->check(CLI::ExistingDirectory);
-  cmd->add_option("--split", a.split, "dataset split")->capture_default_str();
-  cmd->add_option("--index", a.index, "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
-                                       "<data>/evaluation_index.json");
+  add_scene_source_options(cmd, a.scenes, "dataset root (pixelSplat chunks)",
+                           "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
+                           "<data>/evaluation_index.json");
+  cmd->get_option("--data")->required();
   cmd->add_option("--max-scenes", a.max_scenes, "evaluate at most this many scenes (0: all)")->capture_default_str();
   cmd->add_option("--batch", a.batch, "scenes per forward pass")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--visualise", a.visualise, "PNG grids for this many scenes")->capture_default_str();
   cmd->add_option("--out", a.out, "output directory")->required();
-  cmd->add_option("--amp", a.amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)")
-      ->check(CLI::IsMember({"none", "bf16"}))
-      ->capture_default_str();
-  cmd->add_option("--target-poses", a.target_poses,
-                  "where target cameras come from: auto (the protocol the model was trained with, its "
-                  "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the mapper "
-                  "after the camera-control stage), estimator, mapper (dataset cameras through the camera-control "
-                  "mapper) or dataset")
-      ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
-      ->capture_default_str();
+  add_amp_option(cmd, a.amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)");
+  add_target_poses_option(cmd, a.target_poses,
+                          "where target cameras come from: auto (the protocol the model was trained with, its "
+                          "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the "
+                          "mapper after the camera-control stage), estimator, mapper (dataset cameras through the "
+                          "camera-control mapper) or dataset");
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -64,16 +62,16 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
 eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::NovelViewModel& net,
                                torch::Device device, const std::shared_ptr<train::Communicator>& comm) {
   eval::EvalOptions opt;
-  opt.index_path = a.index;
+  opt.index_path = a.scenes.index;
   opt.max_scenes = a.max_scenes;
   opt.batch_size = a.batch;
   opt.device = device;
   opt.num_visualised = a.visualise;
   opt.out_dir = a.out;
-  opt.bf16 = parse_amp(a.amp);
+  opt.bf16 = a.amp == Amp::Bf16;
   // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
-  opt.target_poses =
-      model::parse_target_poses(a.target_poses == "auto" ? config.training.target_poses : a.target_poses, *net);
+  opt.target_poses = model::resolve_target_poses(
+      a.target_poses == TargetPoseChoice::Auto ? config.training.target_poses : a.target_poses, *net);
   if (comm) {
     opt.shard_rank = comm->rank();
     opt.shard_count = comm->world_size();
@@ -83,9 +81,8 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
     opt.lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
     opt.lpips->to(device);
   }
-  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)}, {"data", a.data}, {"split", a.split},
-               {"config", config.name},
-               {"variant", config.model.variant}, {"target_poses", model::to_string(opt.target_poses)}};
+  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)}, {"data", a.scenes.data},
+               {"split", a.scenes.split}, {"config", config.name}, {"variant", to_string(config.model.variant)}, {"target_poses", model::to_string(opt.target_poses)}};
   return opt;
 }
 
@@ -100,7 +97,7 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
   };
   std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
                            summary.seconds, a.out)
-            << line(config.model.variant + " (" + model::to_string(opt.target_poses) + ")", "model")
+            << line(to_string(config.model.variant) + " (" + model::to_string(opt.target_poses) + ")", "model")
             << line("copy nearest", "copy_nearest")
             << line("mean colour", "mean_colour");
   if (!opt.lpips)
@@ -115,10 +112,9 @@ void run_eval(const EvalArgs& a) {
   auto device = train::rank_device(parse_device(a.common.device), env);
   std::shared_ptr<train::Communicator> comm;
   if (env.distributed()) comm = std::make_shared<train::Communicator>(env, device);
-  auto net = load_model(a.model, device, &config);
-  data::ChunkDataset dataset(a.data, a.split);
-  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                               config.dataset.square_crop};
+  auto net = model::load_model_with_config_file(a.model.checkpoint, a.model.config, device, &config);
+  data::ChunkDataset dataset(a.scenes.data, a.scenes.split);
+  const auto prep = data::preprocess_options(config);
   const auto opt = eval_options(a, config, net, device, comm);
   auto summary = eval::evaluate(net, dataset, prep, opt);
   if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards

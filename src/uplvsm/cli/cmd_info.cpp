@@ -23,7 +23,7 @@ void print_model_summary(const Config& c) {
     by_module[top] += item.value().numel();
   }
   std::cout << fmt::format("model        {} ({}), {}x{} images, patch {}, {:.2f} M parameters\n", c.name,
-                           c.model.variant, c.model.image_size, c.model.image_size, c.model.patch_size,
+                           to_string(c.model.variant), c.model.image_size, c.model.image_size, c.model.patch_size,
                            net->parameter_count() / 1e6);
   for (const auto& [name, n] : by_module) std::cout << fmt::format("  {:<38} {:>10.3f} M\n", name, n / 1e6);
 }

@@ -16,9 +16,11 @@
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/data/photo.h"
 #include "uplvsm/data/preprocess.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
 #include "uplvsm/render/trajectory.h"
@@ -32,7 +34,9 @@ namespace {
 struct RenderArgs {
   CommonOptions common;
   ModelSource model;
-  std::string data, split = "test", index, out, amp = "none", trajectory = "interpolate";
+  SceneSource source;
+  std::string out, trajectory = "interpolate";
+  Amp amp = Amp::None;
   double focus = 2.0, radius = 0.5, arc = 30.0;
   bool side_by_side = false;
   std::vector<std::string> images;
@@ -48,14 +52,14 @@ struct VideoPath {
   bool latent = false;
 };
 
-VideoPath camera_path(model::NovelViewModel& net, const data::Views& views, bool posed, const RenderArgs& a) {
+VideoPath camera_path(model::NovelViewModel& net, const data::SceneViews& views, bool posed, const RenderArgs& a) {
   const int64_t H = views.images.size(2), W = views.images.size(3);
   auto k0 = views.fxfycxcy[0].to(torch::kFloat64);
   auto repeat_k = [&](int64_t n) { return k0.unsqueeze(0).expand({n, 4}).contiguous(); };
   if (a.trajectory == "interpolate") {
     if (!posed || !net->has_camera_control()) return {};
     // SE(3) interpolation from the first input view (identity) to the second, in camera-control units.
-    auto real = model::camera_control_poses(views.c2w.unsqueeze(0), views.c2w.unsqueeze(0))[0].to(torch::kFloat64);
+    auto real = geometry::camera_control_poses(views.c2w.unsqueeze(0), views.c2w.unsqueeze(0))[0].to(torch::kFloat64);
     return {render::interpolate_poses(real.slice(0, 0, 2), a.frames),
             render::interpolate_intrinsics(views.fxfycxcy.to(torch::kFloat64).slice(0, 0, 2), a.frames)};
   }
@@ -68,8 +72,8 @@ VideoPath camera_path(model::NovelViewModel& net, const data::Views& views, bool
   }
   auto path = render::read_camera_path(a.trajectory);
   const int64_t n = path.poses.size(0);
-  if (!path.fxfycxcy_normalised.defined()) return {path.poses, repeat_k(n), path.latent};
-  return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalised, H, W), path.latent};
+  if (!path.fxfycxcy_normalized.defined()) return {path.poses, repeat_k(n), path.latent};
+  return {path.poses, geometry::intrinsics_to_pixels(path.fxfycxcy_normalized, H, W), path.latent};
 }
 
 // The frames stay in memory until the video is written (float32; with --side-by-side also a copy 3x as wide): a
@@ -84,18 +88,19 @@ void check_video_fits(int64_t frames, const torch::Tensor& images, bool side_by_
                                        format_bytes(static_cast<double>(available->bytes)), available->source));
 }
 
-void render_one(model::NovelViewModel& net, const data::Views& views, bool posed, const std::string& dir,
+void render_one(model::NovelViewModel& net, const data::SceneViews& views, bool posed, const std::string& dir,
                 const RenderArgs& a, nlohmann::json& listing, const std::string& name) {
   auto [poses, intrinsics, latent] = camera_path(net, views, posed, a);
   check_video_fits(poses.defined() ? poses.size(0) : a.frames, views.images, a.side_by_side);
   torch::Tensor frames, key_poses;
   {
-    AutocastGuard amp(render::model_device(*net), parse_amp(a.amp));
+    AutocastGuard amp(render::model_device(*net), a.amp == Amp::Bf16);
     if (latent) {
       auto up = model::require_uplvsm(net, "render: a camera path in latent units");
       frames = render::render_latent_path(up, views.images, views.fxfycxcy, poses, intrinsics);
     } else if (poses.defined()) {
-      model::Views inputs{views.images, views.fxfycxcy, posed ? views.c2w : torch::Tensor()};
+      auto inputs = views;
+      if (!posed) inputs.c2w = torch::Tensor();  // photos: no cameras
       frames = render::render_camera_path(net, inputs, poses, intrinsics);
     } else {
       auto up = model::require_uplvsm(net, "render: the latent interpolation of inputs without cameras");
@@ -120,10 +125,8 @@ void render_one(model::NovelViewModel& net, const data::Views& views, bool posed
 void add_render_options(CLI::App* cmd, RenderArgs& a) {
   add_common_options(cmd, a.common);
   add_model_options(cmd, a.model);
-  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks)");
-  cmd->add_option("--split", a.split, "dataset split")->capture_default_str();
-  cmd->add_option("--index", a.index,
-                  "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
+  add_scene_source_options(cmd, a.source, "dataset root (pixelSplat chunks)",
+                           "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
   cmd->add_option("--scenes", a.scenes, "how many dataset scenes to render")->capture_default_str();
   cmd->add_option("--images", a.images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
   cmd->add_option("--fov", a.fov, "horizontal field of view in degrees for --images")->capture_default_str();
@@ -141,17 +144,16 @@ void add_render_options(CLI::App* cmd, RenderArgs& a) {
   cmd->add_option("--radius", a.radius, "presets: spiral radius / dolly travel (baselines)")->capture_default_str();
   cmd->add_option("--arc", a.arc, "orbit: total swing in degrees")->capture_default_str();
   cmd->add_flag("--side-by-side", a.side_by_side, "video frames show [input 0 | input 1 | render]");
-  cmd->add_option("--amp", a.amp, "model precision: none (fp32) or bf16 autocast")
-      ->check(CLI::IsMember({"none", "bf16"}))
-      ->capture_default_str();
+  add_amp_option(cmd, a.amp, "model precision: none (fp32) or bf16 autocast");
   cmd->add_option("--out", a.out, "output directory")->required();
 }
 
 // One video per scene of the evaluation index (its context views), up to --scenes of those in the split.
 void render_dataset_scenes(model::NovelViewModel& net, const RenderArgs& a, const data::PreprocessOptions& prep,
                            nlohmann::json& listing) {
-  data::ChunkDataset dataset(a.data, a.split);
-  auto index = a.index.empty() ? (fs::path(a.data) / "evaluation_index.json").string() : a.index;
+  const auto& src = a.source;
+  data::ChunkDataset dataset(src.data, src.split);
+  auto index = src.index.empty() ? (fs::path(src.data) / "evaluation_index.json").string() : src.index;
   auto entries = data::read_eval_index(index);
   ProgressBar bar("render", std::min<int64_t>(a.scenes, static_cast<int64_t>(entries.size())), "scene");
   int64_t done = 0;
@@ -164,17 +166,16 @@ void render_dataset_scenes(model::NovelViewModel& net, const RenderArgs& a, cons
     bar.update(++done);
   }
   bar.finish();
-  if (done == 0) throw std::runtime_error("render: no scene of " + index + " is in " + a.data + "/" + a.split);
+  if (done == 0) throw std::runtime_error("render: no scene of " + index + " is in " + src.data + "/" + src.split);
 }
 
 void run_render(const RenderArgs& a) {
   apply_common_options(a.common);
-  if (a.images.empty() == a.data.empty())
+  if (a.images.empty() == a.source.data.empty())
     throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
   Config config;
-  auto net = load_model(a.model, parse_device(a.common.device), &config);
-  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                               true};
+  auto net = model::load_model_with_config_file(a.model.checkpoint, a.model.config, parse_device(a.common.device), &config);
+  const auto prep = data::square_preprocess_options(config);
   nlohmann::json listing = nlohmann::json::array();
   if (!a.images.empty()) render_one(net, data::load_photos(a.images, a.fov, prep), false, a.out, a, listing, "images");
   else render_dataset_scenes(net, a, prep, listing);

@@ -10,7 +10,6 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
-#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/serve/viewer_server.h"
 
@@ -21,7 +20,9 @@ namespace {
 struct ServeArgs {
   CommonOptions common;
   ModelSource model;
-  std::string data, split = "test", index, host = "127.0.0.1", amp = "none";
+  SceneSource scenes;
+  std::string host = "127.0.0.1";
+  Amp amp = Amp::None;
   int port = 8080, max_sessions = 8, max_scenes = 200;
   double cache_mb = 512, session_minutes = 30, max_upload_mb = 16, max_megapixels = 40;
 };
@@ -31,11 +32,12 @@ extern "C" void on_serve_signal(int sig) { g_stop_signal = sig; }
 
 void run_viewer(const ServeArgs& a) {
   auto model = serve::ViewerModel::load(a.model.checkpoint, a.model.config, parse_device(a.common.device),
-                                        parse_amp(a.amp));
-  data::PreprocessOptions prep{static_cast<int>(model.image_size()), static_cast<int>(model.patch_size()), true};
-  auto catalog = a.data.empty() ? std::make_unique<serve::SceneCatalog>()
-                                 : std::make_unique<serve::SceneCatalog>(a.data, a.split, a.index, prep,
-                                                                         static_cast<size_t>(a.max_scenes));
+                                        a.amp == Amp::Bf16);
+  const auto& s = a.scenes;
+  auto catalog = s.data.empty() ? std::make_unique<serve::SceneCatalog>()
+                                : std::make_unique<serve::SceneCatalog>(s.data, s.split, s.index,
+                                                                        model.preprocess_options(),
+                                                                        static_cast<size_t>(a.max_scenes));
   serve::ServerOptions o;
   o.host = a.host;
   o.port = a.port;
@@ -81,19 +83,15 @@ void add_serve_command(CLI::App& app) {
   auto a = std::make_shared<ServeArgs>();
   add_common_options(cmd, a->common);
   add_model_options(cmd, a->model);
-  cmd->add_option("--data", a->data, "dataset root whose scenes the page lists (optional: uploads always work)");
-  cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
-  cmd->add_option("--index", a->index,
-                  "evaluation index choosing each scene's two input views (default <data>/evaluation_index.json "
-                  "when present, else frames 0 and n/2)");
+  add_scene_source_options(cmd, a->scenes, "dataset root whose scenes the page lists (optional: uploads always work)",
+                           "evaluation index choosing each scene's two input views (default "
+                           "<data>/evaluation_index.json when present, else frames 0 and n/2)");
   cmd->add_option("--max-scenes", a->max_scenes, "dataset scenes listed")->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("--host", a->host, "address to listen on (anything but loopback is reachable by others)")
       ->capture_default_str();
   cmd->add_option("--port", a->port, "TCP port (0: any free port)")->check(CLI::Range(0, 65535))->capture_default_str();
-  cmd->add_option("--amp", a->amp, "model precision: none (fp32) or bf16 autocast")
-      ->check(CLI::IsMember({"none", "bf16"}))
-      ->capture_default_str();
+  add_amp_option(cmd, a->amp, "model precision: none (fp32) or bf16 autocast");
   cmd->add_option("--max-sessions", a->max_sessions, "open scenes kept (least recently used dropped first)")
       ->check(CLI::Range(1, 10000))
       ->capture_default_str();

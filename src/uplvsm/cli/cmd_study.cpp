@@ -14,6 +14,7 @@
 #include "uplvsm/io/image.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/data/photo.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/study/attention_map.h"
 #include "uplvsm/study/pose_probe.h"
 #include "uplvsm/study/pose_sensitivity.h"
@@ -30,7 +31,7 @@ struct PoseArgs {
   ModelSource model;
   std::string data, split = "test", train_split = "train", out;
   int64_t max_scenes = 0, gap = 12, iterations = 3000;
-  std::string target_poses = "auto";
+  TargetPoseChoice target_poses = TargetPoseChoice::Auto;
 };
 
 void add_pose_options(CLI::App* cmd, PoseArgs& a) {
@@ -55,7 +56,7 @@ StudyModel start(const PoseArgs& a) {
   apply_common_options(a.common);
   StudyModel m;
   m.device = parse_device(a.common.device);
-  m.net = model::require_uplvsm(load_model(a.model, m.device, &m.config),
+  m.net = model::require_uplvsm(model::load_model_with_config_file(a.model.checkpoint, a.model.config, m.device, &m.config),
                                 "study pose-pairs/pose-probe/pose-sensitivity/tsne");
   return m;
 }
@@ -158,9 +159,7 @@ void add_pose_sensitivity(CLI::App& study) {
   auto a = std::make_shared<PoseArgs>();
   add_pose_options(cmd, *a);
   cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
-  cmd->add_option("--target-poses", a->target_poses, "where the views' poses come from (auto: the model's protocol)")
-      ->check(CLI::IsMember({"auto", "estimator", "mapper", "dataset"}))
-      ->capture_default_str();
+  add_target_poses_option(cmd, a->target_poses, "where the views' poses come from (auto: the model's protocol)");
   cmd->add_option("--out", a->out, "output directory")->required();
   cmd->callback([a] {
     auto [config, device, net] = start(*a);
@@ -169,7 +168,7 @@ void add_pose_sensitivity(CLI::App& study) {
     opt.max_scenes = a->max_scenes;
     opt.gap = a->gap;
     opt.device = device;
-    opt.source = model::parse_target_poses(a->target_poses, *net);
+    opt.source = model::resolve_target_poses(a->target_poses, *net);
     auto report = study::measure_pose_sensitivity(net, dataset, data::preprocess_options(config), opt);
     fs::create_directories(a->out);
     study::write_sensitivity_csv((fs::path(a->out) / "views.csv").string(), report);
@@ -242,9 +241,9 @@ void add_attention_options(CLI::App* cmd, AttentionArgs& a) {
 }
 
 // The two views to draw, by name: the --images pair, or the first two context views of the index's scenes.
-std::vector<std::pair<std::string, data::Views>> attention_views(const AttentionArgs& a,
+std::vector<std::pair<std::string, data::SceneViews>> attention_views(const AttentionArgs& a,
                                                                  const data::PreprocessOptions& prep) {
-  std::vector<std::pair<std::string, data::Views>> pairs;
+  std::vector<std::pair<std::string, data::SceneViews>> pairs;
   if (!a.images.empty()) {
     pairs.emplace_back("images", data::load_photos(a.images, a.fov, prep));
     return pairs;
@@ -275,9 +274,8 @@ void run_attention(const AttentionArgs& a) {
     throw std::runtime_error("study attention: give either --data (dataset scenes) or --images A B (two photos)");
   Config config;
   const auto device = parse_device(a.common.device);
-  auto net = model::require_uplvsm(load_model(a.model, device, &config), "study attention");
-  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                               config.dataset.square_crop};
+  auto net = model::require_uplvsm(model::load_model_with_config_file(a.model.checkpoint, a.model.config, device, &config), "study attention");
+  const auto prep = data::preprocess_options(config);
   const auto pairs = attention_views(a, prep);
   const int64_t grid = config.model.image_size / config.model.patch_size;
   const int64_t row = a.patch.empty() ? grid / 2 : a.patch[0], col = a.patch.empty() ? grid / 2 : a.patch[1];

@@ -11,7 +11,6 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
-#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
@@ -19,6 +18,7 @@
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/model/model_factory.h"
 #include "uplvsm/study/study_grid.h"
 #include "uplvsm/train/trainer.h"
 
@@ -71,7 +71,7 @@ std::vector<std::pair<std::string, Config>> load_series(const GridArgs& a) {
   for (const auto& path : a.configs) {
     auto c = load_config(path);
     if (a.steps > 0) c.training.train_steps = a.steps;
-    out.emplace_back(c.model.variant, c);
+    out.emplace_back(to_string(c.model.variant), c);
   }
   for (auto& [name, c] : out) {
     int same = 0;
@@ -115,16 +115,15 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   if (trained.interrupted) throw std::runtime_error("study interrupted by a signal (rerun the same command to resume)");
 
   Config config;
-  auto net = load_model(ModelSource{dir.string(), ""}, device, &config);
+  auto net = model::load_model(dir.string(), device, &config);
   data::ChunkDataset test(a.data, "test");
-  data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                               config.dataset.square_crop};
+  const auto prep = data::preprocess_options(config);
   eval::EvalOptions eopt;
   eopt.max_scenes = a.eval_scenes;
   eopt.device = device;
   eopt.num_visualised = 2;
   eopt.out_dir = (dir / "eval").string();
-  eopt.bf16 = parse_amp(config.training.amp);
+  eopt.bf16 = config.training.amp == Amp::Bf16;
   eopt.target_poses = net->default_target_poses();
   eopt.lpips = lpips;
   eopt.extra = {{"checkpoint", trained.last_checkpoint}, {"series", r.series}, {"setting", r.setting}};

@@ -7,7 +7,6 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/config.h"
-#include "uplvsm/core/autocast.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
@@ -31,15 +30,14 @@ std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluati
   }
   return [=](model::NovelViewModel& net, int64_t step) {
     data::ChunkDataset dataset(data, "test");
-    data::PreprocessOptions prep{static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
-                                 config.dataset.square_crop};
+    const auto prep = data::preprocess_options(config);
     eval::EvalOptions opt;
     opt.index_path = index.string();
     opt.max_scenes = config.eval.max_scenes > 0 ? config.eval.max_scenes : 16;
     opt.device = device;
     opt.num_visualised = 2;
-    opt.bf16 = parse_amp(config.training.amp);
-    opt.target_poses = model::parse_target_poses(config.training.target_poses, *net);
+    opt.bf16 = config.training.amp == Amp::Bf16;
+    opt.target_poses = model::resolve_target_poses(config.training.target_poses, *net);
     opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& model_row = summary.table.at("model");
@@ -109,14 +107,14 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
 Config train_config(const TrainArgs& a) {
   auto config = apply_config_overrides(load_config(a.config), a.set, a.config);
   if (a.steps > 0) config.training.train_steps = a.steps;
-  if (!a.amp.empty()) config.training.amp = a.amp;
+  if (!a.amp.empty()) config.training.amp = parse_amp(a.amp, "--amp");
   // Absolute, so a resume from another working directory reads the same manifest from the run's config.
   if (!a.subset.empty()) config.training.subset = std::filesystem::absolute(a.subset).string();
   if (a.stage == "mapper") {
     if (a.init.empty() && a.resume == "none")
       throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");
     config.model.pose_mapper = true;
-    config.training.target_poses = "mapper";
+    config.training.target_poses = TargetPoseChoice::Mapper;
     validate_config(config, a.config + " (--stage mapper)");
   }
   return config;

@@ -25,7 +25,19 @@ struct ModelSource {
   std::string checkpoint, config;
 };
 void add_model_options(CLI::App* cmd, ModelSource& src);
-model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out);
+
+// --amp (none: fp32, bf16: autocast) and --target-poses (auto, estimator, mapper, dataset), parsed into their enums
+// here, once; `help` says what the choice applies to in this command.
+CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help);
+CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help);
+
+// The scenes eval, render and serve read: a dataset root, its split and an evaluation index (default
+// <data>/evaluation_index.json).
+struct SceneSource {
+  std::string data, split = "test", index;
+};
+void add_scene_source_options(CLI::App* cmd, SceneSource& src, const std::string& data_help,
+                              const std::string& index_help);
 
 // What the CLI prints for an uncaught error: its message, without LibTorch's C++ backtrace ("Exception raised
 // from ... frame #0 ...") unless `verbose`, also when another error's message embeds a LibTorch one.

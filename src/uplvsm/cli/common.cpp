@@ -1,3 +1,5 @@
+#include <map>
+
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
@@ -39,10 +41,26 @@ void add_model_options(CLI::App* cmd, ModelSource& src) {
       ->check(CLI::ExistingFile);
 }
 
-model::NovelViewModel load_model(const ModelSource& src, const torch::Device& device, Config* config_out) {
-  if (src.config.empty()) return model::load_model(src.checkpoint, device, config_out);
-  Config hint = load_config(src.config);
-  return model::load_model(src.checkpoint, device, config_out, &hint);
+CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help) {
+  const std::map<std::string, Amp> names{{to_string(Amp::None), Amp::None}, {to_string(Amp::Bf16), Amp::Bf16}};
+  return cmd->add_option("--amp", amp, help)->transform(CLI::CheckedTransformer(names))->default_str(to_string(amp));
+}
+
+CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help) {
+  std::map<std::string, TargetPoseChoice> names;
+  for (auto c : {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper,
+                 TargetPoseChoice::Dataset})
+    names.emplace(to_string(c), c);
+  return cmd->add_option("--target-poses", choice, help)
+      ->transform(CLI::CheckedTransformer(names))
+      ->default_str(to_string(choice));
+}
+
+void add_scene_source_options(CLI::App* cmd, SceneSource& src, const std::string& data_help,
+                              const std::string& index_help) {
+  cmd->add_option("--data", src.data, data_help)->check(CLI::ExistingDirectory);
+  cmd->add_option("--split", src.split, "dataset split")->capture_default_str();
+  cmd->add_option("--index", src.index, index_help);
 }
 
 }  // namespace uplvsm::cli

@@ -26,12 +26,6 @@ void set_dtype_on(bool cuda, at::ScalarType t) {
 
 }  // namespace
 
-bool parse_amp(const std::string& amp) {
-  if (amp == "bf16") return true;
-  if (amp == "none") return false;
-  throw std::runtime_error("amp '" + amp + "': expected 'none' or 'bf16'");
-}
-
 bool autocast_active(torch::Device device) { return is_enabled_on(device.is_cuda()); }
 
 AutocastGuard::AutocastGuard(torch::Device device, bool enabled) {

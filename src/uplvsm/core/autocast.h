@@ -8,9 +8,6 @@
 
 namespace uplvsm {
 
-// "none" or "bf16" (config field training.amp, CLI --amp); anything else is an error naming the value.
-bool parse_amp(const std::string& amp);
-
 // Whether an autocast region for `device`'s type is open on this thread (recomputations re-enter the same state).
 bool autocast_active(torch::Device device);
 

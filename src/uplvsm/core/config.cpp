@@ -1,5 +1,6 @@
 #include "uplvsm/core/config.h"
 
+#include <array>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -16,6 +17,29 @@ using nlohmann::json;
 
 namespace {
 
+constexpr std::array<const char*, 3> kVariantNames{"uplvsm", "ptlvsm", "lvsm"};
+constexpr std::array<const char*, 2> kAmpNames{"none", "bf16"};
+constexpr std::array<const char*, 4> kTargetPoseNames{"auto", "estimator", "mapper", "dataset"};
+
+template <typename E, size_t N>
+E parse_choice(const std::string& name, const std::string& field, const std::array<const char*, N>& names) {
+  std::string expected;
+  for (size_t i = 0; i < N; ++i) {
+    if (name == names[i]) return static_cast<E>(i);
+    expected += fmt::format("{}'{}'", i == 0 ? "" : i + 1 == N ? " or " : ", ", names[i]);
+  }
+  throw std::runtime_error(fmt::format("{} must be {}, got '{}'", field, expected, name));
+}
+
+// The JSON form of a field: enums by name, everything else as it is.
+json json_value(Variant v) { return to_string(v); }
+json json_value(Amp a) { return to_string(a); }
+json json_value(TargetPoseChoice t) { return to_string(t); }
+template <typename T>
+json json_value(const T& v) {
+  return v;
+}
+
 // Reads known fields of one JSON object and rejects the rest, naming the offending path.
 class Reader {
  public:
@@ -29,6 +53,12 @@ class Reader {
     try {
       if constexpr (std::is_same_v<T, int64_t>)
         out = json_integer(j_.at(key), fmt::format("{}.{}", path_, key));
+      else if constexpr (std::is_same_v<T, Variant>)
+        out = parse_variant(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
+      else if constexpr (std::is_same_v<T, Amp>)
+        out = parse_amp(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
+      else if constexpr (std::is_same_v<T, TargetPoseChoice>)
+        out = parse_target_pose_choice(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
       else
         out = j_.at(key).get<T>();
     } catch (const json::exception& e) {
@@ -165,7 +195,7 @@ void read_section(const json& j, const std::string& path, C& c, Fields fields) {
 template <typename C, typename Fields>
 json write_section(const C& c, Fields fields) {
   json out = json::object();
-  fields(c, [&](const char* key, const auto& member) { out[key] = member; });
+  fields(c, [&](const char* key, const auto& member) { out[key] = json_value(member); });
   return out;
 }
 
@@ -176,6 +206,20 @@ void require(bool ok, const std::string& source, const std::string& what) {
 }
 
 }  // namespace
+
+std::string to_string(Variant v) { return kVariantNames.at(static_cast<size_t>(v)); }
+std::string to_string(Amp a) { return kAmpNames.at(static_cast<size_t>(a)); }
+std::string to_string(TargetPoseChoice t) { return kTargetPoseNames.at(static_cast<size_t>(t)); }
+
+Variant parse_variant(const std::string& name, const std::string& field) {
+  return parse_choice<Variant>(name, field, kVariantNames);
+}
+Amp parse_amp(const std::string& name, const std::string& field) {
+  return parse_choice<Amp>(name, field, kAmpNames);
+}
+TargetPoseChoice parse_target_pose_choice(const std::string& name, const std::string& field) {
+  return parse_choice<TargetPoseChoice>(name, field, kTargetPoseNames);
+}
 
 Config config_from_json(const json& j, const std::string& source) {
   Config c;
@@ -238,11 +282,9 @@ Config load_config(const std::string& path) {
 void validate_config(const Config& c, const std::string& s) {
   const auto& m = c.model;
   const auto& t = m.transformer;
-  require(m.variant == "uplvsm" || m.variant == "ptlvsm" || m.variant == "lvsm", s,
-          "model.variant must be 'uplvsm', 'ptlvsm' or 'lvsm', got '" + m.variant + "'");
-  require(!m.pose_mapper || m.variant == "uplvsm", s,
+  require(!m.pose_mapper || m.variant == Variant::UPLVSM, s,
           "model.pose_mapper: only the uplvsm variant has latent poses to map to");
-  require(!m.keep_image_tokens || m.variant == "uplvsm", s,
+  require(!m.keep_image_tokens || m.variant == Variant::UPLVSM, s,
           "model.keep_image_tokens: only the uplvsm variant has an encoder whose image tokens it could keep");
   require(m.patch_size > 0 && m.image_size > 0 && m.image_size % m.patch_size == 0, s,
           fmt::format("model.image_size ({}) must be a positive multiple of model.patch_size ({})", m.image_size,
@@ -269,14 +311,13 @@ void validate_config(const Config& c, const std::string& s) {
   require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
           "training: need 1 <= min_frame_dist <= max_frame_dist");
-  require(tr.amp == "none" || tr.amp == "bf16", s, "training.amp must be 'none' or 'bf16'");
-  const auto& tp = tr.target_poses;
-  require(tp == "auto" || tp == "estimator" || tp == "mapper" || tp == "dataset", s,
-          "training.target_poses must be 'auto', 'estimator', 'mapper' or 'dataset', got '" + tp + "'");
-  require(m.variant == "uplvsm" || tp == "auto" || tp == "dataset", s,
-          "training.target_poses: the " + m.variant + " variant renders from dataset cameras ('auto' or 'dataset')");
-  require(tp != "mapper" || m.pose_mapper, s, "training.target_poses 'mapper' needs model.pose_mapper: true");
-  require(!m.encoder_cameras || (m.variant == "uplvsm" && tp == "dataset"), s,
+  const auto tp = tr.target_poses;
+  require(m.variant == Variant::UPLVSM || tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Dataset, s,
+          "training.target_poses: the " + to_string(m.variant) +
+              " variant renders from dataset cameras ('auto' or 'dataset')");
+  require(tp != TargetPoseChoice::Mapper || m.pose_mapper, s,
+          "training.target_poses 'mapper' needs model.pose_mapper: true");
+  require(!m.encoder_cameras || (m.variant == Variant::UPLVSM && tp == TargetPoseChoice::Dataset), s,
           "model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
           "training.target_poses 'dataset'");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");

@@ -10,6 +10,19 @@
 
 namespace uplvsm {
 
+// The string-valued choices, parsed once when a config is read (JSON keeps their names).
+enum class Variant { UPLVSM, PTLVSM, LVSM };              // model.variant: "uplvsm", "ptlvsm", "lvsm"
+enum class Amp { None, Bf16 };                           // training.amp: "none", "bf16"
+enum class TargetPoseChoice { Auto, Estimator, Mapper, Dataset };  // training.target_poses
+
+std::string to_string(Variant v);
+std::string to_string(Amp a);
+std::string to_string(TargetPoseChoice t);
+// Each throws naming `field`, the accepted names and the value given.
+Variant parse_variant(const std::string& name, const std::string& field = "model.variant");
+Amp parse_amp(const std::string& name, const std::string& field = "amp");
+TargetPoseChoice parse_target_pose_choice(const std::string& name, const std::string& field = "target poses");
+
 struct TransformerConfig {
   int64_t d = 768;
   int64_t d_head = 64;
@@ -42,7 +55,7 @@ struct Dinov2Config {
 };
 
 struct ModelConfig {
-  std::string variant = "uplvsm";  // "uplvsm", "ptlvsm" (posed targets), "lvsm" (posed inputs and targets)
+  Variant variant = Variant::UPLVSM;  // ptlvsm: posed targets; lvsm: posed inputs and targets
   bool pose_mapper = false;        // camera control: the linear pose mapper (model/pose_mapper.h), uplvsm only
   // Diagnostic, not unposed: the uplvsm encoder reads every input view's real camera (its Plücker ray tokens, in
   // camera-control units) instead of the identity marker on view 0 - LVSM's encoder-decoder, the same scene-latent
@@ -82,10 +95,10 @@ struct TrainingConfig {
   int64_t eval_every = 0;  // 0: no periodic evaluation
   int64_t seed = 777;
   int64_t loader_threads = 2;
-  std::string amp = "none";  // "none" or "bf16"
+  Amp amp = Amp::None;
   // Where targets' cameras come from (model::TargetPoses): "auto" (estimator for uplvsm, dataset for the posed
   // variants), "estimator", "mapper" (camera-control fine-tuning) or "dataset" (the SfM-target-pose ablation).
-  std::string target_poses = "auto";
+  TargetPoseChoice target_poses = TargetPoseChoice::Auto;
   // Nested training subsets (the scalability study): train on the first N scenes of the train split; 0: all.
   int64_t max_train_scenes = 0;
   // A subset manifest (`uplvsm dataset subset`: little / medium / large / full or custom): train on its scenes only.

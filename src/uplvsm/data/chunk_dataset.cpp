@@ -417,7 +417,7 @@ RawScene ChunkDataset::scene(int64_t i) const {
   return scene_ref(i, holder);  // a copy sharing the tensors' storage (read-only use expected)
 }
 
-Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const {
+SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const {
   ChunkPtr holder;
   const RawScene& s = scene_ref(i, holder);
   const LvsmSceneMetadata* lvsm = holder->lvsm.get();
@@ -448,7 +448,7 @@ Views ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, co
     decoded.push_back(img);
     cameras.push_back(row);
   }
-  Views views = preprocess(decoded, torch::stack(cameras), opt, where);
+  SceneViews views = preprocess(decoded, torch::stack(cameras), opt, where);
   views.frames = frames;
   return views;
 }

@@ -90,10 +90,10 @@ class ChunkDataset {
   const std::string& root() const { return root_; }
   const std::string& split() const { return split_; }
 
-  // Decodes the requested frames (any order, repeats allowed) and preprocesses them; Views.frames = frames.
+  // Decodes the requested frames (any order, repeats allowed) and preprocesses them; SceneViews.frames = frames.
   // Throws BadFrameError for a frame whose size differs from frame 0, std::runtime_error for a frame index out
   // of range, an undecodable JPEG or a NaN/Inf camera (naming the scene key and frame).
-  Views load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const;
+  SceneViews load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const;
 
  private:
   struct Entry {

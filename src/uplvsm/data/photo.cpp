@@ -6,7 +6,7 @@
 
 namespace uplvsm::data {
 
-Views load_photos(const std::vector<std::string>& paths, double fov_degrees, const PreprocessOptions& opt) {
+SceneViews load_photos(const std::vector<std::string>& paths, double fov_degrees, const PreprocessOptions& opt) {
   if (paths.empty()) throw std::invalid_argument("load_photos: no photo given");
   // The field of view is the caller's argument, not a property of a file: refused before any photo is read.
   if (!(fov_degrees > 0 && fov_degrees < 180))
@@ -22,7 +22,7 @@ Views load_photos(const std::vector<std::string>& paths, double fov_degrees, con
     fxfycxcy.push_back(view.fxfycxcy);
     c2w.push_back(view.c2w);
   }
-  Views out{torch::cat(images), torch::cat(fxfycxcy), torch::cat(c2w), {}};
+  SceneViews out{torch::cat(images), torch::cat(fxfycxcy), torch::cat(c2w), {}};
   for (size_t i = 0; i < paths.size(); ++i) out.frames.push_back(static_cast<int64_t>(i));
   return out;
 }

@@ -13,6 +13,6 @@ namespace uplvsm::data {
 // One view per path, in order: images [V, 3, H, W], fxfycxcy [V, 4] pixels, c2w [V, 4, 4] identity, frames 0..V-1.
 // Errors name the file (unreadable, not JPEG/PNG) or the photo whose preprocessed size differs from the first's; a
 // field of view outside (0, 180) degrees is an std::invalid_argument.
-Views load_photos(const std::vector<std::string>& paths, double fov_degrees, const PreprocessOptions& opt);
+SceneViews load_photos(const std::vector<std::string>& paths, double fov_degrees, const PreprocessOptions& opt);
 
 }  // namespace uplvsm::data

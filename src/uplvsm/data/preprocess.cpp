@@ -232,7 +232,7 @@ torch::Tensor make_cameras18(const torch::Tensor& fxfycxcy_px, const torch::Tens
   return rows.to(torch::kFloat32);
 }
 
-Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
+SceneViews preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
                  const PreprocessOptions& opt, const std::string& what) {
   int64_t v = static_cast<int64_t>(hwc_u8_frames.size());
   check_cameras(cameras18, what);
@@ -253,7 +253,7 @@ Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::T
                                            what, i, c10::str(images[i].sizes()), c10::str(images[0].sizes()),
                                            c10::str(f.sizes()), c10::str(hwc_u8_frames[0].sizes())));
   }
-  Views views;
+  SceneViews views;
   views.images = torch::stack(images);
   views.fxfycxcy = torch::from_blob(k.data(), {v, 4}, torch::kFloat64).to(torch::kFloat32);
   views.c2w = cameras_to_c2w(cams, what);
@@ -262,7 +262,7 @@ Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::T
   return views;
 }
 
-Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
+SceneViews preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
                        const std::string& what) {
   if (!(fov_deg > 0 && fov_deg < 180))
     throw std::runtime_error(fmt::format("{}: field of view must be in (0, 180) degrees, got {:g}", what, fov_deg));
@@ -280,6 +280,12 @@ Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const Prepro
 PreprocessOptions preprocess_options(const Config& config) {
   return {static_cast<int>(config.model.image_size), static_cast<int>(config.model.patch_size),
           config.dataset.square_crop};
+}
+
+PreprocessOptions square_preprocess_options(const Config& config) {
+  auto square = preprocess_options(config);
+  square.square_crop = true;
+  return square;
 }
 
 }  // namespace uplvsm::data

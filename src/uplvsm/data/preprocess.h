@@ -19,16 +19,18 @@ struct PreprocessOptions {
 
 // The preprocessing a model of `config` expects: its image and patch size, the dataset's square_crop.
 PreprocessOptions preprocess_options(const Config& config);
+// The same with a square crop whatever the dataset says: what render's videos and the viewer show.
+PreprocessOptions square_preprocess_options(const Config& config);
 
-// Decoded frames (uint8 [H0,W0,3] each, typically all the same size) and their camera rows [V,18] -> Views.
+// Decoded frames (uint8 [H0,W0,3] each, typically all the same size) and their camera rows [V,18] -> SceneViews.
 // `frames` of the result is 0..V-1 (callers that know the scene's frame numbers overwrite it). `what` names the
 // source in errors (NaN camera, wrong shapes, frames whose output size differs).
-Views preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
+SceneViews preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
                  const PreprocessOptions& opt, const std::string& what = "preprocess");
 
 // A user's photo (uint8 [H,W,3]) as one view: a pinhole camera with the principal point at the centre, square
 // pixels and the given horizontal field of view, identity pose (unused by the unposed model).
-Views preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
+SceneViews preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
                        const std::string& what);
 
 // Wr = round(int(Hr / H0 * W0) / patch) * patch, with Python's round (half to even), as the official code.

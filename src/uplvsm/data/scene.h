@@ -1,5 +1,5 @@
 // The two scene records of the data layer: a scene as stored in a pixelSplat chunk (RawScene: JPEG bytes and the
-// 18-float camera rows) and a set of views ready for the model (Views: float images, pixel intrinsics, c2w).
+// 18-float camera rows) and a set of views ready for the model (SceneViews: float images, pixel intrinsics, c2w).
 #pragma once
 #include <torch/torch.h>
 
@@ -18,8 +18,8 @@ struct RawScene {
   std::vector<torch::Tensor> images;  // N uint8 1-D tensors, each the complete bytes of one JPEG file
 };
 
-// Views of one scene after preprocessing (decode, resize, crop).
-struct Views {
+// The views of one scene after preprocessing (decode, resize, crop).
+struct SceneViews {
   torch::Tensor images;         // float32 [V,3,H,W] in [0,1]
   torch::Tensor fxfycxcy;       // float32 [V,4], pixels of the HxW output
   torch::Tensor c2w;            // float32 [V,4,4], camera-to-world (OpenCV axes: x right, y down, z forward)

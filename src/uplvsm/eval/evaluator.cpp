@@ -41,7 +41,7 @@ struct Job {
 
 struct Loaded {
   const Job* job = nullptr;
-  data::Views views;  // context frames, then target frames
+  data::SceneViews views;  // context frames, then target frames
 };
 
 // Where the results of one run go while batches finish in group order (main thread only).

@@ -78,7 +78,7 @@ torch::Tensor intrinsics_to_pixels(const torch::Tensor& n, int64_t height, int64
   return n * scale;
 }
 
-torch::Tensor intrinsics_to_normalised(const torch::Tensor& p, int64_t height, int64_t width) {
+torch::Tensor intrinsics_to_normalized(const torch::Tensor& p, int64_t height, int64_t width) {
   auto scale = torch::tensor({double(width), double(height), double(width), double(height)}, p.options());
   return p / scale;
 }

@@ -31,8 +31,8 @@ torch::Tensor official_scene_normalize(const torch::Tensor& c2w, const torch::Te
                                        double scale_factor = 1.35);
 
 // (fx, fy, cx, cy) normalised by (W, H) <-> pixels; [..., 4].
-torch::Tensor intrinsics_to_pixels(const torch::Tensor& normalised, int64_t height, int64_t width);
-torch::Tensor intrinsics_to_normalised(const torch::Tensor& pixels, int64_t height, int64_t width);
+torch::Tensor intrinsics_to_pixels(const torch::Tensor& normalized, int64_t height, int64_t width);
+torch::Tensor intrinsics_to_normalized(const torch::Tensor& pixels, int64_t height, int64_t width);
 // [..., 4] -> [..., 3, 3] K matrix.
 torch::Tensor intrinsics_matrix(const torch::Tensor& fxfycxcy);
 

@@ -18,7 +18,8 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
 
 torch::Tensor LatentPluckerLearnerImpl::pooled(const torch::Tensor& image_tokens, const torch::Tensor& scene_latents) {
   const int64_t n = image_tokens.size(1);
-  auto x = run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1), grad_checkpoint_every);
+  auto x = run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1), grad_checkpoint_every,
+                     "uplvsm::estimator");
   return x.index({Slice(), Slice(0, n)}).mean(1);
 }
 

@@ -33,7 +33,7 @@ int64_t parameter_count(const ModelConfig& c) {
   const auto& t = c.transformer;
   const int64_t p = c.patch_size;
   int64_t n = dinov2_parameters(c.dinov2, p) + 2 * 6 * p * p * t.d;  // tokenizer, target + canonical pose tokenizers
-  if (c.variant != "uplvsm") {
+  if (c.variant != Variant::UPLVSM) {
     n += stack_parameters(t.n_layer, t) + t.d;
   } else {
     n += t.n_latent_vectors * t.d + stack_parameters(t.encoder_n_layer, t) + stack_parameters(t.decoder_n_layer, t) +
@@ -55,7 +55,7 @@ TrainingMemory training_memory(const Config& config) {
                vt = static_cast<double>(tc.num_target_views);
   const double grid = static_cast<double>(c.image_size / c.patch_size), n = grid * grid,
                L = static_cast<double>(t.n_latent_vectors);
-  const double element = tc.amp == "bf16" ? 2.0 : 4.0;
+  const double element = tc.amp == Amp::Bf16 ? 2.0 : 4.0;
   const int64_t k = tc.grad_checkpoint_every;
   // Values kept per token of a stack of `layers` blocks of width `d`.
   auto kept = [&](int64_t layers, int64_t d) {
@@ -63,10 +63,11 @@ TrainingMemory training_memory(const Config& config) {
     return blocks * static_cast<double>(d);
   };
   // The estimator (and DINOv2 over the targets) runs only where target poses come from it.
-  const bool estimator = c.variant == "uplvsm" && (tc.target_poses == "auto" || tc.target_poses == "estimator");
+  const bool estimator = c.variant == Variant::UPLVSM && (tc.target_poses == TargetPoseChoice::Auto ||
+                                                    tc.target_poses == TargetPoseChoice::Estimator);
   const double dino_tokens = b * (vi + (estimator ? vt : 0)) * (1 + static_cast<double>(c.dinov2.num_register_tokens) + n);
   double values = dino_tokens * kept(c.dinov2.depth, c.dinov2.embed_dim);
-  if (c.variant == "uplvsm") {
+  if (c.variant == Variant::UPLVSM) {
     values += b * (L + vi * n) * kept(t.encoder_n_layer, t.d);
     const double scene = L + (c.keep_image_tokens ? vi * n : 0.0);
     values += b * vt * (n + scene) * ((estimator ? kept(t.estimator_n_layer, t.d) : 0) + kept(t.decoder_n_layer, t.d));

@@ -19,10 +19,9 @@ namespace uplvsm::model {
 namespace {
 
 // Which input views of a posed variant carry their rays.
-PosedInputs posed_inputs(const std::string& variant) {
-  if (variant == "ptlvsm") return PosedInputs::First;
-  if (variant == "lvsm") return PosedInputs::All;
-  throw std::invalid_argument("model.variant must be 'uplvsm', 'ptlvsm' or 'lvsm', got '" + variant + "'");
+PosedInputs posed_inputs(Variant variant) {
+  TORCH_CHECK(variant != Variant::UPLVSM, "the uplvsm variant has no posed inputs");
+  return variant == Variant::PTLVSM ? PosedInputs::First : PosedInputs::All;
 }
 
 const torch::Tensor& require(const NamedTensors& w, const std::string& key) {
@@ -35,7 +34,7 @@ const torch::Tensor& require(const NamedTensors& w, const std::string& key) {
 
 NovelViewModel make_model(const ModelConfig& config) {
   std::shared_ptr<NovelViewModelImpl> model;
-  if (config.variant == "uplvsm") {
+  if (config.variant == Variant::UPLVSM) {
     model = std::make_shared<UPLVSMImpl>(config);
   } else {
     const auto posed = posed_inputs(config.variant);
@@ -46,7 +45,7 @@ NovelViewModel make_model(const ModelConfig& config) {
 }
 
 FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views) {
-  if (config.variant == "uplvsm") return uplvsm_forward_flops(config, batch, input_views, target_views);
+  if (config.variant == Variant::UPLVSM) return uplvsm_forward_flops(config, batch, input_views, target_views);
   const int64_t posed = posed_inputs(config.variant) == PosedInputs::All ? input_views : 1;
   return posed_lvsm_forward_flops(config, batch, input_views, target_views, posed);
 }
@@ -56,14 +55,14 @@ ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
   if (!has_key(w, "n_light_field_latent") && has_key(w, "transformer_input_layernorm.weight")) {
     // The official posedTargetLVSM layout (decoder-only). Its keys do not tell PT-LVSM from our LVSM variant (which
     // poses every input view); the official release is PT-LVSM, so that is the default.
-    if (c.variant == "uplvsm") c.variant = "ptlvsm";
+    if (c.variant == Variant::UPLVSM) c.variant = Variant::PTLVSM;
     c.pose_mapper = false;
     t.d = require(w, "transformer_input_layernorm.weight").size(0);
     t.d_head = require(w, "transformer_blocks.0.attn.q_norm.weight").size(0);
     t.n_layer = count_indexed(w, "transformer_blocks.");
   } else {
     const torch::Tensor latents = require(w, "n_light_field_latent");
-    c.variant = "uplvsm";
+    c.variant = Variant::UPLVSM;
     c.pose_mapper = has_key(w, "pose_mapper.A");
     t.n_latent_vectors = latents.size(0);
     t.d = latents.size(1);
@@ -124,6 +123,13 @@ NovelViewModel load_model(const std::string& path_in, const torch::Device& devic
   net->eval();
   if (config_out) *config_out = config;
   return net;
+}
+
+NovelViewModel load_model_with_config_file(const std::string& path, const std::string& config_hint_path,
+                                           const torch::Device& device, Config* config_out) {
+  if (config_hint_path.empty()) return load_model(path, device, config_out);
+  const Config hint = load_config(config_hint_path);
+  return load_model(path, device, config_out, &hint);
 }
 
 }  // namespace uplvsm::model

@@ -29,6 +29,9 @@ ModelConfig infer_model_config(const NamedTensors& weights, ModelConfig base);
 // files are refused with a pointer to `uplvsm convert`. `config_out` receives the config used.
 NovelViewModel load_model(const std::string& path, const torch::Device& device, Config* config_out = nullptr,
                           const Config* config_hint = nullptr);
+// The same with the hint read from a config JSON file (the CLI's --config; empty: no hint).
+NovelViewModel load_model_with_config_file(const std::string& path, const std::string& config_hint_path,
+                                           const torch::Device& device, Config* config_out = nullptr);
 
 // One forward of config's model (flops.h), without building it.
 FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);

@@ -13,12 +13,24 @@ std::string to_string(TargetPoses source) {
   return "?";
 }
 
-TargetPoses parse_target_poses(const std::string& name, const NovelViewModelImpl& model) {
-  if (name == "auto") return model.default_target_poses();
-  if (name == "estimator") return TargetPoses::Estimator;
-  if (name == "mapper") return TargetPoses::Mapper;
-  if (name == "dataset") return TargetPoses::Dataset;
-  throw std::invalid_argument("target poses: expected auto, estimator, mapper or dataset, got '" + name + "'");
+TargetPoses resolve_target_poses(TargetPoseChoice choice, const NovelViewModelImpl& model) {
+  switch (choice) {
+    case TargetPoseChoice::Auto: return model.default_target_poses();
+    case TargetPoseChoice::Estimator: return TargetPoses::Estimator;
+    case TargetPoseChoice::Mapper: return TargetPoses::Mapper;
+    case TargetPoseChoice::Dataset: return TargetPoses::Dataset;
+  }
+  throw std::invalid_argument("unknown target-pose choice");
+}
+
+void keep(ForwardTrace* trace, std::initializer_list<std::pair<torch::Tensor ForwardTrace::*, torch::Tensor>> fields) {
+  if (!trace) return;
+  for (const auto& [field, value] : fields) trace->*field = value;
+}
+
+Views batch_of_one(const data::SceneViews& views, torch::Device device) {
+  auto batched = [&](const torch::Tensor& t) { return t.defined() ? t.unsqueeze(0).to(device) : torch::Tensor(); };
+  return {batched(views.images), batched(views.fxfycxcy), batched(views.c2w)};
 }
 
 const torch::Tensor& require_c2w(const Views& views, const char* which, TargetPoses source) {

@@ -11,9 +11,12 @@
 #include <torch/torch.h>
 
 #include <functional>
+#include <initializer_list>
 #include <string>
+#include <utility>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/data/scene.h"
 #include "uplvsm/model/dinov2.h"
 #include "uplvsm/model/pose_tokenizer.h"
 #include "uplvsm/model/rgb_head.h"
@@ -31,12 +34,18 @@ struct ForwardTrace {
   torch::Tensor target_plucker;      // [b, v_t, 6, H, W]
 };
 
-// A set of views. c2w is needed only where a camera comes from the dataset; unposed photos leave it undefined.
+// Keeps intermediates when a trace is wanted: keep(trace, {{&ForwardTrace::encoder_output, z}, ...}); no-op for null.
+void keep(ForwardTrace* trace, std::initializer_list<std::pair<torch::Tensor ForwardTrace::*, torch::Tensor>> fields);
+
+// A batch of view sets (data::SceneViews is one scene's, unbatched). c2w is needed only where a camera comes from
+// the dataset; unposed photos leave it undefined.
 struct Views {
   torch::Tensor images;    // [b, v, 3, H, W] in [0, 1]
   torch::Tensor fxfycxcy;  // [b, v, 4] pixels
   torch::Tensor c2w;       // [b, v, 4, 4] or undefined
 };
+// One scene's views as a batch of one on `device` (c2w stays undefined where the scene has none).
+Views batch_of_one(const data::SceneViews& views, torch::Device device);
 
 // Where the target views' cameras come from.
 enum class TargetPoses {
@@ -101,7 +110,7 @@ TORCH_MODULE(NovelViewModel);
 // The c2w of `which` ("input", "target") views, checked against their images; the error says `source` needs them.
 const torch::Tensor& require_c2w(const Views& views, const char* which, TargetPoses source);
 
-// "estimator", "mapper", "dataset", or "auto" (the model's own: default_target_poses).
-TargetPoses parse_target_poses(const std::string& name, const NovelViewModelImpl& model);
+// The configured choice for this model: Auto is the model's own (default_target_poses).
+TargetPoses resolve_target_poses(TargetPoseChoice choice, const NovelViewModelImpl& model);
 
 }  // namespace uplvsm::model

@@ -1,6 +1,7 @@
 #include "uplvsm/model/posed_lvsm.h"
 
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/plucker.h"
 #include "uplvsm/model/pose_mapper.h"
 
@@ -20,7 +21,7 @@ namespace {
 
 // The official cameras: per sample, inputs and targets normalised together (training, evaluation), or by the inputs
 // alone (a camera path, whose frames must not move the frame).
-std::pair<torch::Tensor, torch::Tensor> scene_normalised(const torch::Tensor& in_c2w, const torch::Tensor& tg_c2w,
+std::pair<torch::Tensor, torch::Tensor> scene_normalized(const torch::Tensor& in_c2w, const torch::Tensor& tg_c2w,
                                                          bool with_targets) {
   TORCH_CHECK(torch::isfinite(in_c2w).all().item<bool>() && torch::isfinite(tg_c2w).all().item<bool>(),
               "posed model: camera matrices contain NaN or Inf");
@@ -36,14 +37,14 @@ std::pair<torch::Tensor, torch::Tensor> scene_normalised(const torch::Tensor& in
 }  // namespace
 
 torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targets, ForwardTrace* trace,
-                                          bool normalise_with_targets) {
+                                          bool normalize_with_targets) {
   const auto& images = inputs.images;
   TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "render_posed: input images must be [b, v, 3, H, W], got ",
               images.sizes());
   const int64_t b = images.size(0), vi = images.size(1), H = targets.images.size(3), W = targets.images.size(4);
   const int64_t vt = targets.fxfycxcy.size(1);
-  auto [in_c2w, tg_c2w] = scene_normalised(require_c2w(inputs, "input", TargetPoses::Dataset),
-                                           require_c2w(targets, "target", TargetPoses::Dataset), normalise_with_targets);
+  auto [in_c2w, tg_c2w] = scene_normalized(require_c2w(inputs, "input", TargetPoses::Dataset),
+                                           require_c2w(targets, "target", TargetPoses::Dataset), normalize_with_targets);
   auto tokens = tokenize(images);  // [b, vi, n, d]
   const int64_t n = tokens.size(2), d = tokens.size(3);
   const int64_t posed = posed_inputs == PosedInputs::All ? vi : 1;
@@ -54,12 +55,10 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
   auto tg_rays = geometry::plucker_rays(tg_c2w, targets.fxfycxcy, H, W);
   auto q = target_pose_tokenizer(tg_rays.flatten(0, 1));
   auto x = transformer_input_layernorm(torch::cat({context, q}, 1));
-  auto y = run_stack(transformer_blocks, x, grad_checkpoint_every).narrow(1, vi * n, q.size(1));
-  if (trace) {
-    trace->input_dino_tokens = tokens;
-    trace->canonical_plucker = in_rays;
-    trace->target_plucker = tg_rays;
-  }
+  auto y = run_stack(transformer_blocks, x, grad_checkpoint_every, "uplvsm::decoder").narrow(1, vi * n, q.size(1));
+  keep(trace, {{&ForwardTrace::input_dino_tokens, tokens},
+               {&ForwardTrace::canonical_plucker, in_rays},
+               {&ForwardTrace::target_plucker, tg_rays}});
   return image_token_decoder(y, b, vt, H, W);
 }
 
@@ -75,8 +74,8 @@ CameraRenderer PosedLVSMImpl::camera_control(const Views& inputs) {
   return [this, inputs](const torch::Tensor& poses, const torch::Tensor& fxfycxcy, int64_t H, int64_t W) {
     const int64_t b = poses.size(0), n = poses.size(1);
     Views targets{torch::zeros({1, 1, 1, 1, 1}, fxfycxcy.options()).expand({b, n, 3, H, W}), fxfycxcy,
-                  camera_control_to_world(inputs.c2w, poses)};
-    return render_posed(inputs, targets, nullptr, /*normalise_with_targets=*/false);
+                  geometry::camera_control_to_world(inputs.c2w, poses)};
+    return render_posed(inputs, targets, nullptr, /*normalize_with_targets=*/false);
   };
 }
 

@@ -23,9 +23,9 @@ struct PosedLVSMImpl : NovelViewModelImpl {
   PosedLVSMImpl(const ModelConfig& config, PosedInputs posed_inputs);
 
   // Renders the targets from posed inputs (both need c2w). The official scene normalisation runs over inputs and
-  // targets; a camera path passes normalise_with_targets = false so every frame shares the inputs' frame.
+  // targets; a camera path passes normalize_with_targets = false so every frame shares the inputs' frame.
   torch::Tensor render_posed(const Views& inputs, const Views& targets, ForwardTrace* trace = nullptr,
-                             bool normalise_with_targets = true);
+                             bool normalize_with_targets = true);
 
   // Dataset cameras are the only target poses it knows.
   Rendered render(const Views& inputs, const Views& targets, TargetPoses source,

@@ -109,7 +109,9 @@ torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t
   return stack;
 }
 
-torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every) {
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every,
+                        const char* span) {
+  RECORD_FUNCTION(span, std::vector<c10::IValue>());
   return run_checkpointed_stack(stack, std::move(x), checkpoint_every, [stack](size_t i, const torch::Tensor& t) {
     return stack->ptr<TransformerBlockImpl>(i)->forward(t);
   });

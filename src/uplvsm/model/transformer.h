@@ -64,8 +64,10 @@ TORCH_MODULE(TransformerBlock);
 torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double qk_norm_eps,
                                              bool depth_init);
 // Runs the blocks in order. checkpoint_every > 0: each group of that many blocks is gradient-checkpointed (the
-// official `grad_checkpoint_every`); 0 keeps every activation.
-torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every = 0);
+// official `grad_checkpoint_every`); 0 keeps every activation. `span` names the stack in profiler traces
+// (UPLVSM_PROFILE), so the forwards that call it need no profiling code of their own.
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every = 0,
+                        const char* span = "uplvsm::transformer_stack");
 
 // N(0, std) for every Linear weight under `module` (biases zero); norms keep their ones/zeros.
 void init_linear_weights(torch::nn::Module& module, double std);

@@ -1,6 +1,7 @@
 #include "uplvsm/model/uplvsm.h"
 
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/plucker.h"
 
 namespace uplvsm::model {
@@ -32,9 +33,9 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   // The canonical marker: Plücker rays of an identity camera, added to view 0's tokens only.
   auto identity = geometry::identity_c2w({b, 1}, fxfycxcy.options());
   auto marker_rays = geometry::plucker_rays(identity, fxfycxcy.index({Slice(), Slice(0, 1)}), H, W);
-  if (trace)
-    trace->canonical_plucker =
-        geometry::plucker_rays(geometry::identity_c2w({b, v}, fxfycxcy.options()), fxfycxcy, H, W);
+  if (trace)  // every view's identity rays, for the parity fixtures
+    keep(trace, {{&ForwardTrace::canonical_plucker,
+                  geometry::plucker_rays(geometry::identity_c2w({b, v}, fxfycxcy.options()), fxfycxcy, H, W)}});
   return encode_scene_with_rays(images, marker_rays, trace);
 }
 
@@ -47,17 +48,11 @@ torch::Tensor UPLVSMImpl::encode_scene_with_rays(const torch::Tensor& images, co
   const int64_t n = tokens.size(2), d = tokens.size(3);
   auto x = with_camera_tokens(tokens, rays).reshape({b, v * n, d});
   const int64_t L = n_light_field_latent.size(0);
-  auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);
-  torch::Tensor z;
-  {
-    RECORD_FUNCTION("uplvsm::encoder", std::vector<c10::IValue>());
-    z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every);
-  }
-  if (trace) {
-    trace->encoder_input = encoder_input;
-    trace->input_dino_tokens = tokens;
-    trace->encoder_output = z;
-  }
+  auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);  // [b, L + v n, d]
+  auto z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every, "uplvsm::encoder");
+  keep(trace, {{&ForwardTrace::input_dino_tokens, tokens},
+               {&ForwardTrace::encoder_input, encoder_input},
+               {&ForwardTrace::encoder_output, z}});
   return config.keep_image_tokens ? z : z.index({Slice(), Slice(0, L)});
 }
 
@@ -68,15 +63,9 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torc
   TORCH_CHECK(!config.encoder_cameras, "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
                                        "dataset cameras; its pose estimator is never trained");
   const int64_t b = images.size(0), v = images.size(1);
-  auto tokens = tokenize(images);
-  auto flat_tokens = tokens.flatten(0, 1);
-  auto latents = repeat_per_view(scene_latents, v);
-  RECORD_FUNCTION("uplvsm::estimator", std::vector<c10::IValue>());
-  auto pooled = estimator->pooled(flat_tokens, latents);
-  if (trace) {
-    trace->target_dino_tokens = tokens;
-    trace->estimator_pooled = pooled.view({b, v, -1});
-  }
+  auto tokens = tokenize(images);                                                  // [b, v, n, d]
+  auto pooled = estimator->pooled(tokens.flatten(0, 1), repeat_per_view(scene_latents, v));  // [b v, d]
+  keep(trace, {{&ForwardTrace::target_dino_tokens, tokens}, {&ForwardTrace::estimator_pooled, pooled.view({b, v, -1})}});
   return estimator->heads(pooled).view({b, v, 7});
 }
 
@@ -95,12 +84,8 @@ torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const
   auto q = target_pose_tokenizer(rays.flatten(0, 1));  // [b v, n, d]
   const int64_t n = q.size(1);
   auto x = transformer_input_layernorm_decoder(torch::cat({q, repeat_per_view(scene_latents, v)}, 1));
-  torch::Tensor y;
-  {
-    RECORD_FUNCTION("uplvsm::decoder", std::vector<c10::IValue>());
-    y = run_stack(transformer_decoder, x, grad_checkpoint_every).index({Slice(), Slice(0, n)});
-  }
-  if (trace) trace->target_plucker = rays;
+  auto y = run_stack(transformer_decoder, x, grad_checkpoint_every, "uplvsm::decoder").index({Slice(), Slice(0, n)});
+  keep(trace, {{&ForwardTrace::target_plucker, rays}});
   return image_token_decoder(y, b, v, H, W);
 }
 
@@ -111,12 +96,12 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
     case TargetPoses::Estimator:
       return estimate_poses(targets.images, scene_latents, trace);
     case TargetPoses::Dataset:
-      return camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source));
+      return geometry::camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source));
     case TargetPoses::Mapper:
       TORCH_CHECK(pose_mapper, "target poses 'mapper': this model has no pose mapper (model.pose_mapper is false; "
                                "train one with `uplvsm train --stage mapper`)");
       return pose_mapper(
-          camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source)));
+          geometry::camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source)));
   }
   TORCH_CHECK(false, "unknown target pose source");
 }
@@ -125,7 +110,7 @@ namespace {
 // model.encoder_cameras: every input view's real camera in camera-control units (view 0 the identity, as the marker).
 torch::Tensor input_camera_rays(const Views& inputs) {
   const auto& c2w = require_c2w(inputs, "input", TargetPoses::Dataset);
-  auto poses = camera_control_poses(c2w, c2w).to(inputs.fxfycxcy.device());
+  auto poses = geometry::camera_control_poses(c2w, c2w).to(inputs.fxfycxcy.device());
   return geometry::plucker_rays(geometry::pose_encoding_to_c2w(poses), inputs.fxfycxcy, inputs.images.size(3),
                                 inputs.images.size(4));
 }
@@ -173,7 +158,7 @@ UPLVSMImpl* as_uplvsm(NovelViewModelImpl& model) { return dynamic_cast<UPLVSMImp
 UPLVSM require_uplvsm(const NovelViewModel& model, const std::string& what) {
   auto up = std::dynamic_pointer_cast<UPLVSMImpl>(model.ptr());
   TORCH_CHECK(up, what, ": only UP-LVSM has scene latents and latent poses; this is a ", model->name(),
-              " model (model.variant '", model->config.variant, "')");
+              " model (model.variant '", to_string(model->config.variant), "')");
   return up;
 }
 

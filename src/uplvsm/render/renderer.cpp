@@ -67,7 +67,7 @@ torch::Device model_device(const torch::nn::Module& net) {
   return params.empty() ? torch::Device(torch::kCPU) : params.front().device();
 }
 
-torch::Tensor render_camera_path(model::NovelViewModel& net, const model::Views& inputs, const torch::Tensor& poses,
+torch::Tensor render_camera_path(model::NovelViewModel& net, const data::SceneViews& inputs, const torch::Tensor& poses,
                                  const torch::Tensor& fxfycxcy, int64_t chunk) {
   TORCH_CHECK(inputs.images.dim() == 4 && inputs.images.size(1) == 3,
               "render_camera_path: expected input images [v, 3, H, W], got ", inputs.images.sizes());
@@ -78,9 +78,7 @@ torch::Tensor render_camera_path(model::NovelViewModel& net, const model::Views&
   net->eval();
   const auto device = model_device(*net);
   const int64_t H = inputs.images.size(2), W = inputs.images.size(3);
-  model::Views in{inputs.images.unsqueeze(0).to(device), inputs.fxfycxcy.unsqueeze(0).to(device),
-                  inputs.c2w.defined() ? inputs.c2w.unsqueeze(0).to(device) : torch::Tensor()};
-  auto render_at = net->camera_control(in);
+  auto render_at = net->camera_control(model::batch_of_one(inputs, device));
   std::vector<torch::Tensor> out;
   for (int64_t s = 0; s < poses.size(0); s += chunk) {
     const int64_t n = std::min(chunk, poses.size(0) - s);

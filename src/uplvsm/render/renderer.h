@@ -32,7 +32,7 @@ torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images
 // poses [F, 7] camera-control units, fxfycxcy [F, 4] pixels of the inputs' size; inputs: images [2, 3, H, W],
 // fxfycxcy [2, 4], c2w [2, 4, 4] (needed by the posed models; may be undefined for UP-LVSM with a mapper).
 // Returns frames [F, 3, H, W] on the CPU.
-torch::Tensor render_camera_path(model::NovelViewModel& net, const model::Views& inputs, const torch::Tensor& poses,
+torch::Tensor render_camera_path(model::NovelViewModel& net, const data::SceneViews& inputs, const torch::Tensor& poses,
                                  const torch::Tensor& fxfycxcy, int64_t chunk = 4);
 
 // The device a model's parameters live on.

@@ -45,7 +45,7 @@ inline constexpr int64_t kMaxVideoFrames = 100000;
 // kMaxVideoFrames frames is an error.
 struct CameraPath {
   torch::Tensor poses;
-  torch::Tensor fxfycxcy_normalised;
+  torch::Tensor fxfycxcy_normalized;
   bool latent = false;  // "units": "latent"
 };
 CameraPath read_camera_path(const std::string& path);

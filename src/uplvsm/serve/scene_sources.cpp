@@ -46,7 +46,7 @@ const CatalogScene* SceneCatalog::find(const std::string& id) const {
   return it == by_id_.end() ? nullptr : &scenes_[it->second];
 }
 
-data::Views SceneCatalog::load(const CatalogScene& scene, bool* posed) const {
+data::SceneViews SceneCatalog::load(const CatalogScene& scene, bool* posed) const {
   auto context = scene.context;
   if (context.empty()) context = {0, dataset_->num_frames(scene.index) / 2};
   if (posed) *posed = dataset_->poses_known(scene.index);

@@ -39,7 +39,7 @@ class SceneCatalog {
   const std::vector<CatalogScene>& scenes() const { return scenes_; }
   const CatalogScene* find(const std::string& id) const;  // nullptr when unknown
   // The two context views; posed = the dataset's cameras may be used (not a scene imported without poses).
-  data::Views load(const CatalogScene& scene, bool* posed) const;
+  data::SceneViews load(const CatalogScene& scene, bool* posed) const;
   // JPEG of [view 0 | view 1], made on first use and kept.
   std::vector<uint8_t> thumbnail(const CatalogScene& scene);
 

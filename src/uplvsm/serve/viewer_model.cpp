@@ -4,6 +4,7 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
@@ -26,13 +27,7 @@ int64_t SceneEncoding::bytes() const {
 ViewerModel ViewerModel::load(const std::string& checkpoint, const std::string& config_hint, torch::Device device,
                               bool bf16) {
   Config config;
-  model::NovelViewModel net{nullptr};
-  if (config_hint.empty()) {
-    net = model::load_model(checkpoint, device, &config);
-  } else {
-    Config hint = load_config(config_hint);
-    net = model::load_model(checkpoint, device, &config, &hint);
-  }
+  auto net = model::load_model_with_config_file(checkpoint, config_hint, device, &config);
   // The viewer starts from unposed photos: only UP-LVSM renders those (the posed models need input cameras).
   return ViewerModel(model::require_uplvsm(net, "serve (the viewer starts from unposed photos)").ptr(), config, bf16);
 }
@@ -57,10 +52,10 @@ torch::Tensor ViewerModel::real_from_latent(const torch::Tensor& key_latent) con
   auto q = real.slice(1, 3, 7);
   real = torch::cat({real.slice(1, 0, 3), q / q.norm(2, 1, true).clamp_min(1e-9)}, 1);
   auto c2w = geometry::pose_encoding_to_c2w(real);  // [2, 4, 4]
-  return model::camera_control_poses(c2w.unsqueeze(0), c2w.unsqueeze(0))[0].to(torch::kFloat64);
+  return geometry::camera_control_poses(c2w.unsqueeze(0), c2w.unsqueeze(0))[0].to(torch::kFloat64);
 }
 
-SceneEncoding ViewerModel::encode(const data::Views& views, bool posed) const {
+SceneEncoding ViewerModel::encode(const data::SceneViews& views, bool posed) const {
   TORCH_CHECK(views.images.dim() == 4 && views.images.size(0) == 2 && views.images.size(1) == 3,
               "serve: a scene is two views [2, 3, H, W], got ", views.images.sizes());
   torch::NoGradGuard no_grad;
@@ -77,7 +72,7 @@ SceneEncoding ViewerModel::encode(const data::Views& views, bool posed) const {
   if (has_mapper()) {
     if (posed && views.c2w.defined()) {
       auto c2w = views.c2w.unsqueeze(0);
-      s.key_real = model::camera_control_poses(c2w, c2w)[0].to(torch::kFloat64);
+      s.key_real = geometry::camera_control_poses(c2w, c2w)[0].to(torch::kFloat64);
     } else {
       s.key_real = real_from_latent(s.key_latent);
       s.key_real_estimated = true;

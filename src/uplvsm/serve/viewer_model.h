@@ -10,6 +10,7 @@
 #include <string>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/scene.h"
 
 namespace uplvsm::model {
@@ -50,10 +51,12 @@ class ViewerModel {
   bool bf16() const { return bf16_; }
   int64_t parameter_count() const;
   const Config& config() const { return config_; }
+  // The preprocessing of the viewer's scenes and uploads: the model's sizes, square frames.
+  data::PreprocessOptions preprocess_options() const { return data::square_preprocess_options(config_); }
 
   // views: images [2, 3, H, W] in [0, 1], fxfycxcy [2, 4] pixels, c2w [2, 4, 4] when `posed` (dataset cameras).
   // Runs the encoder and the estimator. Not thread-safe with other calls: callers serialise model use.
-  SceneEncoding encode(const data::Views& views, bool posed) const;
+  SceneEncoding encode(const data::SceneViews& views, bool posed) const;
   // poses [F, 7] in `space` -> frames [F, 3, H, W] float32 CPU in [0, 1]. Only the decoder runs.
   torch::Tensor render(const SceneEncoding& scene, const torch::Tensor& poses, PoseSpace space) const;
 

@@ -194,7 +194,7 @@ nlohmann::json ViewerServer::describe(const Session& s) const {
   return j;
 }
 
-std::string ViewerServer::open_session(std::shared_ptr<Session> session, const data::Views& views, bool posed) {
+std::string ViewerServer::open_session(std::shared_ptr<Session> session, const data::SceneViews& views, bool posed) {
   {
     std::lock_guard<std::mutex> lock(model_mutex_);
     session->scene = model_.encode(views, posed);
@@ -226,7 +226,7 @@ void ViewerServer::session_routes() {
       throw HttpError(400, "upload: expected multipart/form-data with the fields image0, image1 (and fov)");
     double fov = 60;
     if (req.has_file("fov")) fov = parse_number(req.get_file_value("fov").content, "fov", 1, 179);
-    data::PreprocessOptions prep{static_cast<int>(model_.image_size()), static_cast<int>(model_.patch_size()), true};
+    const auto prep = model_.preprocess_options();
     std::vector<torch::Tensor> images, intrinsics;
     for (const char* field : {"image0", "image1"}) {
       if (!req.has_file(field)) throw HttpError(400, std::string("upload: missing the photo field ") + field);
@@ -235,7 +235,7 @@ void ViewerServer::session_routes() {
       images.push_back(views.images);
       intrinsics.push_back(views.fxfycxcy);
     }
-    data::Views views{torch::cat(images), torch::cat(intrinsics), torch::Tensor(), {0, 1}};
+    data::SceneViews views{torch::cat(images), torch::cat(intrinsics), torch::Tensor(), {0, 1}};
     auto session = std::make_shared<Session>();
     session->name = "upload";
     open_session(session, views, false);

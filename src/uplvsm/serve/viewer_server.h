@@ -72,7 +72,7 @@ class ViewerServer {
   void frame_routes();
   std::shared_ptr<Session> session_of(const std::string& id);
   nlohmann::json describe(const Session& s) const;
-  std::string open_session(std::shared_ptr<Session> session, const data::Views& views, bool posed);
+  std::string open_session(std::shared_ptr<Session> session, const data::SceneViews& views, bool posed);
   void frame(const httplib::Request& req, httplib::Response& res);
   void video(const httplib::Request& req, httplib::Response& res);
   void preset(const httplib::Request& req, httplib::Response& res);

@@ -7,6 +7,7 @@
 
 #include "uplvsm/core/progress.h"
 #include "uplvsm/geometry/camera.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/eval_mode.h"
@@ -18,7 +19,7 @@ using torch::indexing::Slice;
 
 namespace {
 
-torch::Tensor latent_poses_of_scene(model::UPLVSM& net, const data::Views& views, int64_t chunk,
+torch::Tensor latent_poses_of_scene(model::UPLVSM& net, const data::SceneViews& views, int64_t chunk,
                                     torch::Device device) {
   auto images = views.images.unsqueeze(0).to(device), k = views.fxfycxcy.unsqueeze(0).to(device);
   auto latents = net->encode_scene(images.narrow(1, 0, 2), k.narrow(1, 0, 2));
@@ -31,7 +32,7 @@ torch::Tensor latent_poses_of_scene(model::UPLVSM& net, const data::Views& views
   // estimator's latent frame is the scene latents' own (its origin and scale differ per scene), so a probe of the
   // absolute latent poses would have to learn each scene's frame from a single view.
   auto c2w = geometry::pose_encoding_to_c2w(torch::cat(poses).to(torch::kFloat64)).unsqueeze(0);
-  return model::camera_control_poses(c2w.narrow(1, 0, 2), c2w)[0].to(torch::kFloat64);
+  return geometry::camera_control_poses(c2w.narrow(1, 0, 2), c2w)[0].to(torch::kFloat64);
 }
 
 // Quaternions with w >= 0 (q and -q are one rotation), so a regression has one target per rotation.
@@ -42,7 +43,7 @@ torch::Tensor canonical_sign(const torch::Tensor& pose) {
   return torch::cat({pose.index({Slice(), Slice(0, 3)}), q * sign.unsqueeze(1)}, 1);
 }
 
-torch::Tensor normalise_output(const torch::Tensor& pose) {
+torch::Tensor normalize_output(const torch::Tensor& pose) {
   auto q = pose.index({Slice(), Slice(3, 7)});
   return torch::cat({pose.index({Slice(), Slice(0, 3)}), q / q.norm(2, 1, true).clamp_min(1e-9)}, 1);
 }
@@ -70,7 +71,7 @@ PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& datas
     }
     std::vector<int64_t> frames = {0, gap};
     for (int64_t f = 1; f < gap; ++f) frames.push_back(f);
-    data::Views views;
+    data::SceneViews views;
     try {
       views = dataset.load_views(i, frames, prep);
     } catch (const data::BadFrameError& e) {
@@ -80,7 +81,7 @@ PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& datas
     }
     latent.push_back(latent_poses_of_scene(net, views, opt.chunk, opt.device));
     auto c2w = views.c2w.unsqueeze(0);
-    real.push_back(model::camera_control_poses(c2w.narrow(1, 0, 2), c2w)[0].to(torch::kFloat64));
+    real.push_back(geometry::camera_control_poses(c2w.narrow(1, 0, 2), c2w)[0].to(torch::kFloat64));
     for (int64_t f : frames) {
       out.scenes.push_back(dataset.key(i));
       out.frames.push_back(f);
@@ -126,7 +127,7 @@ PosePairs without_canonical_views(const PosePairs& p) {
 PoseAccuracy pose_accuracy(const torch::Tensor& predicted, const torch::Tensor& real) {
   TORCH_CHECK(predicted.sizes() == real.sizes() && predicted.dim() == 2 && predicted.size(1) == 7,
               "pose_accuracy: expected two [N, 7] tensors, got ", predicted.sizes(), " and ", real.sizes());
-  auto p = normalise_output(predicted.to(torch::kFloat64)), r = normalise_output(real.to(torch::kFloat64));
+  auto p = normalize_output(predicted.to(torch::kFloat64)), r = normalize_output(real.to(torch::kFloat64));
   auto t_err = (p.index({Slice(), Slice(0, 3)}) - r.index({Slice(), Slice(0, 3)})).norm(2, 1);
   auto dot = (p.index({Slice(), Slice(3, 7)}) * r.index({Slice(), Slice(3, 7)})).sum(1).abs().clamp_max(1.0);
   auto r_err = 2.0 * torch::acos(dot) * (180.0 / M_PI);
@@ -159,7 +160,7 @@ torch::Tensor fit_and_apply_linear_probe(const PosePairs& train, const torch::Te
 }
 
 torch::Tensor mean_pose_baseline(const PosePairs& train, int64_t views) {
-  auto mean = normalise_output(canonical_sign(train.real).mean(0, true));
+  auto mean = normalize_output(canonical_sign(train.real).mean(0, true));
   return mean.expand({views, 7}).clone();
 }
 
@@ -182,7 +183,7 @@ torch::Tensor fit_and_apply_mlp_probe(const PosePairs& train, const torch::Tenso
   }
   bar.finish();
   torch::NoGradGuard no_grad;
-  return normalise_output(mlp->forward((latent.to(torch::kFloat64) - mean) / std));
+  return normalize_output(mlp->forward((latent.to(torch::kFloat64) - mean) / std));
 }
 
 }  // namespace uplvsm::study

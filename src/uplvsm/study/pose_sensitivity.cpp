@@ -13,7 +13,7 @@ namespace uplvsm::study {
 namespace {
 
 // The views of one scene, frames {0, gap, 1, ..., gap-1}: the two inputs first, every frame a target.
-void measure_scene(model::UPLVSM& net, const data::Views& views, const std::string& key,
+void measure_scene(model::UPLVSM& net, const data::SceneViews& views, const std::string& key,
                    const std::vector<int64_t>& frames, const SensitivityOptions& opt, SensitivityReport& out) {
   auto images = views.images.unsqueeze(0).to(opt.device), k = views.fxfycxcy.unsqueeze(0).to(opt.device);
   auto c2w = views.c2w.defined() ? views.c2w.unsqueeze(0).to(opt.device) : torch::Tensor();

@@ -16,6 +16,7 @@
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
+#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
@@ -135,7 +136,7 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
     model::Views targets{dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
     auto latents = net.encode_scene(inputs.images, inputs.fxfycxcy);
     latent.push_back(net.estimate_poses(targets.images, latents).reshape({-1, 7}).cpu());
-    real.push_back(model::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
+    real.push_back(geometry::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
   }
   const double rms = model::fit_pose_mapper(*net.pose_mapper, torch::cat(real), torch::cat(latent));
   spdlog::info("pose mapper: least-squares fit on {} target views (RMS residual {:.4f})", torch::cat(real).size(0),
@@ -242,12 +243,12 @@ void prepare_training_data(data::ChunkDataset& dataset, const Config& config, co
     spdlog::info("subset {} ({}): {} scenes{}", subset.name, tc.subset, dataset.size(),
                  subset.chunks.empty() ? "" : fmt::format(" in {} chunks", subset.chunks.size()));
   }
-  const bool reads_cameras = model::parse_target_poses(tc.target_poses, net) != model::TargetPoses::Estimator;
+  const bool reads_cameras = model::resolve_target_poses(tc.target_poses, net) != model::TargetPoses::Estimator;
   for (int64_t i = 0; reads_cameras && i < dataset.size(); ++i)
     if (!dataset.poses_known(i))
       throw std::runtime_error(fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
                                            "(imported without poses, listed in train/unposed.json)",
-                                           config.model.variant, dataset.key(i), opt.data_root));
+                                           to_string(config.model.variant), dataset.key(i), opt.data_root));
   if (tc.max_train_scenes > dataset.size())
     throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
                                          tc.max_train_scenes, opt.data_root, dataset.size()));
@@ -265,12 +266,12 @@ StepContext make_step_context(model::NovelViewModelImpl& net, torch::optim::Opti
   ctx.optimizer = &optimizer;
   ctx.params = trainable_parameters(net);
   ctx.training = tc;
-  ctx.target_poses = model::parse_target_poses(tc.target_poses, net);
+  ctx.target_poses = model::resolve_target_poses(tc.target_poses, net);
   ctx.perceptual = make_perceptual_loss(tc, opt);
-  ctx.bf16 = parse_amp(tc.amp);
+  ctx.bf16 = tc.amp == Amp::Bf16;
   ctx.comm = opt.comm.get();
   if (ctx.bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
-  spdlog::info("{} ({} variant), target poses from {}", net.name(), config.model.variant,
+  spdlog::info("{} ({} variant), target poses from {}", net.name(), to_string(config.model.variant),
                model::to_string(ctx.target_poses));
   net.set_grad_checkpoint_every(tc.grad_checkpoint_every);
   if (tc.grad_checkpoint_every > 0)
