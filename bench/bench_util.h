@@ -75,8 +75,9 @@ inline void set_flop_counters(benchmark::State& state, double flops_per_iteratio
   state.counters["of_peak"] = achieved / peak;
 }
 
-// With UPLVSM_PROFILE=DIR set, runs `fn` once more under LibTorch's (legacy, in-memory) profiler and writes DIR/<name>.trace.json (a
-// Chrome trace: chrome://tracing or Perfetto) — where the time of one iteration goes, op by op.
+// With UPLVSM_PROFILE=DIR set, runs `fn` once more under LibTorch's (legacy, in-memory) profiler and writes
+// DIR/<name>.trace.json (a Chrome trace: chrome://tracing or Perfetto) — where the time of one iteration goes, op by
+// op.
 template <typename Fn>
 void maybe_profile(const std::string& name, Fn&& fn) {
   const char* dir = std::getenv("UPLVSM_PROFILE");

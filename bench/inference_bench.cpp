@@ -64,15 +64,25 @@ void BM_Inference(benchmark::State& state, const std::string& config_name) {
   for (auto _ : state) benchmark::DoNotOptimize(run().data_ptr());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double iterations = static_cast<double>(state.iterations());
-  bench::set_flop_counters(state, model::forward_flops(setup.config.model, 1, kInputViews, kTargetViews).total(), seconds,
-                           bf16);
+  bench::set_flop_counters(state, model::forward_flops(setup.config.model, 1, kInputViews, kTargetViews).total(),
+                           seconds, bf16);
   state.counters["s_per_view"] = seconds / iterations / kTargetViews;
   state.counters["peak_RSS_GiB"] = bench::peak_rss_gib();
   state.SetLabel(bf16 ? "bf16" : "fp32");
 }
-BENCHMARK_CAPTURE(BM_Inference, tiny, std::string("tiny"))->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Inference, tiny, std::string("tiny"))
+    ->ArgName("bf16")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_Inference, paper_x224, std::string("paper_x224"))
-    ->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(3);
+    ->ArgName("bf16")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(3);
 
 void BM_RenderInterpolation(benchmark::State& state, const std::string& config_name) {
   const bool bf16 = state.range(0) != 0;
@@ -91,8 +101,17 @@ void BM_RenderInterpolation(benchmark::State& state, const std::string& config_n
   state.counters["s_per_frame"] = seconds / static_cast<double>(state.iterations()) / kFrames;
   state.SetLabel(bf16 ? "bf16" : "fp32");
 }
-BENCHMARK_CAPTURE(BM_RenderInterpolation, tiny, std::string("tiny"))->ArgName("bf16")->Arg(0)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_RenderInterpolation, tiny, std::string("tiny"))
+    ->ArgName("bf16")
+    ->Arg(0)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_RenderInterpolation, paper_x224, std::string("paper_x224"))
-    ->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kSecond)->UseRealTime()->Iterations(2);
+    ->ArgName("bf16")
+    ->Arg(0)
+    ->Arg(1)
+    ->Unit(benchmark::kSecond)
+    ->UseRealTime()
+    ->Iterations(2);
 
 }  // namespace

@@ -36,8 +36,9 @@ void BM_ViewerFrame(benchmark::State& state, const std::string& config_name) {
   serve::ViewerModel viewer(net.ptr(), config, bf16);
   const int64_t size = config.model.image_size;
   data::SceneViews views{torch::rand({2, 3, size, size}),
-                    torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({2, 4}).contiguous(),
-                    torch::Tensor(), {0, 1}};
+                         torch::tensor({0.9 * size, 0.9 * size, 0.5 * size, 0.5 * size}).expand({2, 4}).contiguous(),
+                         torch::Tensor(),
+                         {0, 1}};
   auto scene = viewer.encode(views, false);
   int64_t step = 0;
   auto frame = [&] {
@@ -57,11 +58,20 @@ void BM_ViewerFrame(benchmark::State& state, const std::string& config_name) {
   state.SetLabel(std::string(bf16 ? "bf16" : "fp32") + (cached ? ", latents cached" : ", encode every frame"));
 }
 BENCHMARK_CAPTURE(BM_ViewerFrame, tiny, std::string("tiny"))
-    ->ArgNames({"bf16", "cache"})->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->ArgNames({"bf16", "cache"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_ViewerFrame, demo, std::string("demo"))
-    ->ArgNames({"bf16", "cache"})->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime();
+    ->ArgNames({"bf16", "cache"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK_CAPTURE(BM_ViewerFrame, paper_x224, std::string("paper_x224"))
-    ->ArgNames({"bf16", "cache"})->ArgsProduct({{0, 1}, {0, 1}})->Unit(benchmark::kMillisecond)->UseRealTime()
+    ->ArgNames({"bf16", "cache"})
+    ->ArgsProduct({{0, 1}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
     ->Iterations(2);
 
 }  // namespace

@@ -1,8 +1,9 @@
 // Training throughput: one optimiser step (forward, MSE loss, backward, AdamW) of the `tiny` and `paper_x224`
 // configs at batch 1 with 2 input + 6 target views, and of `demo` as `make demo-model` trains it (batch 8, 2 input
-// + 3 target views), in fp32 and bf16 autocast, with and without gradient checkpointing. Counters: steps/s (items_per_second), model TFLOP/s (3x the forward's matmul FLOPs, recomputation
-// not counted) and MFU against the matmul peak this machine measured for the same dtype (BM_MatmulPeak).
-// Peak memory is per process (getrusage), so measure one configuration per run, from the repository root:
+// + 3 target views), in fp32 and bf16 autocast, with and without gradient checkpointing. Counters: steps/s
+// (items_per_second), model TFLOP/s (3x the forward's matmul FLOPs, recomputation not counted) and MFU against the
+// matmul peak this machine measured for the same dtype (BM_MatmulPeak). Peak memory is per process (getrusage), so
+// measure one configuration per run, from the repository root:
 //   build/uplvsm_bench --benchmark_filter='TrainStep/paper_x224/fp32/ckpt:1$'
 #include <benchmark/benchmark.h>
 
@@ -38,8 +39,8 @@ void BM_MatmulPeak(benchmark::State& state) {
     benchmark::DoNotOptimize(torch::matmul(a, b).data_ptr());
     bench::synchronize(device);
   }
-  state.counters["TFLOP/s"] = benchmark::Counter(2.0 * 2048 * 768 * 3072 * 1e-12 * static_cast<double>(state.iterations()),
-                                                 benchmark::Counter::kIsRate);
+  state.counters["TFLOP/s"] = benchmark::Counter(
+      2.0 * 2048 * 768 * 3072 * 1e-12 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);
   state.SetLabel(bf16 ? "bf16" : "fp32");
 }
 BENCHMARK(BM_MatmulPeak)->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
@@ -80,8 +81,7 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name, Train
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) benchmark::DoNotOptimize(step());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double step_flops =
-      3.0 * model::forward_flops(config.model, B, kTrainInputViews, shape.target_views).total();
+  const double step_flops = 3.0 * model::forward_flops(config.model, B, kTrainInputViews, shape.target_views).total();
   state.SetItemsProcessed(state.iterations() * B);  // scenes/s
   state.counters["TFLOP/s"] =
       benchmark::Counter(step_flops * 1e-12 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);

@@ -1,6 +1,6 @@
 // libFuzzer target: a pixelSplat chunk (torch.save zip + pickle) through read_chunk, then every frame's image
-// header and EXIF focal length and the first frame's decode, as the loader and `dataset import` would. Any exception is a clean rejection; a crash, a
-// sanitizer report or a hang is a bug.
+// header and EXIF focal length and the first frame's decode, as the loader and `dataset import` would. Any exception is
+// a clean rejection; a crash, a sanitizer report or a hang is a bug.
 #include <cstdint>
 #include <exception>
 

@@ -10,8 +10,8 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/data/lvsm_layout.h"
-#include "uplvsm/data/subset.h"
 #include "uplvsm/data/scene_import.h"
+#include "uplvsm/data/subset.h"
 
 namespace {
 
@@ -22,16 +22,12 @@ void run_reader(uint8_t which, const uint8_t* data, size_t size) {
   const auto split = fuzz::scratch_dir() / "split";
   std::vector<std::string> warnings;
   switch (which % 9) {
-    case 0:
-      data::read_eval_index(fuzz::write_scratch("evaluation_index.json", data, size));
-      break;
+    case 0: data::read_eval_index(fuzz::write_scratch("evaluation_index.json", data, size)); break;
     case 1:
       fs::create_directories(split / "metadata");
       data::read_lvsm_metadata(fuzz::write_scratch("split/metadata/scene.json", data, size));
       break;
-    case 2:
-      data::read_subset_manifest(fuzz::write_scratch("subset.json", data, size));
-      break;
+    case 2: data::read_subset_manifest(fuzz::write_scratch("subset.json", data, size)); break;
     case 3:
       fs::create_directories(split);
       fuzz::write_scratch("split/index.json", data, size);
@@ -43,17 +39,10 @@ void run_reader(uint8_t which, const uint8_t* data, size_t size) {
       data::read_unposed_keys(split.string());
       fs::remove(split / "unposed.json");
       break;
-    case 5:
-      data::read_colmap_cameras(fuzz::write_scratch("cameras.txt", data, size), &warnings);
-      break;
-    case 6:
-      data::read_transforms(fuzz::write_scratch("transforms.json", data, size), &warnings);
-      break;
-    case 7:
-      data::read_colmap_images(fuzz::write_scratch("images.txt", data, size));
-      break;
-    default:
-      data::read_full_list(fuzz::write_scratch("full_list.txt", data, size));
+    case 5: data::read_colmap_cameras(fuzz::write_scratch("cameras.txt", data, size), &warnings); break;
+    case 6: data::read_transforms(fuzz::write_scratch("transforms.json", data, size), &warnings); break;
+    case 7: data::read_colmap_images(fuzz::write_scratch("images.txt", data, size)); break;
+    default: data::read_full_list(fuzz::write_scratch("full_list.txt", data, size));
   }
 }
 

@@ -32,12 +32,12 @@ inline bool fixtures_required() {
 }
 
 // The first statement of a test (or SetUp) that reads fixture(...).
-#define UPLVSM_NEEDS_FIXTURES()                                                     \
-  do {                                                                              \
-    if (const auto uplvsm_missing_ = ::uplvsm::test::missing_fixtures()) {          \
-      if (::uplvsm::test::fixtures_required()) FAIL() << *uplvsm_missing_;          \
-      GTEST_SKIP() << *uplvsm_missing_;                                             \
-    }                                                                               \
+#define UPLVSM_NEEDS_FIXTURES()                                            \
+  do {                                                                     \
+    if (const auto uplvsm_missing_ = ::uplvsm::test::missing_fixtures()) { \
+      if (::uplvsm::test::fixtures_required()) FAIL() << *uplvsm_missing_; \
+      GTEST_SKIP() << *uplvsm_missing_;                                    \
+    }                                                                      \
   } while (false)
 
 // Why the OpenBLAS checks do not apply (LibTorch loads no shared BLAS: PyPI's has MKL built in), or nothing. A

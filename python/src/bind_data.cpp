@@ -44,18 +44,22 @@ void bind_chunk_dataset(py::module_& m) {
       .def("__len__", &data::ChunkDataset::size)
       .def_property_readonly("root", &data::ChunkDataset::root)
       .def_property_readonly("split", &data::ChunkDataset::split)
-      .def_property_readonly("layout", [](const data::ChunkDataset& d) {
-        return d.layout() == data::ChunkDataset::Layout::Chunks ? "chunks" : "lvsm";
-      })
-      .def("keys", [](const data::ChunkDataset& d) {
-        std::vector<std::string> keys;
-        for (int64_t i = 0; i < d.size(); ++i) keys.push_back(d.key(i));
-        return keys;
-      })
-      .def("key", [](const data::ChunkDataset& d, int64_t i) { return d.key(checked_index(d, i)); }, py::arg("i"))
+      .def_property_readonly("layout",
+                             [](const data::ChunkDataset& d) {
+                               return d.layout() == data::ChunkDataset::Layout::Chunks ? "chunks" : "lvsm";
+                             })
+      .def("keys",
+           [](const data::ChunkDataset& d) {
+             std::vector<std::string> keys;
+             for (int64_t i = 0; i < d.size(); ++i) keys.push_back(d.key(i));
+             return keys;
+           })
+      .def(
+          "key", [](const data::ChunkDataset& d, int64_t i) { return d.key(checked_index(d, i)); }, py::arg("i"))
       .def("find", &data::ChunkDataset::find, py::arg("key"))
-      .def("poses_known", [](const data::ChunkDataset& d, int64_t i) { return d.poses_known(checked_index(d, i)); },
-           py::arg("i"))
+      .def(
+          "poses_known", [](const data::ChunkDataset& d, int64_t i) { return d.poses_known(checked_index(d, i)); },
+          py::arg("i"))
       .def(
           "num_frames",
           [](const data::ChunkDataset& d, int64_t i) {
@@ -66,8 +70,8 @@ void bind_chunk_dataset(py::module_& m) {
           py::arg("i"))
       .def(
           "load_views",
-          [](const data::ChunkDataset& d, int64_t i, const std::vector<int64_t>& frames, int image_size,
-             int patch_size, bool square_crop) {
+          [](const data::ChunkDataset& d, int64_t i, const std::vector<int64_t>& frames, int image_size, int patch_size,
+             bool square_crop) {
             checked_index(d, i);
             if (frames.empty()) throw py::value_error("load_views: frames is empty");
             const auto opt = preprocess_options(image_size, patch_size, square_crop, "load_views");

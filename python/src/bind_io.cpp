@@ -38,17 +38,21 @@ class PickleToPython {
       case Kind::Bool: out = py::bool_(o.boolean); break;
       case Kind::Int: out = py::int_(o.integer); break;
       case Kind::BigInt:
-        out = py::module_::import("builtins").attr("int").attr("from_bytes")(py::bytes(o.text), "little",
-                                                                              py::arg("signed") = true);
+        out = py::module_::import("builtins")
+                  .attr("int")
+                  .attr("from_bytes")(py::bytes(o.text), "little", py::arg("signed") = true);
         break;
       case Kind::Float: out = py::float_(o.real); break;
       case Kind::Str: out = py::str(o.text); break;
       case Kind::Bytes: out = py::bytes(o.text); break;
-      case Kind::List: case Kind::Tuple: case Kind::Set: {
+      case Kind::List:
+      case Kind::Tuple:
+      case Kind::Set: {
         py::list items;
         for (const auto& item : o.items) items.append(convert(*item, depth + 1));
-        out = o.kind == Kind::List ? py::object(items)
-              : o.kind == Kind::Tuple ? py::object(py::tuple(items)) : py::object(py::set(items));
+        out = o.kind == Kind::List    ? py::object(items)
+              : o.kind == Kind::Tuple ? py::object(py::tuple(items))
+                                      : py::object(py::set(items));
         break;
       }
       case Kind::Dict: {

@@ -13,8 +13,8 @@ void check_pair(const torch::Tensor& pred, const torch::Tensor& gt, const char* 
   check_tensor(pred, where, "pred", {0, -1, -1, -1}, "[..., C, H, W]");
   check_tensor(gt, where, "gt", {0, -1, -1, -1}, "[..., C, H, W]");
   if (pred.sizes() != gt.sizes())
-    throw py::value_error(std::string(where) + ": pred " + c10::str(pred.sizes()) + " and gt " +
-                          c10::str(gt.sizes()) + " differ in shape");
+    throw py::value_error(std::string(where) + ": pred " + c10::str(pred.sizes()) + " and gt " + c10::str(gt.sizes()) +
+                          " differ in shape");
 }
 
 // One LPIPS network with its weights, callable from several Python threads (the module is read-only in eval mode).
@@ -23,7 +23,8 @@ struct LpipsMetric {
   std::string name;
   torch::Tensor operator()(const torch::Tensor& pred, const torch::Tensor& gt) {
     check_pair(pred, gt, "lpips");
-    if (pred.size(-3) != 3) throw py::value_error("lpips: expected RGB images [..., 3, H, W], got " + c10::str(pred.sizes()));
+    if (pred.size(-3) != 3)
+      throw py::value_error("lpips: expected RGB images [..., 3, H, W], got " + c10::str(pred.sizes()));
     py::gil_scoped_release release;
     torch::NoGradGuard no_grad;
     auto device = net->lin.front().device();

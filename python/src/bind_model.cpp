@@ -68,33 +68,34 @@ using ModelClass = py::class_<Model, std::shared_ptr<Model>>;
 
 // What the model is: its config, device, variant, name, size and weights.
 void bind_model_properties(ModelClass& c) {
-  c
-      .def_property_readonly("config", [](const Model& s) { return to_python(config_to_json(s.config())); },
-                             "The full config (model, training, eval, dataset sections) as a dict.")
+  c.def_property_readonly(
+       "config", [](const Model& s) { return to_python(config_to_json(s.config())); },
+       "The full config (model, training, eval, dataset sections) as a dict.")
       .def_property_readonly("device", &Model::device)
-      .def_property_readonly("variant", [](const Model& s) { return to_string(s.config().model.variant); },
-                             "\"uplvsm\", \"ptlvsm\" or \"lvsm\".")
+      .def_property_readonly(
+          "variant", [](const Model& s) { return to_string(s.config().model.variant); },
+          "\"uplvsm\", \"ptlvsm\" or \"lvsm\".")
       .def_property_readonly("name", &Model::name,
                              "The paper's name of the model: \"UP-LVSM\", \"PT-LVSM\" or \"LVSM\".")
       .def("parameter_count", &Model::parameter_count, "Number of parameters.")
-      .def("state_dict", [](const Model& s) { return tensor_dict(s.state_dict()); },
-           "Parameters and buffers by checkpoint name, sharing the model's memory (an in-place change is the "
-           "model's).");
+      .def(
+          "state_dict", [](const Model& s) { return tensor_dict(s.state_dict()); },
+          "Parameters and buffers by checkpoint name, sharing the model's memory (an in-place change is the "
+          "model's).");
 }
 
 // The three stages of UP-LVSM on their own: encode the scene, estimate target poses, render from latent poses.
 void bind_model_stages(ModelClass& c) {
-  c
-      .def(
-          "encode_scene",
-          [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, const std::string& amp) {
-            batch_views(images, fxfycxcy, std::nullopt, "encode_scene", "input");
-            py::gil_scoped_release release;
-            return s.encode_scene(images, fxfycxcy, amp);
-          },
-          py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("amp") = "none",
-          "Scene latents [b, L, d] from unposed input views [b, v, 3, H, W] and their intrinsics [b, v, 4]. UP-LVSM "
-          "only (ValueError for a posed model).")
+  c.def(
+       "encode_scene",
+       [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, const std::string& amp) {
+         batch_views(images, fxfycxcy, std::nullopt, "encode_scene", "input");
+         py::gil_scoped_release release;
+         return s.encode_scene(images, fxfycxcy, amp);
+       },
+       py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("amp") = "none",
+       "Scene latents [b, L, d] from unposed input views [b, v, 3, H, W] and their intrinsics [b, v, 4]. UP-LVSM "
+       "only (ValueError for a posed model).")
       .def(
           "estimate_poses",
           [](Model& s, const torch::Tensor& images, const torch::Tensor& latents, const std::string& amp) {
@@ -124,11 +125,10 @@ void bind_model_stages(ModelClass& c) {
 
 // The evaluation forward, also as __call__.
 void bind_model_forward(ModelClass& c) {
-  c
-      .def("forward", &forward, py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("target_images"),
-           py::arg("target_fxfycxcy"), py::arg("target_poses") = "auto", py::arg("input_c2w") = py::none(),
-           py::arg("target_c2w") = py::none(), py::arg("amp") = "none",
-           R"(The evaluation forward: renders the targets [b, v_t, 3, H, W] from the inputs. target_poses: "auto" (the
+  c.def("forward", &forward, py::arg("input_images"), py::arg("input_fxfycxcy"), py::arg("target_images"),
+        py::arg("target_fxfycxcy"), py::arg("target_poses") = "auto", py::arg("input_c2w") = py::none(),
+        py::arg("target_c2w") = py::none(), py::arg("amp") = "none",
+        R"(The evaluation forward: renders the targets [b, v_t, 3, H, W] from the inputs. target_poses: "auto" (the
 model's own protocol: the estimator reads the target images for UP-LVSM, dataset cameras for the posed variants),
 "estimator", "mapper" or "dataset" (the last two need input_c2w and target_c2w [b, v, 4, 4]). Returns
 {"render": tensor, "poses": latent poses [b, v_t, 7] or None for the posed variants}.)")
@@ -139,29 +139,28 @@ model's own protocol: the estimator reads the target images for UP-LVSM, dataset
 
 // Videos: between two unposed photos, or along a real camera path.
 void bind_model_videos(ModelClass& c) {
-  c
-      .def(
-          "render_interpolation",
-          [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, int64_t num_frames, int64_t chunk,
-             const std::string& amp) {
-            check_pair_views(images, fxfycxcy, "render_interpolation");
-            if (images.size(0) != 2) throw py::value_error("render_interpolation: images must be two views [2, 3, H, W]");
-            if (num_frames < 2 || chunk < 1)
-              throw py::value_error("render_interpolation: num_frames must be >= 2 and chunk >= 1");
-            render::InterpolationVideo v;
-            {
-              py::gil_scoped_release release;
-              v = s.render_interpolation(images, fxfycxcy, num_frames, chunk, amp);
-            }
-            py::dict out;
-            out["frames"] = v.frames;
-            out["poses"] = v.poses;
-            out["key_poses"] = v.key_poses;
-            return out;
-          },
-          py::arg("images"), py::arg("fxfycxcy"), py::arg("num_frames") = 24, py::arg("chunk") = 4,
-          py::arg("amp") = "none",
-          R"(A video between two unposed photos (images [2, 3, H, W], fxfycxcy [2, 4]): the estimator's latent poses of
+  c.def(
+       "render_interpolation",
+       [](Model& s, const torch::Tensor& images, const torch::Tensor& fxfycxcy, int64_t num_frames, int64_t chunk,
+          const std::string& amp) {
+         check_pair_views(images, fxfycxcy, "render_interpolation");
+         if (images.size(0) != 2) throw py::value_error("render_interpolation: images must be two views [2, 3, H, W]");
+         if (num_frames < 2 || chunk < 1)
+           throw py::value_error("render_interpolation: num_frames must be >= 2 and chunk >= 1");
+         render::InterpolationVideo v;
+         {
+           py::gil_scoped_release release;
+           v = s.render_interpolation(images, fxfycxcy, num_frames, chunk, amp);
+         }
+         py::dict out;
+         out["frames"] = v.frames;
+         out["poses"] = v.poses;
+         out["key_poses"] = v.key_poses;
+         return out;
+       },
+       py::arg("images"), py::arg("fxfycxcy"), py::arg("num_frames") = 24, py::arg("chunk") = 4,
+       py::arg("amp") = "none",
+       R"(A video between two unposed photos (images [2, 3, H, W], fxfycxcy [2, 4]): the estimator's latent poses of
 the two inputs, interpolated (slerp + linear) over num_frames frames, rendered chunk frames at a time, without
 gradients; UP-LVSM only. Returns {"frames": [F, 3, H, W] CPU, "poses": [F, 7], "key_poses": [2, 7]}.)")
       .def(
@@ -211,8 +210,8 @@ amp="bf16" runs matmuls in bfloat16 autocast, as the CLI's --amp bf16.)");
   bind_model_forward(c);
   bind_model_videos(c);
   c.def("__repr__", [](const Model& s) {
-    return "uplvsm.Model(variant='" + to_string(s.config().model.variant) + "', parameters=" +
-           std::to_string(s.parameter_count()) + ", device='" + s.device().str() + "')";
+    return "uplvsm.Model(variant='" + to_string(s.config().model.variant) +
+           "', parameters=" + std::to_string(s.parameter_count()) + ", device='" + s.device().str() + "')";
   });
   bind_model_constructors(m);
 }

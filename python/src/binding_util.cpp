@@ -55,9 +55,7 @@ Config to_config(const py::handle& config) {
 
 void check_tensor(const torch::Tensor& t, const std::string& where, const std::string& name,
                   const std::vector<int64_t>& shape, const std::string& layout) {
-  auto fail = [&](const std::string& why) {
-    throw py::value_error(where + ": " + name + " must be " + layout + why);
-  };
+  auto fail = [&](const std::string& why) { throw py::value_error(where + ": " + name + " must be " + layout + why); };
   if (!t.defined()) fail(", got None");
   if (!t.is_floating_point()) fail(" of floating point, got " + std::string(c10::toString(t.scalar_type())));
   const bool leading = !shape.empty() && shape[0] == 0;

@@ -18,8 +18,7 @@ bool amp_enabled(const std::string& amp) {
 }
 }  // namespace
 
-ModelAdapter::ModelAdapter(const std::string& path, const torch::Device& device, const Config* hint)
-    : device_(device) {
+ModelAdapter::ModelAdapter(const std::string& path, const torch::Device& device, const Config* hint) : device_(device) {
   net_ = model::load_model(path, device, &config_, hint);
 }
 

@@ -35,8 +35,8 @@ TEST(DatasetCli, SubsetManifestRestrictsTraining) {
   EXPECT_NE(out.find("on 2 scenes"), std::string::npos) << out;
 
   // An official name the dataset is too small for: a clear error with both counts.
-  EXPECT_NE(test::run_cli("dataset subset --data " + test::micro_dataset() + " --subset medium --out " + manifest, &out),
-            0);
+  EXPECT_NE(
+      test::run_cli("dataset subset --data " + test::micro_dataset() + " --subset medium --out " + manifest, &out), 0);
   EXPECT_NE(out.find("needs 304 chunks"), std::string::npos) << out;
 }
 
@@ -65,8 +65,11 @@ TEST(DatasetCli, ObjectsTrainAndEvaluateWithUnorderedViews) {
   const auto dir = test::temp_dir("cli_objects");
   const auto data = (dir / "objects").string();
   std::string out;
-  ASSERT_EQ(test::run_cli("make-dataset --config " + kConfigs + "tiny.json --kind objects --train-scenes 4 "
-                          "--test-scenes 2 --out " + data, &out),
+  ASSERT_EQ(test::run_cli("make-dataset --config " + kConfigs +
+                              "tiny.json --kind objects --train-scenes 4 "
+                              "--test-scenes 2 --out " +
+                              data,
+                          &out),
             0)
       << out;
   std::ifstream info(dir / "objects/dataset.json");

@@ -44,11 +44,14 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   EXPECT_TRUE(fs::exists(dir / "eval/metrics.json"));
   EXPECT_TRUE(fs::exists(dir / "eval/per_scene.csv"));
 
-  ASSERT_EQ(run_cli("render --checkpoint " + run + " --data " + data + " --frames 6 --out " + (dir / "video").string()), 0);
+  ASSERT_EQ(run_cli("render --checkpoint " + run + " --data " + data + " --frames 6 --out " + (dir / "video").string()),
+            0);
   EXPECT_TRUE(fs::exists(dir / "video/videos.json"));
 
-  ASSERT_EQ(run_cli("report --run " + run + " --eval " + (dir / "eval").string() + " --video " + (dir / "video").string() +
-                   " --out " + (dir / "report").string(), &out), 0);
+  ASSERT_EQ(run_cli("report --run " + run + " --eval " + (dir / "eval").string() + " --video " +
+                        (dir / "video").string() + " --out " + (dir / "report").string(),
+                    &out),
+            0);
   EXPECT_TRUE(fs::exists(dir / "report/index.html"));
   EXPECT_TRUE(fs::exists(dir / "report/training_curve.png"));
   EXPECT_NE(out.find("held-out PSNR"), std::string::npos) << out;
@@ -56,42 +59,61 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   // Camera control: the mapper stage from the trained run, evaluation from dataset cameras through the mapper, and
   // an orbit video through it.
   auto mapper_run = (dir / "mapper_run").string();
-  ASSERT_EQ(run_cli("train --stage mapper --init " + run + " --config " + cfg + " --data " + data + " --run " + mapper_run +
-                   " --steps 4", &out), 0);
+  ASSERT_EQ(run_cli("train --stage mapper --init " + run + " --config " + cfg + " --data " + data + " --run " +
+                        mapper_run + " --steps 4",
+                    &out),
+            0);
   EXPECT_NE(out.find("pose mapper: least-squares fit"), std::string::npos) << out;
   ASSERT_EQ(run_cli("eval --checkpoint " + mapper_run + " --target-poses mapper --data " + data + " --out " +
-                   (dir / "eval_mapper").string(), &out), 0);
+                        (dir / "eval_mapper").string(),
+                    &out),
+            0);
   EXPECT_NE(out.find("uplvsm (mapper)"), std::string::npos) << out;
-  ASSERT_EQ(run_cli("render --checkpoint " + mapper_run + " --data " + data + " --trajectory orbit --frames 4 --side-by-side "
-                   "--out " + (dir / "orbit").string()), 0);
+  ASSERT_EQ(run_cli("render --checkpoint " + mapper_run + " --data " + data +
+                    " --trajectory orbit --frames 4 --side-by-side "
+                    "--out " +
+                    (dir / "orbit").string()),
+            0);
   EXPECT_TRUE(fs::exists(dir / "orbit/videos.json"));
   // The plain model has no mapper: a camera path is refused with the way to get one.
   ASSERT_NE(run_cli("render --checkpoint " + run + " --data " + data + " --trajectory dolly --out " +
-                   (dir / "dolly").string(), &out), 0);
+                        (dir / "dolly").string(),
+                    &out),
+            0);
   EXPECT_NE(out.find("--stage mapper"), std::string::npos) << out;
 
   // The pose studies on the trained run (tiny budgets).
   ASSERT_EQ(run_cli("study pose-probe --checkpoint " + run + " --data " + data + " --gap 5 --iterations 50 --out " +
-                   (dir / "probe").string(), &out), 0);
+                        (dir / "probe").string(),
+                    &out),
+            0);
   EXPECT_NE(out.find("trans@0.1/0.2/0.3"), std::string::npos) << out;
   EXPECT_NE(out.find("  mean    trans@0.1"), std::string::npos) << out;  // the floor the probes are read against
   ASSERT_TRUE(fs::exists(dir / "probe/probe.json"));
   const auto probe = nlohmann::json::parse(std::ifstream(dir / "probe/probe.json"));
   for (const char* key : {"mlp", "linear", "mean_pose"}) EXPECT_TRUE(probe.contains(key)) << key;
-  ASSERT_EQ(run_cli("study tsne --checkpoint " + run + " --data " + data + " --gap 5 --perplexity 3 --iterations 100 --out " +
-                   (dir / "tsne").string(), &out), 0);
+  ASSERT_EQ(run_cli("study tsne --checkpoint " + run + " --data " + data +
+                        " --gap 5 --perplexity 3 --iterations 100 --out " + (dir / "tsne").string(),
+                    &out),
+            0);
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.png"));
   EXPECT_TRUE(fs::exists(dir / "tsne/tsne.csv"));
   ASSERT_EQ(run_cli("study attention --checkpoint " + run + " --data " + data + " --scenes 2 --patch 1 2 --out " +
-                   (dir / "attention").string(), &out), 0);
+                        (dir / "attention").string(),
+                    &out),
+            0);
   EXPECT_NE(out.find("patch (1, 2)"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(dir / "attention/attention.json"));
   EXPECT_NE(run_cli("study attention --checkpoint " + run + " --data " + data + " --patch 9 0 --out " +
-                   (dir / "attention_bad").string(), &out), 0);
+                        (dir / "attention_bad").string(),
+                    &out),
+            0);
   EXPECT_NE(out.find("outside view 1's 4x4 patch grid"), std::string::npos) << out;
 
   // Bring-your-own photos: two frames written as PNG files.
-  ASSERT_EQ(run_cli("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() + "/missing.png x.png --out " +
-                   (dir / "byo").string(), &out) != 0, true);
+  ASSERT_EQ(run_cli("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() +
+                        "/missing.png x.png --out " + (dir / "byo").string(),
+                    &out) != 0,
+            true);
   EXPECT_NE(out.find("missing.png"), std::string::npos) << out;
 }

@@ -15,7 +15,8 @@ namespace fs = std::filesystem;
 namespace {
 
 void write_bytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
-  std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+  std::ofstream(path, std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
 }
 
 bool has_backtrace(const std::string& output) {
@@ -37,19 +38,20 @@ TEST(RobustnessCli, DecompressionBombAmongImagesIsRefusedFromItsHeader) {
   std::string out;
   EXPECT_NE(uplvsm::test::run_cli(render_images(dir / "bomb.png", dir / "ok.png", dir / "video"), &out), 0);
   EXPECT_NE(out.find((dir / "bomb.png").string() + ": image of 30000x30000 = 900000000 pixels exceeds the limit of "
-                                                     "178956970 pixels"),
+                                                   "178956970 pixels"),
             std::string::npos)
       << out;
   EXPECT_FALSE(has_backtrace(out)) << out;
 
   // --max-image-pixels lowers (or raises) the limit, before or after the subcommand.
-  EXPECT_NE(uplvsm::test::run_cli(render_images(dir / "ok.png", dir / "ok.png", dir / "video", "--frames 2 --max-image-pixels 100"),
-                                  &out),
-            0);
+  EXPECT_NE(
+      uplvsm::test::run_cli(
+          render_images(dir / "ok.png", dir / "ok.png", dir / "video", "--frames 2 --max-image-pixels 100"), &out),
+      0);
   EXPECT_NE(out.find("ok.png: image of 16x8 = 128 pixels exceeds the limit of 100 pixels"), std::string::npos) << out;
-  EXPECT_NE(uplvsm::test::run_cli("--max-image-pixels 100 " + render_images(dir / "ok.png", dir / "ok.png", dir / "v"),
-                                  &out),
-            0);
+  EXPECT_NE(
+      uplvsm::test::run_cli("--max-image-pixels 100 " + render_images(dir / "ok.png", dir / "ok.png", dir / "v"), &out),
+      0);
   EXPECT_NE(out.find("exceeds the limit of 100 pixels"), std::string::npos) << out;
 }
 
@@ -93,9 +95,8 @@ TEST(RobustnessCli, VideoThatCannotFitInMemoryIsRefusedBeforeRendering) {
   const auto dir = uplvsm::test::temp_dir("cli_video_memory");
   write_bytes(dir / "a.png", uplvsm::test::small_image_bytes(true));
   std::string out;
-  EXPECT_NE(uplvsm::test::run_cli(render_images(dir / "a.png", dir / "a.png", dir / "video",
-                                                "--frames 100000 --side-by-side"),
-                                  &out),
+  EXPECT_NE(uplvsm::test::run_cli(
+                render_images(dir / "a.png", dir / "a.png", dir / "video", "--frames 100000 --side-by-side"), &out),
             0);
   EXPECT_NE(out.find("error: render: 100000 frames of 224x224 need at least 224.3 GiB of memory, but only "),
             std::string::npos)

@@ -40,10 +40,10 @@ TEST(ShippedModel, ReproducesItsPsnrOnTheFixedTestSlice) {
   const int scenes = models.at(0).at("test_slice").at("scenes").get<int>();
   std::string out;
   // Only the test split is needed: a scene depends on (seed, split, index) alone, not on how many scenes there are.
-  ASSERT_EQ(test::run_cli(fmt::format("make-dataset --config {} --train-scenes 1 --test-scenes {} --out {}",
-                                      (source / card.at("config").get<std::string>()).string(), scenes,
-                                      (dir / "data").string()),
-                          &out),
+  ASSERT_EQ(test::run_cli(
+                fmt::format("make-dataset --config {} --train-scenes 1 --test-scenes {} --out {}",
+                            (source / card.at("config").get<std::string>()).string(), scenes, (dir / "data").string()),
+                &out),
             0)
       << out;
   for (const auto& model : models) {
@@ -66,8 +66,9 @@ TEST(ShippedModel, ReproducesItsPsnrOnTheFixedTestSlice) {
     EXPECT_NEAR(table.at("model").at("grad_ratio").get<double>(), slice.at("grad_ratio").get<double>(), 0.003);
     EXPECT_NEAR(table.at("copy_nearest").at("psnr").get<double>(), slice.at("copy_nearest_psnr").get<double>(), 0.05);
     // docs/demo.md quotes the card's figures (the slice, and the full test split).
-    EXPECT_NE(demo_page.find(fmt::format("{:.2f} dB on the first {} test scenes", slice.at("psnr").get<double>(), scenes)),
-              std::string::npos)
+    EXPECT_NE(
+        demo_page.find(fmt::format("{:.2f} dB on the first {} test scenes", slice.at("psnr").get<double>(), scenes)),
+        std::string::npos)
         << "docs/demo.md does not quote the model card's slice PSNR of " << weights;
     EXPECT_NE(demo_page.find(fmt::format("{:.2f}", model.at("test").at("psnr").get<double>())), std::string::npos)
         << "docs/demo.md does not quote the model card's test PSNR of " << weights;

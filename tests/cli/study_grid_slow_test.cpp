@@ -63,8 +63,10 @@ TEST(StudyGrid, ScalingTrainsEachSubsetOnceAndWritesTheTable) {
   EXPECT_NE(text.find("already done"), std::string::npos) << text;
   EXPECT_EQ(text.find("training micro"), std::string::npos) << text;
   // A subset larger than the split is refused, naming the sizes.
-  EXPECT_NE(run_cli("study scaling --config " + f.uplvsm_cfg + " --data " + f.data + " --subsets 9 --out " + out + "_bad",
-               &text), 0);
+  EXPECT_NE(
+      run_cli("study scaling --config " + f.uplvsm_cfg + " --data " + f.data + " --subsets 9 --out " + out + "_bad",
+              &text),
+      0);
   EXPECT_NE(text.find("only 4 scenes"), std::string::npos) << text;
 }
 
@@ -73,7 +75,9 @@ TEST(StudyGrid, PoseNoiseMovesLvsmButNotUplvsm) {
   const auto out = (f.dir / "noise").string();
   std::string text;
   ASSERT_EQ(run_cli("study pose-noise --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
-                   " --noise 0 0.1 --steps 4 --out " + out, &text), 0);
+                        " --noise 0 0.1 --steps 4 --out " + out,
+                    &text),
+            0);
   auto up0 = read_json(fs::path(out) / "runs/uplvsm__noise0/result.json");
   auto up1 = read_json(fs::path(out) / "runs/uplvsm__noise0.1/result.json");
   auto lv0 = read_json(fs::path(out) / "runs/lvsm__noise0/result.json");

@@ -35,14 +35,16 @@ TEST(Config, UnknownFieldIsAnErrorNamingThePath) {
     config_from_json(j, "x.json");
     FAIL();
   } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("x.json: model.transformer: unknown field 'dd'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("x.json: model.transformer: unknown field 'dd'"), std::string::npos)
+        << e.what();
   }
 }
 
 TEST(Config, CommandLineOverridesSetFieldsAndNameTheirMistakes) {
   const auto tiny = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny.json");
-  auto c = apply_config_overrides(tiny, {"training.warmup=500", "model.transformer.n_latent_vectors=64",
-                                         "training.amp=bf16", "dataset.square_crop=false", "training.lr=3e-4"},
+  auto c = apply_config_overrides(tiny,
+                                  {"training.warmup=500", "model.transformer.n_latent_vectors=64", "training.amp=bf16",
+                                   "dataset.square_crop=false", "training.lr=3e-4"},
                                   "tiny.json");
   EXPECT_EQ(c.training.warmup, 500);
   EXPECT_EQ(c.model.transformer.n_latent_vectors, 64);
@@ -67,9 +69,8 @@ TEST(Config, CommandLineOverridesSetFieldsAndNameTheirMistakes) {
 
 // The string choices are parsed once into enums; JSON keeps their names, so a run's config.json reads as before.
 TEST(Config, ChoicesAreEnumsWrittenByName) {
-  auto c = config_from_json({{"model", {{"variant", "lvsm"}}},
-                             {"training", {{"amp", "bf16"}, {"target_poses", "dataset"}}}},
-                            "choices.json");
+  auto c = config_from_json(
+      {{"model", {{"variant", "lvsm"}}}, {"training", {{"amp", "bf16"}, {"target_poses", "dataset"}}}}, "choices.json");
   EXPECT_EQ(c.model.variant, Variant::LVSM);
   EXPECT_EQ(c.training.amp, Amp::Bf16);
   EXPECT_EQ(c.training.target_poses, TargetPoseChoice::Dataset);
@@ -79,8 +80,8 @@ TEST(Config, ChoicesAreEnumsWrittenByName) {
   EXPECT_EQ(j["training"]["target_poses"], "dataset");
   for (auto v : {Variant::UPLVSM, Variant::PTLVSM, Variant::LVSM}) EXPECT_EQ(parse_variant(to_string(v)), v);
   for (auto a : {Amp::None, Amp::Bf16}) EXPECT_EQ(parse_amp(to_string(a)), a);
-  for (auto t : {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper,
-                 TargetPoseChoice::Dataset})
+  for (auto t :
+       {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper, TargetPoseChoice::Dataset})
     EXPECT_EQ(parse_target_pose_choice(to_string(t)), t);
   auto message = [](const nlohmann::json& j) {
     try {

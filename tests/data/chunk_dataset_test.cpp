@@ -26,7 +26,6 @@ using test::fixture;
 
 const std::string kRoot = "re10k_chunks/root";
 
-
 const io::TensorMap& truth() {
   static io::TensorMap t = io::read_safetensors(fixture("re10k_chunks/truth.safetensors")).tensors;
   return t;
@@ -43,7 +42,7 @@ RawScene make_scene(const std::string& key, int n, int h = 24, int w = 32) {
     auto row = s.cameras[i];
     row[0] = 0.8, row[1] = 1.4, row[2] = 0.5, row[3] = 0.5;
     row[6] = 1, row[11] = 1, row[16] = 1;  // rotation identity (r00, r11, r22)
-    row[17] = -0.1 * i;                     // t_z
+    row[17] = -0.1 * i;                    // t_z
   }
   for (int i = 0; i < n; ++i) {
     auto img = torch::full({h, w, 3}, 40 + 10 * i, torch::kUInt8);
@@ -281,8 +280,7 @@ TEST(ChunkDataset, ChunkStartsMarkEachChunksContiguousRange) {
   ChunkDataset ds(dir.string(), "train");
   ASSERT_EQ(ds.size(), 3);
   EXPECT_EQ(ds.chunk_starts(), (std::vector<int64_t>{0, 2}));
-  for (int64_t i = 0; i < ds.size(); ++i)
-    EXPECT_EQ(ds.chunk_name(i), i < 2 ? "000000.torch" : "000001.torch");
+  for (int64_t i = 0; i < ds.size(); ++i) EXPECT_EQ(ds.chunk_name(i), i < 2 ? "000000.torch" : "000001.torch");
   ds.keep_only({"aa00000000000002", "bb00000000000001"});  // the starts follow the subset
   EXPECT_EQ(ds.chunk_starts(), (std::vector<int64_t>{0, 1}));
   fs::remove_all(dir);

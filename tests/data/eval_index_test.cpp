@@ -50,13 +50,11 @@ TEST(EvalIndex, ReadsSharedSplitFiles) {
     bool overlap;
   };
   // Counts from fixtures/eval_splits/README.md.
-  for (const auto& e : {Expect{"official_evaluation_index_re10k.json", 6474, false},
-                        Expect{"official_extrapolation.json", 6424, false},
-                        Expect{"official_overlap_large.json", 1630, true},
-                        Expect{"official_overlap_medium.json", 2568, true},
-                        Expect{"official_overlap_small.json", 1403, true},
-                        Expect{"noposplat_evaluation_index_re10k.json", 5601, true},
-                        Expect{"noposplat_evaluation_index_acid.json", 1341, true}}) {
+  for (const auto& e :
+       {Expect{"official_evaluation_index_re10k.json", 6474, false}, Expect{"official_extrapolation.json", 6424, false},
+        Expect{"official_overlap_large.json", 1630, true}, Expect{"official_overlap_medium.json", 2568, true},
+        Expect{"official_overlap_small.json", 1403, true}, Expect{"noposplat_evaluation_index_re10k.json", 5601, true},
+        Expect{"noposplat_evaluation_index_acid.json", 1341, true}}) {
     int64_t nulls = 0;
     auto entries = read_eval_index(fixture(std::string("eval_splits/") + e.file), &nulls);
     EXPECT_EQ(entries.size(), e.non_null) << e.file;

@@ -25,7 +25,8 @@ data::LoaderOptions micro_options() {
 
 TEST(Loader, BatchIsAPureFunctionOfTheStep) {
   data::ChunkDataset dataset(test::micro_dataset(), "train");
-  auto a = data::make_training_batch(dataset, micro_options(), 5), b = data::make_training_batch(dataset, micro_options(), 5);
+  auto a = data::make_training_batch(dataset, micro_options(), 5),
+       b = data::make_training_batch(dataset, micro_options(), 5);
   EXPECT_EQ(a.keys, b.keys);
   EXPECT_EQ(a.frames, b.frames);
   EXPECT_TRUE(torch::equal(a.images, b.images));

@@ -24,15 +24,16 @@ using test::fixture;
 std::pair<torch::Tensor, torch::Tensor> fixture_frame0() {
   for (const auto& s : read_chunk(fixture("re10k_chunks/root/test/000000.torch")))
     if (s.key == "20e408dd375292a1")
-      return {io::decode_jpeg(s.images[0].data_ptr<uint8_t>(), s.images[0].numel(), "frame0"), s.cameras.slice(0, 0, 1)};
+      return {io::decode_jpeg(s.images[0].data_ptr<uint8_t>(), s.images[0].numel(), "frame0"),
+              s.cameras.slice(0, 0, 1)};
   throw std::runtime_error("fixture scene missing");
 }
 
 TEST(Preprocess, ResizedWidthFollowsOfficialRounding) {
   EXPECT_EQ(resized_width(360, 640, 224, 14), 392);
   EXPECT_EQ(resized_width(360, 640, 518, 14), 924);
-  EXPECT_EQ(resized_width(224, 35, 224, 14), 28);   // int 35 / 14 = 2.5 -> 2 (Python rounds half to even)
-  EXPECT_EQ(resized_width(224, 49, 224, 14), 56);   // 3.5 -> 4
+  EXPECT_EQ(resized_width(224, 35, 224, 14), 28);    // int 35 / 14 = 2.5 -> 2 (Python rounds half to even)
+  EXPECT_EQ(resized_width(224, 49, 224, 14), 56);    // 3.5 -> 4
   EXPECT_EQ(resized_width(100, 150, 224, 14), 336);  // upscaling
   EXPECT_THROW(resized_width(0, 10, 224, 14), std::runtime_error);
 }

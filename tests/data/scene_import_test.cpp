@@ -142,7 +142,7 @@ TEST(SceneImport, ColmapTextModelReproducesIntrinsicsAndPoses) {
   const float expect1[18] = {40.f / 64, 40.f / 48, 0.5f, 0.5f, 0, 0, 1, 0, 0, 0.5f, 0, 1, 0, -0.25f, 0, 0, 1, 4};
   for (int f = 0; f < 18; ++f) EXPECT_NEAR(cam(r, 1, f), expect1[f], 1e-6) << "field " << f;
   EXPECT_NEAR(cam(r, 2, 9), -1.0f, 1e-6);  // img2 (after the empty points line) was parsed: t_x = -1
-  ASSERT_EQ(r.warnings.size(), 1u);       // the SIMPLE_RADIAL distortion
+  ASSERT_EQ(r.warnings.size(), 1u);        // the SIMPLE_RADIAL distortion
   EXPECT_NE(r.warnings[0].find("SIMPLE_RADIAL"), std::string::npos) << r.warnings[0];
 }
 
@@ -323,7 +323,8 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("not orthonormal"), std::string::npos) << msg;
   // A field nested deep instead of a number is described, not printed (printing recursed per level; fuzzing).
-  write_text(tj, R"({"fl_x": )" + std::string(100000, '[') + std::string(100000, ']') + R"(, "frames": [{"file_path": "images/a.jpg",
+  write_text(tj, R"({"fl_x": )" + std::string(100000, '[') + std::string(100000, ']') +
+                     R"(, "frames": [{"file_path": "images/a.jpg",
       "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
   msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("field 'fl_x': expected a number, got an array of 1"), std::string::npos) << msg;

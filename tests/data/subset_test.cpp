@@ -136,7 +136,9 @@ TEST(Unposed, ListedScenesHaveNoKnownPoses) {
   EXPECT_FALSE(after.poses_known(1));
   std::ofstream(dir / "train/unposed.json") << "{\"a\": 1}";
   auto msg = test::error_of([&] { ChunkDataset bad(dir.string(), "train"); });
-  EXPECT_NE(msg.find("unposed.json"), std::string::npos) << msg;  // An entry nested 100000 deep is described, not printed (printing it recursed per level; found by fuzzing).
+  EXPECT_NE(msg.find("unposed.json"), std::string::npos)
+      << msg;  // An entry nested 100000 deep is described, not printed (printing it recursed per level; found by
+               // fuzzing).
   std::ofstream(dir / "train/unposed.json") << "[" << std::string(100000, '[') << std::string(100000, ']') << "]";
   msg = test::error_of([&] { ChunkDataset bad(dir.string(), "train"); });
   EXPECT_NE(msg.find("entry an array of 1 is not a scene key"), std::string::npos) << msg;

@@ -28,7 +28,7 @@ TEST(ViewSampler, RespectsGapAndBounds) {
       EXPECT_LT(f, start + gap);
     }
   }
-  EXPECT_EQ(*gaps.begin(), 25);    // both ends of [25, 192] reachable
+  EXPECT_EQ(*gaps.begin(), 25);  // both ends of [25, 192] reachable
   EXPECT_EQ(*gaps.rbegin(), 192);
 }
 

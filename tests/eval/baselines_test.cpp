@@ -43,8 +43,8 @@ TEST(Baselines, CopyNearestDirectionPicksTheClosestViewingDirection) {
   auto images = torch::zeros({2, 2, 3, 4, 5});
   for (int b = 0; b < 2; ++b)
     for (int v = 0; v < 2; ++v) images[b][v].fill_(10.0 * b + v);
-  auto in = torch::stack({torch::stack({looking_along(0), looking_along(1.5)}),
-                          torch::stack({looking_along(3.0), looking_along(-1.0)})});
+  auto in = torch::stack(
+      {torch::stack({looking_along(0), looking_along(1.5)}), torch::stack({looking_along(3.0), looking_along(-1.0)})});
   auto tg = torch::stack({torch::stack({looking_along(0.2), looking_along(1.0), looking_along(0.7)}),
                           torch::stack({looking_along(2.5), looking_along(-0.5), looking_along(1.2)})});
   auto out = copy_nearest_direction(images, in, tg);
@@ -58,9 +58,9 @@ TEST(Baselines, CopyNearestDirectionPicksTheClosestViewingDirection) {
 
 TEST(Baselines, CopyNearestInputRejectsInconsistentFrames) {
   auto images = torch::zeros({1, 2, 3, 4, 4});
-  EXPECT_THROW(copy_nearest_input(images, {{0}}, {{1}}), std::runtime_error);          // 1 frame, 2 views
+  EXPECT_THROW(copy_nearest_input(images, {{0}}, {{1}}), std::runtime_error);                  // 1 frame, 2 views
   EXPECT_THROW(copy_nearest_input(images, {{0, 1}, {0, 1}}, {{1}, {2}}), std::runtime_error);  // batch 2 vs 1
-  EXPECT_THROW(copy_nearest_input(images[0], {{0, 1}}, {{1}}), std::runtime_error);    // not 5-D
+  EXPECT_THROW(copy_nearest_input(images[0], {{0, 1}}, {{1}}), std::runtime_error);            // not 5-D
 }
 
 TEST(Baselines, MeanColourIsTheBestConstant) {

@@ -148,8 +148,8 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
     EXPECT_NE(row.find(",,"), std::string::npos) << row;  // empty LPIPS fields
   }
 
-  opt.lpips = load_lpips(LpipsNet::Alex, test::fixture("lpips/alexnet_features.safetensors"),
-                         test::fixture("lpips/alex.pth"));
+  opt.lpips =
+      load_lpips(LpipsNet::Alex, test::fixture("lpips/alexnet_features.safetensors"), test::fixture("lpips/alex.pth"));
   opt.lpips_chunk = 2;  // 3 targets: chunks of 2 and 1 must join up in order
   auto with = evaluate(net, dataset, tiny_prep(), opt);
   const auto& r = with.per_scene[0];
@@ -238,8 +238,8 @@ using test::fake_scene;
 
 TEST(Evaluator, AveragesPerSceneThenOverScenes) {
   // A scene with 1 target counts as much as a scene with 3 (community convention).
-  auto s = summarise({fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30, 30, 30}),
-                      fake_scene("c", std::nullopt, {10, 20})});
+  auto s = summarise(
+      {fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30, 30, 30}), fake_scene("c", std::nullopt, {10, 20})});
   EXPECT_EQ(s.scenes, 3);
   EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), (20.0 + 30.0 + 15.0) / 3);
   EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("psnr"), (15.0 + 25.0 + 10.0) / 3);
@@ -296,7 +296,7 @@ TEST(Evaluator, ErrorHeatmapAndGrid) {
   pred[1].fill_(1.0);
   auto heat = error_heatmap(pred, gt);
   ASSERT_EQ(heat.sizes(), gt.sizes());
-  EXPECT_LE(heat[0].max().item<float>(), 4.0f / 255 + 1e-6);  // no error: black end of the ramp
+  EXPECT_LE(heat[0].max().item<float>(), 4.0f / 255 + 1e-6);         // no error: black end of the ramp
   EXPECT_NEAR(heat[1][0].mean().item<float>(), 252.0f / 255, 1e-5);  // saturated: pale yellow
   auto scene = fake_scene("k", std::nullopt, {20, 21});
   scene.context = {0, 5};

@@ -16,7 +16,10 @@ struct Case {
 };
 const std::vector<Case> kCases = {
     {"alex", "alexnet_features.safetensors", eval::LpipsNet::Alex, {"relu1", "relu2", "relu3", "relu4", "relu5"}},
-    {"vgg", "vgg16_features.safetensors", eval::LpipsNet::Vgg, {"relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3"}}};
+    {"vgg",
+     "vgg16_features.safetensors",
+     eval::LpipsNet::Vgg,
+     {"relu1_2", "relu2_2", "relu3_3", "relu4_3", "relu5_3"}}};
 }  // namespace
 
 TEST(Lpips, MatchesOfficialPackage) {
@@ -34,7 +37,8 @@ TEST(Lpips, MatchesOfficialPackage) {
         EXPECT_LE(test::max_abs_diff(feats[k], ref), 1e-5 * std::max(1.0, ref.abs().max().item<double>()))
             << lin << " " << c.layers[k];
       }
-      EXPECT_LE(test::max_abs_diff(lpips->per_layer(io.at("in0"), io.at("in1")), io.at(c.name + ".per_layer")), 1e-5) << lin;
+      EXPECT_LE(test::max_abs_diff(lpips->per_layer(io.at("in0"), io.at("in1")), io.at(c.name + ".per_layer")), 1e-5)
+          << lin;
       EXPECT_LE(test::max_abs_diff(lpips->per_layer(io.at("in0"), io.at("in1"), false),
                                    io.at(c.name + ".per_layer_unweighted")),
                 1e-5)

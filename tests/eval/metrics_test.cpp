@@ -138,8 +138,8 @@ TEST(Metrics, GradientEnergyRatioMatchesThePixelLoop) {
   EXPECT_EQ(ratio.scalar_type(), torch::kFloat64);
   for (int64_t b = 0; b < 2; ++b)
     for (int64_t v = 0; v < 3; ++v)
-      EXPECT_NEAR(ratio[b][v].item<double>(),
-                  gradient_energy_by_loops(pred[b][v]) / gradient_energy_by_loops(gt[b][v]), 1e-12);
+      EXPECT_NEAR(ratio[b][v].item<double>(), gradient_energy_by_loops(pred[b][v]) / gradient_energy_by_loops(gt[b][v]),
+                  1e-12);
 }
 
 TEST(Metrics, GradientEnergyRatioOfKnownImages) {

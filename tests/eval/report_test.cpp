@@ -34,8 +34,11 @@ nlohmann::json fake_metrics() {
   nlohmann::json row = {{"model", {{"psnr", 25.5}, {"ssim", 0.8}, {"grad_ratio", 0.25}}},
                         {"copy_nearest", {{"psnr", 14.25}, {"ssim", 0.4}, {"grad_ratio", 1.1}}},
                         {"mean_colour", {{"psnr", 12.0}, {"ssim", 0.05}, {"grad_ratio", 0.0}}}};
-  return {{"scenes", 3}, {"table", row}, {"buckets", {{"large", row}, {"small", row}}},
-          {"bucket_scenes", {{"large", 2}, {"small", 1}}}, {"seconds", 12.5}};
+  return {{"scenes", 3},
+          {"table", row},
+          {"buckets", {{"large", row}, {"small", row}}},
+          {"bucket_scenes", {{"large", 2}, {"small", 1}}},
+          {"seconds", 12.5}};
 }
 
 TEST(Report, WritesIndexWithExistingAssets) {
@@ -81,7 +84,7 @@ TEST(Report, WritesIndexWithExistingAssets) {
   EXPECT_NE(html.find("<b>1.10</b>"), std::string::npos);  // edges: the nearest to 1 is best, not the highest
   EXPECT_EQ(html.find("<b>0.25</b>"), std::string::npos);
   EXPECT_NE(html.find("14.25"), std::string::npos);
-  EXPECT_NE(html.find("1:02:05"), std::string::npos);  // training time
+  EXPECT_NE(html.find("1:02:05"), std::string::npos);     // training time
   EXPECT_NE(html.find("absent.png"), std::string::npos);  // listed as missing
   auto curve = io::read_image((out / "training_curve.png").string());
   EXPECT_EQ(curve.size(1), 800);
@@ -146,7 +149,6 @@ TEST(Report, RejectsMalformedMetrics) {
 
 TEST(Report, HtmlEscape) { EXPECT_EQ(html_escape("a<b & \"c\"'"), "a&lt;b &amp; &quot;c&quot;&#39;"); }
 
-
 TEST(Report, ComparisonPageShowsModelsSideBySide) {
   const auto src = test::temp_dir("report_cmp_src");
   const auto out = test::temp_dir("report_cmp_out");
@@ -159,7 +161,8 @@ TEST(Report, ComparisonPageShowsModelsSideBySide) {
   a.videos = {{"orbit", (src / "v.mp4").string(), "", 96}};
   ReportInputs b;
   b.metrics_json = a.metrics_json;
-  const auto html = read(write_comparison_report(out.string(), "Demo <both>", {{"Shipped", "at 96x96", a}, {"tiny", "", b}}));
+  const auto html =
+      read(write_comparison_report(out.string(), "Demo <both>", {{"Shipped", "at 96x96", a}, {"tiny", "", b}}));
   for (const char* file : {"index.html", "model_0/index.html", "model_0/video_0.mp4", "model_0/scenes/grid.png",
                            "model_1/index.html", "model_1/metrics.json"})
     EXPECT_TRUE(fs::is_regular_file(out / file)) << file;

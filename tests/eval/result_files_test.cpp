@@ -27,8 +27,8 @@ std::vector<std::string> lines_of(const fs::path& path) {
 }
 
 TEST(ResultFiles, SummaryJsonCountsViewsAndWritesNaNAsNull) {
-  auto s = summarise({fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30, 30, 30}),
-                      fake_scene("c", std::nullopt, {10, 20})});
+  auto s = summarise(
+      {fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30, 30, 30}), fake_scene("c", std::nullopt, {10, 20})});
   EXPECT_EQ(summary_to_json(s)["views"], 6);
   // Without scenes the table is NaN, which JSON carries as null.
   EXPECT_TRUE(nlohmann::json::parse(summary_to_json(summarise({})).dump())["table"]["model"]["psnr"].is_null());
@@ -55,10 +55,12 @@ TEST(ResultFiles, WritesMetricsJsonAndBothCsvs) {
   EXPECT_EQ(j["checkpoint"], "model.safetensors");
   const auto scenes = lines_of(out / "per_scene.csv");
   ASSERT_EQ(scenes.size(), 3u);
-  EXPECT_EQ(scenes[0], "key,bucket,overlap,num_targets,psnr,ssim,lpips,grad_ratio,psnr_copy,ssim_copy,lpips_copy,"
-                       "grad_ratio_copy,psnr_mean,ssim_mean,lpips_mean,grad_ratio_mean");
-  EXPECT_EQ(scenes[1], "\"a,b\",large,0.7,1,20.000000,0.500000,,0.000000,15.000000,0.250000,,0.000000,10.000000,"
-                       "0.010000,,0.000000");
+  EXPECT_EQ(scenes[0],
+            "key,bucket,overlap,num_targets,psnr,ssim,lpips,grad_ratio,psnr_copy,ssim_copy,lpips_copy,"
+            "grad_ratio_copy,psnr_mean,ssim_mean,lpips_mean,grad_ratio_mean");
+  EXPECT_EQ(scenes[1],
+            "\"a,b\",large,0.7,1,20.000000,0.500000,,0.000000,15.000000,0.250000,,0.000000,10.000000,"
+            "0.010000,,0.000000");
   EXPECT_EQ(scenes[2].substr(0, 22), "c,none,,2,20.000000,0.");
   const auto views = lines_of(out / "per_view.csv");
   ASSERT_EQ(views.size(), 4u);

@@ -52,13 +52,15 @@ TEST(Camera, PoseEncodingRoundTrip) {
   auto enc = torch::cat({torch::randn({5, 3}, torch::kFloat64), q}, 1);
   auto c2w = geometry::pose_encoding_to_c2w(enc);
   EXPECT_LE(test::max_abs_diff(geometry::c2w_to_pose_encoding(c2w), enc), 1e-9);
-  EXPECT_LE(test::max_abs_diff(c2w.select(1, 3), torch::tensor({0.0, 0.0, 0.0, 1.0}, torch::kFloat64).expand({5, 4})), 0);
+  EXPECT_LE(test::max_abs_diff(c2w.select(1, 3), torch::tensor({0.0, 0.0, 0.0, 1.0}, torch::kFloat64).expand({5, 4})),
+            0);
 }
 
 TEST(Camera, InvertRigidAndFirstViewNormalisation) {
   torch::manual_seed(5);
   auto q = torch::randn({3, 4}, torch::kFloat64);
-  auto c2w = geometry::pose_encoding_to_c2w(torch::cat({torch::randn({3, 3}, torch::kFloat64), q / q.norm(2, -1, true)}, 1));
+  auto c2w =
+      geometry::pose_encoding_to_c2w(torch::cat({torch::randn({3, 3}, torch::kFloat64), q / q.norm(2, -1, true)}, 1));
   EXPECT_LE(test::max_abs_diff(geometry::invert_rigid(c2w), torch::linalg_inv(c2w)), 1e-12);
   auto normed = geometry::normalize_to_first_view(c2w);
   EXPECT_LE(test::max_abs_diff(normed[0], torch::eye(4, torch::kFloat64)), 1e-12);

@@ -30,7 +30,7 @@ TEST(Plucker, IdentityCameraHandComputed) {
   EXPECT_NEAR(p[0][3][0][0].item<double>(), -0.5 / n, 1e-6);
   EXPECT_NEAR(p[0][4][0][0].item<double>(), -0.5 / n, 1e-6);
   EXPECT_NEAR(p[0][5][0][0].item<double>(), 1.0 / n, 1e-6);
-  EXPECT_NEAR(p[0][3][1][1].item<double>(), 0.5 / n, 1e-6);  // row 1, col 1
+  EXPECT_NEAR(p[0][3][1][1].item<double>(), 0.5 / n, 1e-6);     // row 1, col 1
   EXPECT_LE(p.slice(1, 0, 3).abs().max().item<double>(), 0.0);  // origin at 0: zero moment
 }
 

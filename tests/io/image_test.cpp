@@ -40,7 +40,8 @@ TEST(Image, DecodeFixtureFrameMatchesPil) {
   ASSERT_NE(scene, nullptr);
   const auto& bytes = scene->images[0];
   auto img = decode_jpeg(bytes.data_ptr<uint8_t>(), bytes.numel(), "frame0");
-  auto truth = read_safetensors(fixture("re10k_chunks/truth.safetensors")).tensors.at("decoded.20e408dd375292a1.frame0");
+  auto truth =
+      read_safetensors(fixture("re10k_chunks/truth.safetensors")).tensors.at("decoded.20e408dd375292a1.frame0");
   ASSERT_EQ(img.sizes(), truth.sizes());
   auto diff = (img.to(torch::kInt32) - truth.to(torch::kInt32)).abs();
   EXPECT_LT(diff.to(torch::kFloat64).mean().item<double>(), 1.0);
@@ -67,8 +68,9 @@ TEST(Image, JpegRoundTripIsClose) {
 
 TEST(Image, GarbageAndTruncatedJpegThrowNamingSource) {
   std::vector<uint8_t> garbage(100, 0x42);
-  EXPECT_NE(error_of([&] { decode_jpeg(garbage.data(), garbage.size(), "scene abc frame 3"); }).find("scene abc frame 3"),
-            std::string::npos);
+  EXPECT_NE(
+      error_of([&] { decode_jpeg(garbage.data(), garbage.size(), "scene abc frame 3"); }).find("scene abc frame 3"),
+      std::string::npos);
   auto bytes = encode_jpeg(gradient_image(64, 64), 90);
   // A JPEG header followed by garbage: libjpeg's own error, with our source name.
   std::vector<uint8_t> bad(bytes.begin(), bytes.begin() + 20);
@@ -96,8 +98,8 @@ TEST(Image, PngRoundTripAndReadImageByMagic) {
   EXPECT_EQ(test::max_abs_diff(back.select(2, 2), gray), 0.0);
   // A JPEG saved under a .png name is still read as JPEG (magic bytes decide).
   auto bytes = encode_jpeg(img, 95);
-  std::ofstream((dir / "fake.png").string(), std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()),
-                                                                      bytes.size());
+  std::ofstream((dir / "fake.png").string(), std::ios::binary)
+      .write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   EXPECT_LT(test::max_abs_diff(read_image((dir / "fake.png").string()), img), 8.0);
   std::ofstream((dir / "text.png").string()) << "hello";
   EXPECT_NE(error_of([&] { read_image((dir / "text.png").string()); }).find("text.png"), std::string::npos);
@@ -158,8 +160,10 @@ TEST(Image, PixelLimitCanBeRaisedLoweredOrSwitchedOff) {
   EXPECT_EQ(max_image_pixels(), kDefaultMaxImagePixels);
   const auto png = test::small_image_bytes(true), jpeg = test::small_image_bytes(false);  // 16 x 8 = 128 pixels
   set_max_image_pixels(127);
-  EXPECT_NE(error_of([&] { decode_image(png.data(), png.size(), "p"); }).find("limit of 127 pixels"), std::string::npos);
-  EXPECT_NE(error_of([&] { decode_image(jpeg.data(), jpeg.size(), "j"); }).find("limit of 127 pixels"), std::string::npos);
+  EXPECT_NE(error_of([&] { decode_image(png.data(), png.size(), "p"); }).find("limit of 127 pixels"),
+            std::string::npos);
+  EXPECT_NE(error_of([&] { decode_image(jpeg.data(), jpeg.size(), "j"); }).find("limit of 127 pixels"),
+            std::string::npos);
   set_max_image_pixels(128);
   EXPECT_EQ(decode_image(png.data(), png.size(), "p").sizes(), (std::vector<int64_t>{8, 16, 3}));
   EXPECT_EQ(decode_image(jpeg.data(), jpeg.size(), "j").sizes(), (std::vector<int64_t>{8, 16, 3}));

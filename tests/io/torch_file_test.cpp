@@ -34,7 +34,8 @@ TEST(TorchFile, OfficialCheckpointModelEqualsSafetensors) {
   ASSERT_TRUE(root.is(Kind::Dict));
   std::vector<std::string> keys;
   for (const auto& [k, v] : root.dict) keys.push_back(k->text);
-  EXPECT_EQ(keys, (std::vector<std::string>{"model", "optimizer", "lr_scheduler", "fwdbwd_pass_step", "param_update_step"}));
+  EXPECT_EQ(keys,
+            (std::vector<std::string>{"model", "optimizer", "lr_scheduler", "fwdbwd_pass_step", "param_update_step"}));
   EXPECT_EQ(root.get("fwdbwd_pass_step")->integer, 1);
 
   auto expected = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
@@ -120,8 +121,12 @@ TEST(TorchFile, TruncatedFilesGiveClearErrors) {
 // Random byte edits of real pickles must end in a runtime_error or a parse, never a crash or a hang.
 TEST(TorchFile, Protocol2BytesAreBytes) {
   // pickle.dumps(b"A\xff", protocol=2): _codecs.encode("A\u00ff", "latin1"), the text held as UTF-8.
-  const std::string data("\x80\x02" "c_codecs\nencode\nq\x00X\x03\x00\x00\x00" "A\xc3\xbfq\x01X\x06\x00\x00\x00latin1"
-                         "q\x02\x86q\x03Rq\x04.", 50);
+  const std::string data(
+      "\x80\x02"
+      "c_codecs\nencode\nq\x00X\x03\x00\x00\x00"
+      "A\xc3\xbfq\x01X\x06\x00\x00\x00latin1"
+      "q\x02\x86q\x03Rq\x04.",
+      50);
   size_t pos = 0;
   auto out = io::unpickle(reinterpret_cast<const uint8_t*>(data.data()), data.size(), &pos, {}, "bytes");
   ASSERT_TRUE(out->is(Kind::Bytes)) << out->describe();

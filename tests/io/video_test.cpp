@@ -239,9 +239,9 @@ DecodedVideo decode_mp4(const std::string& path) {
     while (avcodec_receive_frame(cc, frame) == 0) {
       if (out.frames++ == 0) {
         out.first = torch::empty({frame->height, frame->width, 3}, torch::kUInt8);
-        SwsContext* sws = sws_getContext(frame->width, frame->height, AVPixelFormat(frame->format), frame->width,
-                                         frame->height, AV_PIX_FMT_RGB24, SWS_BILINEAR | SWS_ACCURATE_RND, nullptr,
-                                         nullptr, nullptr);
+        SwsContext* sws =
+            sws_getContext(frame->width, frame->height, AVPixelFormat(frame->format), frame->width, frame->height,
+                           AV_PIX_FMT_RGB24, SWS_BILINEAR | SWS_ACCURATE_RND, nullptr, nullptr, nullptr);
         uint8_t* dst[1] = {out.first.data_ptr<uint8_t>()};
         int stride[1] = {3 * frame->width};
         sws_scale(sws, frame->data, frame->linesize, 0, frame->height, dst, stride);

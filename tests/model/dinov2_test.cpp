@@ -37,8 +37,9 @@ TEST(Dinov2, MatchesMetaForwardSquareAndNonSquare) {
   torch::NoGradGuard no_grad;
   for (std::string name : {"square", "nonsquare"}) {
     auto x = io.at(name + ".input");
-    EXPECT_LE(test::max_abs_diff(vit->interpolate_pos_encoding(x.size(2), x.size(3)), io.at(name + ".pos_embed_interp")),
-              1e-5)
+    EXPECT_LE(
+        test::max_abs_diff(vit->interpolate_pos_encoding(x.size(2), x.size(3)), io.at(name + ".pos_embed_interp")),
+        1e-5)
         << name;
     auto f = vit->forward_features(x);
     EXPECT_LE(test::max_abs_diff(f.prenorm, io.at(name + ".x_prenorm")), 1e-4) << name;
@@ -53,7 +54,8 @@ TEST(Dinov2, SincosPosEmbedTableAndConfig) {
   auto pe = model::sincos_pos_embed(grid, dim);
   ASSERT_EQ(pe.sizes(), (std::vector<int64_t>{1, 1 + grid * grid, dim}));
   EXPECT_EQ(pe[0][0].abs().max().item<float>(), 0.0f);  // class token
-  // Patch (row 1, col 2) is token 1 + 1 * 3 + 2 = 6: [sin 2, sin 0.02, cos 2, cos 0.02, sin 1, sin 0.01, cos 1, cos 0.01].
+  // Patch (row 1, col 2) is token 1 + 1 * 3 + 2 = 6: [sin 2, sin 0.02, cos 2, cos 0.02, sin 1, sin 0.01, cos 1, cos
+  // 0.01].
   auto row = pe[0][6];
   const double expected[8] = {std::sin(2.0), std::sin(0.02), std::cos(2.0), std::cos(0.02),
                               std::sin(1.0), std::sin(0.01), std::cos(1.0), std::cos(0.01)};

@@ -105,8 +105,7 @@ TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsew
   // d_head 24 is not a multiple of 16: the unfused path serves it.
   EXPECT_FALSE(fused_available(torch::kFloat32, 24));
   auto q24 = torch::randn({1, 2, 9, 24}), k24 = torch::randn({1, 2, 9, 24}), v24 = torch::randn({1, 2, 9, 24});
-  EXPECT_LE(test::max_abs_diff(model::attention(q24, k24, v24).to(torch::kFloat64),
-                               reference_attention(q24, k24, v24)),
+  EXPECT_LE(test::max_abs_diff(model::attention(q24, k24, v24).to(torch::kFloat64), reference_attention(q24, k24, v24)),
             1e-5);
   model::set_attention_kernel(model::AttentionKernel::Unfused);
   EXPECT_FALSE(fused_available(torch::kFloat32, 32));

@@ -68,7 +68,7 @@ TEST(GradientCheckpoint, FrozenWeightsAndInputsWithoutGradAreSkipped) {
   torch::manual_seed(5);
   auto stack = make_transformer_stack(2, 32, 16, 1e-3, false);
   auto params = stack->parameters();
-  params[0].requires_grad_(false);  // a frozen weight: no gradient may appear for it
+  params[0].requires_grad_(false);    // a frozen weight: no gradient may appear for it
   auto x = torch::randn({1, 4, 32});  // the input needs no gradient either
   run_stack(stack, x, 1).sum().backward();
   EXPECT_FALSE(params[0].grad().defined());

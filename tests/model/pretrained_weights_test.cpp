@@ -43,7 +43,7 @@ TEST(PretrainedWeights, Dinov2FromAllThreeFiles) {
   for (std::string file : {"weights.pth", "weights.safetensors", "weights_hf.safetensors"}) {
     auto w = model::read_pretrained_weights(test::fixture("dinov2/" + file));
     EXPECT_EQ(w.source, file == "weights_hf.safetensors" ? model::WeightSource::Dinov2HuggingFace
-                                                          : model::WeightSource::Dinov2Meta)
+                                                         : model::WeightSource::Dinov2Meta)
         << file;
     model::Dinov2 vit(meta_fixture_dinov2(), 14);
     model::LoadOptions opt;
@@ -81,8 +81,10 @@ TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
     EXPECT_TRUE(report.ok());
     EXPECT_EQ(report.defaulted.size(), qk_norm ? 4u : 0u);
     EXPECT_EQ(report.skipped, std::vector<std::string>{"mask_token"});
-    if (!qk_norm) expect_meta_tokens(*net->tokenizer->dino_vit, "tokenizer");
-    else EXPECT_NE(report.summary("x").find("left at their initial values"), std::string::npos);
+    if (!qk_norm)
+      expect_meta_tokens(*net->tokenizer->dino_vit, "tokenizer");
+    else
+      EXPECT_NE(report.summary("x").find("left at their initial values"), std::string::npos);
   }
 }
 
@@ -122,9 +124,11 @@ TEST(PretrainedWeights, OfficialCheckpointPtMatchesOfficialForward) {
   EXPECT_LE(test::max_abs_diff(out.render, f.at("out.render")), 1e-4);
 
   // Same weights at another resolution (12x12 patches instead of 9x9): the pos-embed interpolation path.
-  auto images = torch::nn::functional::interpolate(
-      f.at("batch.image").flatten(0, 1),
-      torch::nn::functional::InterpolateFuncOptions().size(std::vector<int64_t>{168, 168}).mode(torch::kBilinear).align_corners(false));
+  auto images = torch::nn::functional::interpolate(f.at("batch.image").flatten(0, 1),
+                                                   torch::nn::functional::InterpolateFuncOptions()
+                                                       .size(std::vector<int64_t>{168, 168})
+                                                       .mode(torch::kBilinear)
+                                                       .align_corners(false));
   images = images.view({2, 5, 3, 168, 168});
   auto K = f.at("batch.fxfycxcy") * (168.0 / 126.0);
   auto big = net->forward(images.narrow(1, 0, 2), K.narrow(1, 0, 2), images.narrow(1, 2, 3), K.narrow(1, 2, 3));
@@ -145,15 +149,18 @@ TEST(PretrainedWeights, WrongShapeMissingAndExtraKeysAreListed) {
   auto path = (dir / "bad.safetensors").string();
   io::write_safetensors(path, weights);
   auto msg = test::error_of([&] { model::load_model(path, torch::kCPU); });
-  EXPECT_NE(msg.find("transformer_decoder.1.attn.fc.weight: file [64, 32] vs model [64, 64]"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("transformer_decoder.1.attn.fc.weight: file [64, 32] vs model [64, 64]"), std::string::npos)
+      << msg;
   EXPECT_NE(msg.find("1 missing keys (in the model, not in the file):\n    estimator.quaR_head.fc2.bias"),
-            std::string::npos) << msg;
-  EXPECT_NE(msg.find("transformer_decoder.7.attn.fc.weight"), std::string::npos) << msg;  // layers are counted 0, 1, ...
+            std::string::npos)
+      << msg;
+  EXPECT_NE(msg.find("transformer_decoder.7.attn.fc.weight"), std::string::npos)
+      << msg;  // layers are counted 0, 1, ...
 
   // The same with an explicit config.
   Config hint;
-  hint.model = model::infer_model_config(io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors,
-                                         hint.model);
+  hint.model = model::infer_model_config(
+      io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors, hint.model);
   auto msg2 = test::error_of([&] { model::load_model(path, torch::kCPU, nullptr, &hint); });
   EXPECT_NE(msg2.find("unexpected keys"), std::string::npos) << msg2;
   EXPECT_NE(msg2.find("transformer_decoder.7.attn.fc.weight"), std::string::npos) << msg2;

@@ -11,7 +11,6 @@
 using namespace uplvsm;
 using torch::indexing::Slice;
 
-
 TEST(OfficialParity, ForwardMatchesOfficialUplvsm) {
   UPLVSM_NEEDS_FIXTURES();
   model::UPLVSM net(test::official_fixture_model_config());
@@ -22,9 +21,11 @@ TEST(OfficialParity, ForwardMatchesOfficialUplvsm) {
   auto f = io::read_safetensors(test::fixture("official_uplvsm/io.safetensors")).tensors;
   torch::NoGradGuard no_grad;
   model::ForwardTrace trace;
-  auto out = net->forward(f.at("input.images"), f.at("input.fxfycxcy"), f.at("target.images"),
-                          f.at("target.fxfycxcy"), &trace);
-  EXPECT_LE(test::max_abs_diff(net->tokenizer->dino_vit->interpolate_pos_encoding(126, 126), f.at("inter.dino_pos_embed")), 1e-5);
+  auto out = net->forward(f.at("input.images"), f.at("input.fxfycxcy"), f.at("target.images"), f.at("target.fxfycxcy"),
+                          &trace);
+  EXPECT_LE(
+      test::max_abs_diff(net->tokenizer->dino_vit->interpolate_pos_encoding(126, 126), f.at("inter.dino_pos_embed")),
+      1e-5);
   EXPECT_LE(test::max_abs_diff(trace.input_dino_tokens, f.at("inter.input_dino_tokens")), 1e-4);
   EXPECT_LE(test::max_abs_diff(trace.canonical_plucker, f.at("inter.canonical_plucker")), 1e-4);
   EXPECT_LE(test::max_abs_diff(trace.encoder_output, f.at("inter.encoder_output")), 1e-4);

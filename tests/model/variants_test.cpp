@@ -98,8 +98,8 @@ TEST(Variants, PosedVariantsRenderEveryTargetAndIgnoreTheWorldFrameAndScale) {
     EXPECT_EQ(trace.canonical_plucker.size(1), variant == "lvsm" ? 2 : 1) << variant;
     // The official scene normalisation removes the world frame and the scene scale.
     auto world = geometry::pose_encoding_to_c2w(torch::tensor({{0.3, -2.0, 1.0, 0.2, -0.4, 0.1, 0.9}}));
-    auto moved = net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5),
-                             model::TargetPoses::Dataset);
+    auto moved =
+        net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5), model::TargetPoses::Dataset);
     EXPECT_LT(test::max_abs_diff(out.render, moved.render), 1e-4) << variant;
     // Posed variants have no estimator.
     EXPECT_THROW(net->render(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
@@ -119,8 +119,10 @@ TEST(Variants, PtlvsmMarksInputViewZeroAndLvsmEveryInputView) {
     for (int64_t v = 0; v < 3; ++v) {
       const bool posed = v == 0 || variant == "lvsm";
       const double diff = test::max_abs_diff(trace.input_dino_tokens.select(1, v), raw.select(1, v));
-      if (posed) EXPECT_GT(diff, 1e-4) << variant << " view " << v;
-      else EXPECT_EQ(diff, 0.0) << variant << " view " << v;
+      if (posed)
+        EXPECT_GT(diff, 1e-4) << variant << " view " << v;
+      else
+        EXPECT_EQ(diff, 0.0) << variant << " view " << v;
     }
   }
 }
@@ -157,8 +159,8 @@ TEST(Variants, EncoderCamerasGiveEveryInputViewItsRealCamera) {
   EXPECT_GT(test::max_abs_diff(net->render(moved_view, s.targets, model::TargetPoses::Dataset).render, out.render),
             1e-6);
   auto world = geometry::pose_encoding_to_c2w(torch::tensor({0.3, -1.0, 2.0, 0.2, 0.1, -0.3, 0.9}).view({1, 1, 7}));
-  auto moved = net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5),
-                           model::TargetPoses::Dataset);
+  auto moved =
+      net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5), model::TargetPoses::Dataset);
   EXPECT_LT(test::max_abs_diff(out.render, moved.render), 1e-4);
   EXPECT_THROW(net->render(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
 }
@@ -210,9 +212,9 @@ TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
   EXPECT_NE(test::error_of([&] { net->render(s.inputs, unposed, model::TargetPoses::Dataset); }).find("c2w"),
             std::string::npos);
   model::UPLVSM plain(small_config("uplvsm"));
-  EXPECT_NE(test::error_of([&] { plain->render(s.inputs, s.targets, model::TargetPoses::Mapper); })
-                .find("--stage mapper"),
-            std::string::npos);
+  EXPECT_NE(
+      test::error_of([&] { plain->render(s.inputs, s.targets, model::TargetPoses::Mapper); }).find("--stage mapper"),
+      std::string::npos);
   // Gradients reach the mapper through the renderer.
   net->train();
   net->render(s.inputs, s.targets, model::TargetPoses::Mapper).render.mean().backward();
@@ -222,7 +224,8 @@ TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
 
 TEST(Variants, FlopCountsFollowTheArchitecture) {
   // One block: projections 2 s 4 d^2, MLP 2 s 2 d h, attention 4 s^2 d.
-  EXPECT_DOUBLE_EQ(model::transformer_block_flops(10, 4, 16), 2.0 * 10 * 4 * 16 + 2.0 * 10 * 2 * 4 * 16 + 4.0 * 100 * 4);
+  EXPECT_DOUBLE_EQ(model::transformer_block_flops(10, 4, 16),
+                   2.0 * 10 * 4 * 16 + 2.0 * 10 * 2 * 4 * 16 + 4.0 * 100 * 4);
   auto up = model::forward_flops(small_config("uplvsm"), 1, 2, 3);
   auto pt = model::forward_flops(small_config("ptlvsm"), 1, 2, 3);
   EXPECT_GT(up.estimator, 0);

@@ -75,8 +75,8 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
     std::ofstream(p) << text;
     return p;
   };
-  auto path = render::read_camera_path(write(
-      "ok.json", R"({"frames": [{"pose": [0, 0, 1, 0, 0, 0, 2], "fxfycxcy": [0.9, 1.6, 0.5, 0.5]},
+  auto path = render::read_camera_path(
+      write("ok.json", R"({"frames": [{"pose": [0, 0, 1, 0, 0, 0, 2], "fxfycxcy": [0.9, 1.6, 0.5, 0.5]},
                                 {"c2w": [[1, 0, 0, 0.5], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]],
                                  "fxfycxcy": [0.9, 1.6, 0.5, 0.5]}]})"));
   ASSERT_EQ(path.poses.sizes(), (std::vector<int64_t>{2, 7}));
@@ -89,9 +89,11 @@ TEST(Trajectory, CameraPathFilesReadPosesAndMatricesWithPreciseErrors) {
   EXPECT_NE(error(R"({"frames": [{"pose": [0, 0, 1]}]})").find("frames[0].pose"), std::string::npos);
   EXPECT_NE(error(R"({"frames": [{"c2w": [[2, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0]]}]})").find("orthonormal"),
             std::string::npos);
-  EXPECT_NE(error(R"({"frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}, {"pose": [0, 0, 1, 0, 0, 0, 1], "fxfycxcy": [1, 1, 0.5, 0.5]}]})")
-                .find("every frame"),
-            std::string::npos);
+  EXPECT_NE(
+      error(
+          R"({"frames": [{"pose": [0, 0, 1, 0, 0, 0, 1]}, {"pose": [0, 0, 1, 0, 0, 0, 1], "fxfycxcy": [1, 1, 0.5, 0.5]}]})")
+          .find("every frame"),
+      std::string::npos);
   EXPECT_NE(error(R"({"frames": []})").find("frames"), std::string::npos);
   EXPECT_NE(error("{").find("invalid JSON"), std::string::npos);
   // Nesting deeper than rows of numbers is an error, not a recursion (a file of '[' overflowed the stack).
@@ -145,8 +147,9 @@ TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
   // Chunking does not change frames.
   EXPECT_LE(test::max_abs_diff(frames, render::render_camera_path(up, {images, k, {}, {}}, poses, kk, 5)), 1e-5);
   auto no_mapper = model::make_model(micro_model("uplvsm", false));
-  EXPECT_NE(test::error_of([&] { render::render_camera_path(no_mapper, {images, k, {}, {}}, poses, kk); })
-                .find("--stage mapper"),
+  EXPECT_NE(test::error_of([&] {
+              render::render_camera_path(no_mapper, {images, k, {}, {}}, poses, kk);
+            }).find("--stage mapper"),
             std::string::npos);
   // A posed variant places the path in the inputs' world: its first frame is input view 0's camera.
   auto pt = model::make_model(micro_model("ptlvsm", false));
@@ -158,7 +161,9 @@ TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
   ASSERT_NE(pt_lvsm, nullptr);
   EXPECT_LE(test::max_abs_diff(posed[0], pt_lvsm->render_posed(in, first, nullptr, false)[0][0]), 1e-5);
   EXPECT_LE(test::max_abs_diff(posed, render::render_camera_path(pt, {images, k, c2w, {}}, poses, kk, 5)), 1e-5);
-  EXPECT_NE(test::error_of([&] { render::render_camera_path(pt, {images, k, {}, {}}, poses, kk); }).find("c2w"),
+  EXPECT_NE(test::error_of([&] {
+              render::render_camera_path(pt, {images, k, {}, {}}, poses, kk);
+            }).find("c2w"),
             std::string::npos);
   EXPECT_EQ(render::side_by_side(images, frames).sizes(), (std::vector<int64_t>{5, 3, 32, 96}));
 }

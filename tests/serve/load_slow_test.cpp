@@ -61,12 +61,16 @@ TEST(ViewerLoad, ClientsForSecondsWithoutErrorsAndFlatMemory) {
       auto cc = server.client();
       for (int step = 0; !stop; ++step) {
         const double a = 0.02 * (step % 100);
-        std::vector<double> pose{0.3 * std::sin(a), 0.1 * std::cos(a), 0.05 * a, 0, std::sin(a / 4), 0, std::cos(a / 4)};
+        std::vector<double> pose{0.3 * std::sin(a), 0.1 * std::cos(a), 0.05 * a, 0, std::sin(a / 4), 0,
+                                 std::cos(a / 4)};
         const auto t0 = Clock::now();
         auto r = post(cc, "/api/sessions/" + sid + "/frame", {{"pose", pose}, {"space", "real"}, {"seq", ++seq}});
         const double ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
         if (!r) return fail("frame: no response");
-        if (r->status == 204) { ++superseded; continue; }
+        if (r->status == 204) {
+          ++superseded;
+          continue;
+        }
         if (r->status != 200 || r->body.size() < 100) return fail(fmt::format("frame: {} {}", r->status, r->body));
         ++frames;
         std::lock_guard<std::mutex> lock(mutex);

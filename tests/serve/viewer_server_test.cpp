@@ -143,8 +143,8 @@ TEST_F(ViewerServerTest, FramesFromCachedLatentsMatchAFreshRender) {
   bool posed = false;
   auto views = server_->catalog.load(*server_->catalog.find("1"), &posed);
   auto fresh = server_->model.encode(views, posed);
-  auto expected = io::to_u8_hwc(server_->model.render(fresh, torch::tensor(pose, torch::kFloat64).unsqueeze(0),
-                                                      serve::PoseSpace::Latent)[0]);
+  auto expected = io::to_u8_hwc(
+      server_->model.render(fresh, torch::tensor(pose, torch::kFloat64).unsqueeze(0), serve::PoseSpace::Latent)[0]);
   EXPECT_TRUE(torch::equal(served, expected));
 
   auto jpeg = frame(s["session"], {{"pose", s["key_latent"][0]}, {"seq", 2}});
@@ -178,23 +178,22 @@ TEST_F(ViewerServerTest, BadRequestsGetJsonErrorsAndTheServerKeepsServing) {
   expect_error(frame(sid, {{"pose", pose}, {"seq", -1}}), 400, "seq");
   expect_error(frame("0123456789abcdef0123456789abcdef", {{"pose", pose}}), 404, "unknown or expired session");
   expect_error(frame("../../etc", {{"pose", pose}}), 404, "");
-  expect_error(cli.Post("/api/sessions", json({{"scene", "99"}}).dump(), "application/json"), 404,
-               "unknown scene id");
+  expect_error(cli.Post("/api/sessions", json({{"scene", "99"}}).dump(), "application/json"), 404, "unknown scene id");
   expect_error(cli.Post("/api/sessions", json({{"scene", "../../etc/passwd"}}).dump(), "application/json"), 404,
                "unknown scene id");
   expect_error(cli.Post("/api/sessions", json({{"scene", 0}}).dump(), "application/json"), 400, "scene id");
   expect_error(cli.Get("/api/presets/circle"), 404, "unknown preset");
   expect_error(cli.Get("/api/presets/orbit?frames=abc"), 400, "frames");
   expect_error(cli.Get("/api/presets/orbit?frames=100000"), 400, "frames");
-  expect_error(cli.Post(("/api/sessions/" + sid + "/video").c_str(), json({{"poses", {pose}}}).dump(),
-                        "application/json"),
-               400, "2 to 8 poses");
+  expect_error(
+      cli.Post(("/api/sessions/" + sid + "/video").c_str(), json({{"poses", {pose}}}).dump(), "application/json"), 400,
+      "2 to 8 poses");
   // A request that names another host (DNS rebinding) is refused while the server is on loopback.
   httplib::Headers evil{{"Host", "attacker.example:8080"}};
   expect_error(cli.Get("/api/info", evil), 403, "loopback");
   // Chunked bodies have no length to check up front: refused as soon as the headers are read.
-  auto chunked = raw_request(server_->port,
-                             "POST /api/upload HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n");
+  auto chunked =
+      raw_request(server_->port, "POST /api/upload HTTP/1.1\r\nHost: 127.0.0.1\r\nTransfer-Encoding: chunked\r\n\r\n");
   EXPECT_EQ(chunked.rfind("HTTP/1.1 411", 0), 0u) << chunked;
   EXPECT_NE(chunked.find("Content-Length"), std::string::npos) << chunked;
   auto ok = cli.Get("/api/info");
@@ -230,8 +229,7 @@ TEST_F(ViewerServerTest, UploadsTwoPhotosAndRendersThem) {
                "image1");
   expect_error(cli.Post("/api/upload", a, "image/png"), 400, "multipart");
   // Checked before decoding: 1200 x 1000 pixels (a small file of zeros) is over the 1 MP limit.
-  expect_error(cli.Post("/api/upload", photos(a, png_of(torch::zeros({1200, 1000, 3}, torch::kUInt8)))), 413,
-               "pixels");
+  expect_error(cli.Post("/api/upload", photos(a, png_of(torch::zeros({1200, 1000, 3}, torch::kUInt8)))), 413, "pixels");
   std::string big(300 << 10, '\x7f');
   expect_error(cli.Post("/api/upload", photos(a, big)), 413, "bytes");
   // Over the whole request limit: refused from Content-Length, the body is never stored.

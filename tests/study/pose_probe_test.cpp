@@ -36,8 +36,8 @@ TEST(PoseAccuracy, ThresholdsOnKnownErrors) {
   EXPECT_EQ(a.rotation_accuracy, (std::vector<double>{1.0, 1.0, 1.0}));
   EXPECT_NEAR(a.median_translation_error, 0.15, 1e-9);
   // A 15-degree turn about z: rotation error 15 degrees whatever the quaternion's sign.
-  auto turn = geometry::pose_encoding_to_c2w(
-      torch::tensor({{0.0, 0.0, 0.0, 0.0, 0.0, std::sin(M_PI * 15 / 360), std::cos(M_PI * 15 / 360)}}, torch::kFloat64));
+  auto turn = geometry::pose_encoding_to_c2w(torch::tensor(
+      {{0.0, 0.0, 0.0, 0.0, 0.0, std::sin(M_PI * 15 / 360), std::cos(M_PI * 15 / 360)}}, torch::kFloat64));
   auto rotated = geometry::c2w_to_pose_encoding(torch::matmul(geometry::pose_encoding_to_c2w(real), turn));
   rotated.slice(1, 3, 7).neg_();
   auto b = study::pose_accuracy(torch::cat({real.slice(1, 0, 3), rotated.slice(1, 3, 7)}, 1), real);
@@ -72,7 +72,8 @@ TEST(PoseProbe, LinearProbeInvertsALinearLatentSpaceAndMlpFitsATwistedOne) {
 }
 
 TEST(PoseProbe, MeanPoseBaselinePredictsTheTrainingMeanForEveryView) {
-  auto real = torch::tensor({{0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}, {0.0, 0.0, 3.0, 0.0, 0.0, 0.0, -1.0}}, torch::kFloat64);
+  auto real =
+      torch::tensor({{0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}, {0.0, 0.0, 3.0, 0.0, 0.0, 0.0, -1.0}}, torch::kFloat64);
   auto train = pairs_from(torch::zeros({2, 7}, torch::kFloat64), real);
   auto mean = study::mean_pose_baseline(train, 3);
   ASSERT_EQ(mean.sizes(), (std::vector<int64_t>{3, 7}));

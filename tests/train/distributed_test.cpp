@@ -74,7 +74,10 @@ TEST(Distributed, EnvironmentVariables) {
     EXPECT_EQ(e.rank, 0);
   }
   {
-    ScopedEnv env({{"RANK", "1"}, {"WORLD_SIZE", "2"}, {"LOCAL_RANK", "1"}, {"MASTER_ADDR", "10.0.0.5"},
+    ScopedEnv env({{"RANK", "1"},
+                   {"WORLD_SIZE", "2"},
+                   {"LOCAL_RANK", "1"},
+                   {"MASTER_ADDR", "10.0.0.5"},
                    {"MASTER_PORT", "1234"}});
     auto e = train::distributed_env_from_environment();
     EXPECT_TRUE(e.distributed());
@@ -122,23 +125,28 @@ TEST(Distributed, TwoGlooRanksMatchOneProcessWithTheCombinedBatch) {
   for (int rank = 0; rank < 2; ++rank)
     script += "RANK=" + std::to_string(rank) + " LOCAL_RANK=" + std::to_string(rank) +
               " WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(port) + " " +
-              train_cmd("rank_config.json", dir / "dp") + " > " + (dir / ("rank" + std::to_string(rank) + ".log")).string() +
-              " 2>&1 & p" + std::to_string(rank) + "=$!; ";
+              train_cmd("rank_config.json", dir / "dp") + " > " +
+              (dir / ("rank" + std::to_string(rank) + ".log")).string() + " 2>&1 & p" + std::to_string(rank) + "=$!; ";
   script += "wait $p0; r0=$?; wait $p1; r1=$?; exit $((r0 | r1))";
   const int rc = std::system(("bash -c '" + script + "'").c_str());
   const auto log0 = read_text(dir / "rank0.log"), log1 = read_text(dir / "rank1.log");
   ASSERT_EQ(rc, 0) << "rank 0:\n" << log0 << "\nrank 1:\n" << log1;
-  for (const auto& log : {log0, log1}) EXPECT_NE(log.find("parameters identical on all 2 ranks"), std::string::npos) << log;
+  for (const auto& log : {log0, log1})
+    EXPECT_NE(log.find("parameters identical on all 2 ranks"), std::string::npos) << log;
 
-  ASSERT_EQ(std::system((train_cmd("single_config.json", dir / "single") + " > " + (dir / "single.log").string() +
-                         " 2>&1").c_str()), 0) << read_text(dir / "single.log");
+  ASSERT_EQ(
+      std::system(
+          (train_cmd("single_config.json", dir / "single") + " > " + (dir / "single.log").string() + " 2>&1").c_str()),
+      0)
+      << read_text(dir / "single.log");
   // Same samples per step (the loader keys samples by global index), so the same losses and weights up to float
   // summation order.
   auto dp = logged_losses(dir / "dp"), single = logged_losses(dir / "single");
   ASSERT_EQ(dp.size(), 4u);
   ASSERT_EQ(single.size(), 4u);
   for (size_t i = 0; i < dp.size(); ++i) EXPECT_NEAR(dp[i], single[i], 1e-5 * single[i]) << "step " << i + 1;
-  auto a = model::read_checkpoint((dir / "dp").string()).model, b = model::read_checkpoint((dir / "single").string()).model;
+  auto a = model::read_checkpoint((dir / "dp").string()).model,
+       b = model::read_checkpoint((dir / "single").string()).model;
   ASSERT_EQ(a.size(), b.size());
   double diff = 0, norm = 0;
   for (const auto& [k, v] : a) {
@@ -157,8 +165,10 @@ TEST(Distributed, TwoGlooEvalShardsMergeToTheSingleProcessResults) {
   std::ofstream(dir / "config.json") << config_to_json(config).dump(2);
   const std::string cli = UPLVSM_CLI, data = test::micro_dataset();
   ASSERT_EQ(std::system((cli + " train --threads 1 --config " + (dir / "config.json").string() + " --data " + data +
-                         " --run " + (dir / "run").string() + " > " + (dir / "train.log").string() + " 2>&1").c_str()),
-            0) << read_text(dir / "train.log");
+                         " --run " + (dir / "run").string() + " > " + (dir / "train.log").string() + " 2>&1")
+                            .c_str()),
+            0)
+      << read_text(dir / "train.log");
   auto eval_cmd = [&](const fs::path& out) {
     return cli + " eval --device cpu --threads 1 --batch 1 --checkpoint " + (dir / "run").string() + " --data " + data +
            " --out " + out.string();

@@ -81,8 +81,9 @@ TEST(PerceptualLoss, GradientMatchesFiniteDifferences) {
     plus[i] += eps;
     minus[i] -= eps;
     torch::NoGradGuard no_grad;
-    const double numeric = (loss->forward(plus.view_as(pred), target) - loss->forward(minus.view_as(pred), target))
-                               .item<double>() / (2 * eps);
+    const double numeric =
+        (loss->forward(plus.view_as(pred), target) - loss->forward(minus.view_as(pred), target)).item<double>() /
+        (2 * eps);
     EXPECT_NEAR(grad[i].item<double>(), numeric, 1e-6 + 1e-4 * std::abs(numeric)) << "element " << i;
   }
 }

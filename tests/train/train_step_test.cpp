@@ -78,7 +78,8 @@ TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
   int k = 0;
   for (; steps.count("step" + std::to_string(k) + ".loss"); ++k) {
     SCOPED_TRACE("step " + std::to_string(k));
-    const auto r = train::train_step(ctx, state, {{fixture_views(steps, k, "input"), fixture_views(steps, k, "target")}});
+    const auto r =
+        train::train_step(ctx, state, {{fixture_views(steps, k, "input"), fixture_views(steps, k, "target")}});
     const double loss = scalar(steps, k, "loss"), grad_norm = scalar(steps, k, "grad_norm");
     // The fixture's "~1e-5 relative" is rounding of one BLAS kernel set; OpenBLAS's other core types (e.g. this
     // machine without OPENBLAS_CORETYPE) land at 1.04e-5 on step 5's norm. A wrong step is off by ~1e-2.
@@ -90,7 +91,8 @@ TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
   ASSERT_GE(k, 2) << "official_uplvsm_train/steps.safetensors holds no steps";
   EXPECT_EQ(state.step, k);
 
-  const auto final_weights = io::read_safetensors(test::fixture("official_uplvsm_train/final_model.safetensors")).tensors;
+  const auto final_weights =
+      io::read_safetensors(test::fixture("official_uplvsm_train/final_model.safetensors")).tensors;
   const auto ours = model::state_dict(*net);
   int64_t elements = 0, close = 0;
   for (const auto& [name, expected] : final_weights) {

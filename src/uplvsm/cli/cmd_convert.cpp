@@ -62,7 +62,8 @@ void verify(const std::string& output, const model::NovelViewModelImpl& converte
   auto net = model::load_model(output, device, &config);
   auto expected = model::state_dict(converted);
   for (const auto& [k, v] : model::state_dict(*net))
-    if (!torch::equal(v, expected.at(k))) throw std::runtime_error("verify: tensor " + k + " changed in the round trip");
+    if (!torch::equal(v, expected.at(k)))
+      throw std::runtime_error("verify: tensor " + k + " changed in the round trip");
   torch::NoGradGuard no_grad;
   torch::manual_seed(0);
   const int64_t s = config.model.image_size;
@@ -81,9 +82,10 @@ void verify(const std::string& output, const model::NovelViewModelImpl& converte
   if (!torch::isfinite(out.render).all().item<bool>() || !torch::isfinite(pose).all().item<bool>())
     throw std::runtime_error("verify: the forward pass produced NaN/Inf");
   std::vector<float> pose7(pose.data_ptr<float>(), pose.data_ptr<float>() + 7);
-  std::cout << fmt::format("verify: {} tensors identical after reload; forward 2 inputs + 1 target at {}x{} px in "
-                           "{:.2f} s, render mean {:.4f}, pose {:.4f}\n",
-                           expected.size(), s, s, seconds, out.render.mean().item<double>(), fmt::join(pose7, " "));
+  std::cout << fmt::format(
+      "verify: {} tensors identical after reload; forward 2 inputs + 1 target at {}x{} px in "
+      "{:.2f} s, render mean {:.4f}, pose {:.4f}\n",
+      expected.size(), s, s, seconds, out.render.mean().item<double>(), fmt::join(pose7, " "));
 }
 
 void run_convert(const ConvertArgs& a) {
@@ -104,9 +106,10 @@ void run_convert(const ConvertArgs& a) {
     std::cout << report.summary(a.input) << "\n";
   } else {
     if (a.config.empty())
-      throw std::runtime_error(fmt::format("convert: {} holds {} weights; give --config (e.g. configs/paper_x224.json) "
-                                           "for the UP-LVSM model to initialise around them",
-                                           a.input, model::to_string(w.source)));
+      throw std::runtime_error(
+          fmt::format("convert: {} holds {} weights; give --config (e.g. configs/paper_x224.json) "
+                      "for the UP-LVSM model to initialise around them",
+                      a.input, model::to_string(w.source)));
     validate_config(config, a.config);
     torch::manual_seed(static_cast<uint64_t>(config.training.seed));
     net = model::make_model(config.model);
@@ -125,9 +128,10 @@ void run_convert(const ConvertArgs& a) {
 
 void add_convert_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "convert", "Convert weights to a uplvsm checkpoint (safetensors + config): the authors' UP-LVSM checkpoint "
-                 "(.pt training checkpoint or .safetensors; dimensions inferred unless --config), or DINOv2 weights "
-                 "(Meta .pth or HuggingFace safetensors; needs --config) placed in a freshly initialised UP-LVSM.");
+      "convert",
+      "Convert weights to a uplvsm checkpoint (safetensors + config): the authors' UP-LVSM checkpoint "
+      "(.pt training checkpoint or .safetensors; dimensions inferred unless --config), or DINOv2 weights "
+      "(Meta .pth or HuggingFace safetensors; needs --config) placed in a freshly initialised UP-LVSM.");
   auto a = std::make_shared<ConvertArgs>();
   add_common_options(cmd, a->common);
   cmd->add_option("--input", a->input, "weights file: .pt / .pth / .safetensors")->required()->check(CLI::ExistingFile);

@@ -18,10 +18,11 @@ namespace {
 
 void add_convert(CLI::App& dataset) {
   auto* cmd = dataset.add_subcommand(
-      "convert", "Convert one split between pixelSplat chunks (<split>/*.torch + index.json) and the LVSM layout "
-                 "(<split>/images/<scene>/NNNNN.png, <split>/metadata/<scene>.json, <split>/full_list.txt). "
-                 "chunks -> lvsm decodes each JPEG and writes PNG (as the official process_data.py); lvsm -> chunks "
-                 "stores the PNG bytes unchanged, so both directions keep the pixels.");
+      "convert",
+      "Convert one split between pixelSplat chunks (<split>/*.torch + index.json) and the LVSM layout "
+      "(<split>/images/<scene>/NNNNN.png, <split>/metadata/<scene>.json, <split>/full_list.txt). "
+      "chunks -> lvsm decodes each JPEG and writes PNG (as the official process_data.py); lvsm -> chunks "
+      "stores the PNG bytes unchanged, so both directions keep the pixels.");
   struct Args {
     std::string from, input, output;
     int64_t scenes_per_chunk = 100;
@@ -30,7 +31,9 @@ void add_convert(CLI::App& dataset) {
   cmd->add_option("--from", a->from, "layout of --input: chunks or lvsm")
       ->required()
       ->check(CLI::IsMember({"chunks", "lvsm"}));
-  cmd->add_option("--input", a->input, "split folder to read (e.g. re10k/train)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--input", a->input, "split folder to read (e.g. re10k/train)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--output", a->output, "split folder to write")->required();
   cmd->add_option("--scenes-per-chunk", a->scenes_per_chunk, "lvsm -> chunks: scenes per .torch file")
       ->check(CLI::PositiveNumber)
@@ -53,14 +56,17 @@ void add_convert(CLI::App& dataset) {
 
 void add_stats(CLI::App& dataset) {
   auto* cmd = dataset.add_subcommand(
-      "stats", "Scenes, chunks, frames per scene, image sizes and the frames the loader will skip (another size than "
-               "frame 0) or refuse (non-finite cameras) in one split; reads headers only");
+      "stats",
+      "Scenes, chunks, frames per scene, image sizes and the frames the loader will skip (another size than "
+      "frame 0) or refuse (non-finite cameras) in one split; reads headers only");
   struct Args {
     std::string data, split = "train", out;
     int64_t min_frames = 8;
   };
   auto a = std::make_shared<Args>();
-  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks or LVSM layout)")->required()->check(CLI::ExistingDirectory);
+  cmd->add_option("--data", a->data, "dataset root (pixelSplat chunks or LVSM layout)")
+      ->required()
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--split", a->split, "split")->capture_default_str();
   cmd->add_option("--min-frames", a->min_frames, "count scenes with fewer frames (training needs num_views)")
       ->capture_default_str();
@@ -83,10 +89,11 @@ void add_stats(CLI::App& dataset) {
 
 void add_subset(CLI::App& dataset) {
   auto* cmd = dataset.add_subcommand(
-      "subset", "Select a training subset and write its manifest for `uplvsm train --subset`: the paper's little / "
-                "medium / large / full (RealEstate10K: the first 76 / 304 / 1216 / all 4866 chunk files in name order, "
-                "1,202 / 4,121 / 16,449 / 66,033 scenes; an LVSM-layout split takes that many scenes in list order), "
-                "or --chunks N / --scenes N");
+      "subset",
+      "Select a training subset and write its manifest for `uplvsm train --subset`: the paper's little / "
+      "medium / large / full (RealEstate10K: the first 76 / 304 / 1216 / all 4866 chunk files in name order, "
+      "1,202 / 4,121 / 16,449 / 66,033 scenes; an LVSM-layout split takes that many scenes in list order), "
+      "or --chunks N / --scenes N");
   struct Args {
     std::string data, split = "train", name, out;
     int64_t chunks = 0, scenes = 0;
@@ -119,8 +126,10 @@ void add_subset(CLI::App& dataset) {
 }  // namespace
 
 void add_dataset_command(CLI::App& app) {
-  auto* dataset = app.add_subcommand("dataset", "Dataset tools: convert (chunks <-> LVSM layout), stats, subset (little/medium/large/full manifests), import "
-                                                     "(your own photos)");
+  auto* dataset = app.add_subcommand(
+      "dataset",
+      "Dataset tools: convert (chunks <-> LVSM layout), stats, subset (little/medium/large/full manifests), import "
+      "(your own photos)");
   dataset->require_subcommand(1);
   add_convert(*dataset);
   add_stats(*dataset);

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "uplvsm/cli/commands.h"
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/data/scene_import.h"
@@ -32,16 +33,6 @@ struct ImportArgs {
   bool force = false;
 };
 
-json read_json(const fs::path& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(fmt::format("dataset import: cannot open {}", path.string()));
-  try {
-    return json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(fmt::format("dataset import: {}: not valid JSON: {}", path.string(), e.what()));
-  }
-}
-
 void write_json(const fs::path& path, const json& j) {
   const std::string text = j.dump(2) + "\n";
   io::write_file_atomic(path.string(), text.data(), text.size());
@@ -51,9 +42,10 @@ void check_frames(const ImportArgs& a, int64_t n) {
   for (const auto* list : {&a.context, &a.target})
     for (int64_t f : *list)
       if (f < 0 || f >= n)
-        throw std::runtime_error(fmt::format("dataset import: frame {} of --{} is out of range: the scene has {} "
-                                             "frames (0..{})",
-                                             f, list == &a.context ? "context" : "target", n, n - 1));
+        throw std::runtime_error(
+            fmt::format("dataset import: frame {} of --{} is out of range: the scene has {} "
+                        "frames (0..{})",
+                        f, list == &a.context ? "context" : "target", n, n - 1));
 }
 
 // The files an import changes, read and checked before any of them is written.
@@ -78,9 +70,10 @@ void plan_chunk(const ImportArgs& a, const std::string& key, ImportPlan& plan) {
     throw std::runtime_error(fmt::format("dataset import: {} holds other scenes ({}); choose another --scene",
                                          chunk_path.string(), fmt::join(sharing, ", ")));
   if (!a.force && plan.index.count(key))
-    throw std::runtime_error(fmt::format("dataset import: scene '{}' is already in {} ({}); pass --force to replace "
-                                         "it or --scene to choose another name",
-                                         key, (plan.split_dir / "index.json").string(), plan.index[key]));
+    throw std::runtime_error(
+        fmt::format("dataset import: scene '{}' is already in {} ({}); pass --force to replace "
+                    "it or --scene to choose another name",
+                    key, (plan.split_dir / "index.json").string(), plan.index[key]));
   if (!a.force && fs::exists(chunk_path))
     throw std::runtime_error(fmt::format("dataset import: {} exists; pass --force to replace it", chunk_path.string()));
 }
@@ -91,17 +84,18 @@ void plan_eval_index(const ImportArgs& a, const std::string& key, int64_t n, Imp
   // Merged as raw JSON: read_eval_index (used here to validate, naming the file and key) drops null entries and
   // unknown fields, which must survive the merge.
   const auto entries = data::read_eval_index(eval_path.string());
-  plan.eval_index = read_json(eval_path);
+  plan.eval_index = read_json_file(eval_path.string(), "dataset import:");
   if (!a.context.empty() && !a.force && plan.eval_index.contains(key))
-    throw std::runtime_error(fmt::format("dataset import: scene '{}' is already in {}; pass --force to replace it",
-                                         key, eval_path.string()));
+    throw std::runtime_error(fmt::format("dataset import: scene '{}' is already in {}; pass --force to replace it", key,
+                                         eval_path.string()));
   for (const auto& e : entries)
     if (a.context.empty() && e.key == key)
       for (const auto* list : {&e.context, &e.target})
         if (std::any_of(list->begin(), list->end(), [&](int64_t f) { return f >= n; }))
-          plan.stale_eval = fmt::format("{} keeps its entry for '{}', which names frames beyond this scene's {}: "
-                                        "give --context/--target to replace it",
-                                        eval_path.string(), key, n);
+          plan.stale_eval = fmt::format(
+              "{} keeps its entry for '{}', which names frames beyond this scene's {}: "
+              "give --context/--target to replace it",
+              eval_path.string(), key, n);
 }
 
 // Check every file we are about to change before writing any of them.
@@ -129,10 +123,12 @@ void write_import(const ImportArgs& a, const data::ImportedScene& result, Import
   data::write_chunk_index(plan.split_dir.string(), plan.index);
   auto& unposed = plan.unposed;
   const bool was_unposed = unposed.count(key) > 0;
-  if (!result.poses_known) unposed.insert(key);
-  else unposed.erase(key);
-  if (!result.poses_known || was_unposed) write_json(plan.unposed_path, json(std::vector<std::string>(unposed.begin(),
-                                                                                                      unposed.end())));
+  if (!result.poses_known)
+    unposed.insert(key);
+  else
+    unposed.erase(key);
+  if (!result.poses_known || was_unposed)
+    write_json(plan.unposed_path, json(std::vector<std::string>(unposed.begin(), unposed.end())));
   if (!a.context.empty()) {
     plan.eval_index[key] = {{"context", a.context}, {"target", a.target}};
     write_json(plan.eval_path, plan.eval_index);
@@ -145,10 +141,11 @@ void print_import_summary(const ImportArgs& a, const data::ImportedScene& result
   for (const auto& w : result.warnings) std::cout << "warning: " << w << "\n";
   if (!plan.stale_eval.empty()) std::cout << "warning: " << plan.stale_eval << "\n";
   if (!a.context.empty() && !result.poses_known)
-    std::cout << fmt::format("note: '{}' has no poses: the unposed UP-LVSM can be evaluated on it (it estimates "
-                             "target poses from the target images), the posed variants and --target-poses "
-                             "dataset/mapper cannot\n",
-                             key);
+    std::cout << fmt::format(
+        "note: '{}' has no poses: the unposed UP-LVSM can be evaluated on it (it estimates "
+        "target poses from the target images), the posed variants and --target-poses "
+        "dataset/mapper cannot\n",
+        key);
   std::cout << fmt::format("imported '{}': {} frames, intrinsics {}, poses {}, {} warning(s){} -> {}{}\n", key, n,
                            result.intrinsics_source, result.poses_known ? "known" : "unknown (listed in unposed.json)",
                            result.warnings.size(),
@@ -193,12 +190,14 @@ void add_dataset_import_command(CLI::App& dataset) {
                   "horizontal field of view (degrees) for photos with neither a model camera nor an EXIF focal length")
       ->check(CLI::Range(1.0, 179.0))
       ->capture_default_str();
-  cmd->add_option("--scene", a->import.scene_name, "scene key (default: the folder's name, or its parent's when the "
-                                                   "folder is called images)");
+  cmd->add_option("--scene", a->import.scene_name,
+                  "scene key (default: the folder's name, or its parent's when the "
+                  "folder is called images)");
   cmd->add_option("--out", a->out, "dataset root (pixelSplat chunks)")->required();
   cmd->add_option("--split", a->split, "split folder under the root")->capture_default_str();
-  cmd->add_option("--context", a->context, "two context frame indices (in the imported frame order: sorted by name) "
-                                           "for evaluation_index.json")
+  cmd->add_option("--context", a->context,
+                  "two context frame indices (in the imported frame order: sorted by name) "
+                  "for evaluation_index.json")
       ->expected(2);
   cmd->add_option("--target", a->target, "target frame indices for evaluation_index.json");
   cmd->add_flag("--skip-unmatched", a->import.skip_unmatched,

@@ -50,8 +50,9 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
                                    "torchvision-format VGG16 / AlexNet weights (features.N.*; .pth, .pt or "
                                    "safetensors); without it LPIPS is reported as unavailable")
                        ->check(CLI::ExistingFile);
-  cmd->add_option("--lpips-lin", a.lpips_lin, "the official lpips v0.1 lin weights (lpips/weights/v0.1/<net>.pth) "
-                                               "or a safetensors copy")
+  cmd->add_option("--lpips-lin", a.lpips_lin,
+                  "the official lpips v0.1 lin weights (lpips/weights/v0.1/<net>.pth) "
+                  "or a safetensors copy")
       ->check(CLI::ExistingFile)
       ->needs(backbone);
   backbone->needs("--lpips-lin");
@@ -81,8 +82,12 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
     opt.lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
     opt.lpips->to(device);
   }
-  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)}, {"data", a.scenes.data},
-               {"split", a.scenes.split}, {"config", config.name}, {"variant", to_string(config.model.variant)}, {"target_poses", model::to_string(opt.target_poses)}};
+  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)},
+               {"data", a.scenes.data},
+               {"split", a.scenes.split},
+               {"config", config.name},
+               {"variant", to_string(config.model.variant)},
+               {"target_poses", model::to_string(opt.target_poses)}};
   return opt;
 }
 
@@ -92,16 +97,14 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
   auto line = [&](const std::string& name, const std::string& row) {
     const auto& r = t.at(row);
     const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
-    return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.at("psnr"),
-                       r.at("ssim"), r.at("grad_ratio"), lpips);
+    return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.at("psnr"), r.at("ssim"),
+                       r.at("grad_ratio"), lpips);
   };
-  std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes,
-                           summary.seconds, a.out)
+  std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes, summary.seconds,
+                           a.out)
             << line(to_string(config.model.variant) + " (" + model::to_string(opt.target_poses) + ")", "model")
-            << line("copy nearest", "copy_nearest")
-            << line("mean colour", "mean_colour");
-  if (!opt.lpips)
-    std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
+            << line("copy nearest", "copy_nearest") << line("mean colour", "mean_colour");
+  if (!opt.lpips) std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
 }
 
 void run_eval(const EvalArgs& a) {
@@ -125,11 +128,12 @@ void run_eval(const EvalArgs& a) {
 
 void add_eval_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "eval", "Evaluate a checkpoint on held-out scenes (unposed protocol: the estimator sees each target image), "
-              "with the copy-nearest-input and mean-colour baselines; per scene mean, then mean over scenes, and per "
-              "overlap bucket when the index has overlaps. Multi-process: launch one process per device with "
-              "torchrun's variables (RANK, WORLD_SIZE, ...); the scenes are sharded and rank 0 writes the merged "
-              "results.");
+      "eval",
+      "Evaluate a checkpoint on held-out scenes (unposed protocol: the estimator sees each target image), "
+      "with the copy-nearest-input and mean-colour baselines; per scene mean, then mean over scenes, and per "
+      "overlap bucket when the index has overlaps. Multi-process: launch one process per device with "
+      "torchrun's variables (RANK, WORLD_SIZE, ...); the scenes are sharded and rank 0 writes the merged "
+      "results.");
   auto a = std::make_shared<EvalArgs>();
   add_eval_options(cmd, *a);
   cmd->callback([a] { run_eval(*a); });

@@ -12,8 +12,9 @@ namespace uplvsm::cli {
 
 void add_export_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "export", "Write a weights-only checkpoint (model tensors + config + training step, no optimiser state) from a "
-                "training checkpoint or a run directory's latest; it loads wherever --checkpoint is taken.");
+      "export",
+      "Write a weights-only checkpoint (model tensors + config + training step, no optimiser state) from a "
+      "training checkpoint or a run directory's latest; it loads wherever --checkpoint is taken.");
   struct Args {
     std::string checkpoint, out;
   };
@@ -33,10 +34,11 @@ void add_export_command(CLI::App& app) {
     model::write_checkpoint(a->out, ck.config, state, ck.model, {});
     int64_t params = 0;
     for (const auto& [name, tensor] : ck.model) params += tensor.numel();
-    std::cout << fmt::format("wrote {} ({}, step {}, {} tensors, {} parameters, {:.1f} MB; {} optimiser tensors left "
-                             "out)\n",
-                             a->out, ck.config.name, state.value("step", 0), ck.model.size(), params,
-                             std::filesystem::file_size(a->out) / 1e6, ck.optimizer.size());
+    std::cout << fmt::format(
+        "wrote {} ({}, step {}, {} tensors, {} parameters, {:.1f} MB; {} optimiser tensors left "
+        "out)\n",
+        a->out, ck.config.name, state.value("step", 0), ck.model.size(), params,
+        std::filesystem::file_size(a->out) / 1e6, ck.optimizer.size());
   });
 }
 

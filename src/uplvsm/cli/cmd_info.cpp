@@ -40,8 +40,9 @@ std::string mp4_output_description() {
 }  // namespace
 
 void add_info_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("info", "Print the LibTorch version, BLAS in use, threads, devices; with --config or "
-                                         "--checkpoint also the model's parameter counts.");
+  auto* cmd = app.add_subcommand("info",
+                                 "Print the LibTorch version, BLAS in use, threads, devices; with --config or "
+                                 "--checkpoint also the model's parameter counts.");
   auto common = std::make_shared<CommonOptions>();
   auto config = std::make_shared<std::string>();
   auto checkpoint = std::make_shared<std::string>();

@@ -49,12 +49,15 @@ void add_make_dataset_command(CLI::App& app) {
   };
   auto a = std::make_shared<Args>();
   add_common_options(cmd, a->common);
-  cmd->add_option("--config", a->config, "config JSON whose 'dataset' section sets sizes")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--config", a->config, "config JSON whose 'dataset' section sets sizes")
+      ->required()
+      ->check(CLI::ExistingFile);
   cmd->add_option("--out", a->out, "dataset root to write")->required();
   cmd->add_option("--train-scenes", a->train, "override dataset.num_train_scenes");
   cmd->add_option("--test-scenes", a->test, "override dataset.num_test_scenes");
   cmd->add_option("--seed", a->seed, "override dataset.seed");
-  cmd->add_option("--kind", a->kind, "override dataset.kind: rooms or objects")->check(CLI::IsMember({"rooms", "objects"}));
+  cmd->add_option("--kind", a->kind, "override dataset.kind: rooms or objects")
+      ->check(CLI::IsMember({"rooms", "objects"}));
   cmd->callback([a] {
     apply_common_options(a->common);
     auto c = load_config(a->config).dataset;

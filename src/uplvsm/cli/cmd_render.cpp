@@ -16,10 +16,10 @@
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/data/photo.h"
 #include "uplvsm/data/preprocess.h"
+#include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/geometry/camera.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
@@ -82,10 +82,11 @@ void check_video_fits(int64_t frames, const torch::Tensor& images, bool side_by_
   const double bytes = 12.0 * static_cast<double>(frames * images.size(2) * images.size(3)) * (side_by_side ? 4 : 1);
   const auto available = available_memory(torch::kCPU);
   if (!available || bytes <= static_cast<double>(available->bytes)) return;
-  throw std::runtime_error(fmt::format("render: {} frames of {}x{} need at least {} of memory, but only {} is available "
-                                       "({}); render fewer frames",
-                                       frames, images.size(3), images.size(2), format_bytes(bytes),
-                                       format_bytes(static_cast<double>(available->bytes)), available->source));
+  throw std::runtime_error(
+      fmt::format("render: {} frames of {}x{} need at least {} of memory, but only {} is available "
+                  "({}); render fewer frames",
+                  frames, images.size(3), images.size(2), format_bytes(bytes),
+                  format_bytes(static_cast<double>(available->bytes)), available->source));
 }
 
 void render_one(model::NovelViewModel& net, const data::SceneViews& views, bool posed, const std::string& dir,
@@ -114,11 +115,17 @@ void render_one(model::NovelViewModel& net, const data::SceneViews& views, bool 
   auto files = render::write_video(dir, "video", frames, a.fps);
   io::write_png((fs::path(dir) / "input_0.png").string(), io::to_u8_hwc(views.images[0]));
   io::write_png((fs::path(dir) / "input_1.png").string(), io::to_u8_hwc(views.images[1]));
-  nlohmann::json entry = {{"name", name},          {"dir", dir},
-                          {"mp4", files.mp4},      {"gif", files.gif},
-                          {"frames", frames.size(0)}, {"width", frames.size(3)}, {"height", frames.size(2)}, {"trajectory", poses.defined() ? a.trajectory : "latent interpolation"}};
+  nlohmann::json entry = {{"name", name},
+                          {"dir", dir},
+                          {"mp4", files.mp4},
+                          {"gif", files.gif},
+                          {"frames", frames.size(0)},
+                          {"width", frames.size(3)},
+                          {"height", frames.size(2)},
+                          {"trajectory", poses.defined() ? a.trajectory : "latent interpolation"}};
   if (key_poses.defined())
-    entry["key_poses"] = std::vector<float>(key_poses.data_ptr<float>(), key_poses.data_ptr<float>() + key_poses.numel());
+    entry["key_poses"] =
+        std::vector<float>(key_poses.data_ptr<float>(), key_poses.data_ptr<float>() + key_poses.numel());
   listing.push_back(entry);
 }
 
@@ -131,7 +138,8 @@ void add_render_options(CLI::App* cmd, RenderArgs& a) {
   cmd->add_option("--images", a.images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
   cmd->add_option("--fov", a.fov, "horizontal field of view in degrees for --images")->capture_default_str();
   cmd->add_option("--frames", a.frames, "frames of the video")
-      ->check(CLI::Range(int64_t{2}, render::kMaxVideoFrames))->capture_default_str();
+      ->check(CLI::Range(int64_t{2}, render::kMaxVideoFrames))
+      ->capture_default_str();
   cmd->add_option("--fps", a.fps, "frames per second")->capture_default_str();
   cmd->add_option("--trajectory", a.trajectory,
                   "interpolate, orbit, spiral, dolly, or a camera-path JSON file ({\"frames\": [{\"pose\": [tx, ty, "
@@ -161,8 +169,8 @@ void render_dataset_scenes(model::NovelViewModel& net, const RenderArgs& a, cons
     if (done >= a.scenes) break;
     const int64_t scene = dataset.find(e.key);
     if (scene < 0) continue;
-    render_one(net, dataset.load_views(scene, e.context, prep), true, (fs::path(a.out) / e.key).string(), a,
-               listing, e.key);
+    render_one(net, dataset.load_views(scene, e.context, prep), true, (fs::path(a.out) / e.key).string(), a, listing,
+               e.key);
     bar.update(++done);
   }
   bar.finish();
@@ -174,11 +182,14 @@ void run_render(const RenderArgs& a) {
   if (a.images.empty() == a.source.data.empty())
     throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
   Config config;
-  auto net = model::load_model_with_config_file(a.model.checkpoint, a.model.config, parse_device(a.common.device), &config);
+  auto net =
+      model::load_model_with_config_file(a.model.checkpoint, a.model.config, parse_device(a.common.device), &config);
   const auto prep = data::square_preprocess_options(config);
   nlohmann::json listing = nlohmann::json::array();
-  if (!a.images.empty()) render_one(net, data::load_photos(a.images, a.fov, prep), false, a.out, a, listing, "images");
-  else render_dataset_scenes(net, a, prep, listing);
+  if (!a.images.empty())
+    render_one(net, data::load_photos(a.images, a.fov, prep), false, a.out, a, listing, "images");
+  else
+    render_dataset_scenes(net, a, prep, listing);
   fs::create_directories(a.out);
   std::ofstream(fs::path(a.out) / "videos.json") << listing.dump(2) << "\n";
   std::cout << fmt::format("rendered {} video(s) into {}\n", listing.size(), a.out);
@@ -188,12 +199,13 @@ void run_render(const RenderArgs& a) {
 
 void add_render_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "render", "Render a novel-view video from two input views, from --data scenes (their evaluation context views) "
-                "or --images A B (your photos). --trajectory interpolate: between the inputs - in latent pose space "
-                "(the Latent Plücker Learner's poses of the inputs) for unposed photos, in SE(3) through the camera "
-                "mapper or a posed variant when the inputs have cameras; orbit/spiral/dolly presets or a camera-path "
-                "JSON: real cameras relative to the first input view (units: the input baseline), which need a "
-                "camera mapper (`train --stage mapper`) or a posed variant.");
+      "render",
+      "Render a novel-view video from two input views, from --data scenes (their evaluation context views) "
+      "or --images A B (your photos). --trajectory interpolate: between the inputs - in latent pose space "
+      "(the Latent Plücker Learner's poses of the inputs) for unposed photos, in SE(3) through the camera "
+      "mapper or a posed variant when the inputs have cameras; orbit/spiral/dolly presets or a camera-path "
+      "JSON: real cameras relative to the first input view (units: the input baseline), which need a "
+      "camera mapper (`train --stage mapper`) or a posed variant.");
   auto a = std::make_shared<RenderArgs>();
   add_render_options(cmd, *a);
   cmd->callback([a] { run_render(*a); });

@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "uplvsm/cli/commands.h"
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/eval/comparison_report.h"
 #include "uplvsm/eval/report.h"
@@ -16,16 +17,6 @@ namespace uplvsm::cli {
 namespace fs = std::filesystem;
 
 namespace {
-
-nlohmann::json read_json_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("report: cannot open " + path);
-  try {
-    return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw std::runtime_error(fmt::format("report: {} is not valid JSON ({})", path, e.what()));
-  }
-}
 
 // What one model's report shows, from the directories `train`, `eval` and `render` wrote.
 struct ModelDirs {
@@ -41,7 +32,7 @@ eval::ReportInputs report_inputs(const ModelDirs& d) {
   in.title = d.label;
   in.metrics_json = (fs::path(d.eval) / "metrics.json").string();
   if (!d.run.empty()) {
-    in.config = read_json_file((fs::path(d.run) / "config.json").string());
+    in.config = read_json_file((fs::path(d.run) / "config.json").string(), "report:");
     in.train_log_jsonl = (fs::path(d.run) / "metrics.jsonl").string();
   }
   if (fs::is_directory(fs::path(d.eval) / "scenes"))
@@ -49,7 +40,7 @@ eval::ReportInputs report_inputs(const ModelDirs& d) {
       if (e.path().extension() == ".png") in.scene_grids.push_back(e.path().string());
   std::sort(in.scene_grids.begin(), in.scene_grids.end());
   for (const auto& dir : d.videos) {
-    auto videos = read_json_file((fs::path(dir) / "videos.json").string());
+    auto videos = read_json_file((fs::path(dir) / "videos.json").string(), "report:");
     if (videos.empty()) continue;
     const auto& v = videos[0];  // the first scene's video
     in.videos.push_back({v.value("trajectory", ""), v.value("mp4", ""), v.value("gif", ""), v.value("width", 0)});
@@ -69,14 +60,19 @@ ModelDirs parse_model_spec(const std::string& spec) {
     const auto key = item.substr(0, eq), value = eq == std::string::npos ? "" : item.substr(eq + 1);
     if (eq == std::string::npos || value.empty())
       throw std::runtime_error(fmt::format("report --model '{}': '{}' is not KEY=VALUE", spec, item));
-    if (key == "label") d.label = value;
-    else if (key == "caption") d.caption = value;
-    else if (key == "run") d.run = value;
-    else if (key == "eval") d.eval = value;
-    else if (key == "video") d.videos.push_back(value);
+    if (key == "label")
+      d.label = value;
+    else if (key == "caption")
+      d.caption = value;
+    else if (key == "run")
+      d.run = value;
+    else if (key == "eval")
+      d.eval = value;
+    else if (key == "video")
+      d.videos.push_back(value);
     else
-      throw std::runtime_error(fmt::format("report --model '{}': unknown key '{}' (label, caption, run, eval, video)",
-                                           spec, key));
+      throw std::runtime_error(
+          fmt::format("report --model '{}': unknown key '{}' (label, caption, run, eval, video)", spec, key));
     start = end + 1;
   }
   if (d.label.empty()) throw std::runtime_error(fmt::format("report --model '{}': label=NAME is required", spec));
@@ -84,26 +80,29 @@ ModelDirs parse_model_spec(const std::string& spec) {
 }
 
 void print_headline(const std::string& label, const std::string& metrics_json) {
-  const auto metrics = read_json_file(metrics_json);
+  const auto metrics = read_json_file(metrics_json, "report:");
   const auto& t = metrics.at("table");
-  std::cout << fmt::format("  {}: held-out PSNR {:.2f} dB | copy nearest {:.2f} dB | mean colour {:.2f} dB ({} "
-                           "scenes)\n",
-                           label, t.at("model").at("psnr").get<double>(), t.at("copy_nearest").at("psnr").get<double>(),
-                           t.at("mean_colour").at("psnr").get<double>(), metrics.value("scenes", 0));
+  std::cout << fmt::format(
+      "  {}: held-out PSNR {:.2f} dB | copy nearest {:.2f} dB | mean colour {:.2f} dB ({} "
+      "scenes)\n",
+      label, t.at("model").at("psnr").get<double>(), t.at("copy_nearest").at("psnr").get<double>(),
+      t.at("mean_colour").at("psnr").get<double>(), metrics.value("scenes", 0));
 }
 
 }  // namespace
 
 void add_report_command(CLI::App& app) {
-  auto* cmd = app.add_subcommand("report", "Write an HTML report (index.html) from a training run, an eval output and "
-                                           "render outputs; or several models side by side (--model, repeated).");
+  auto* cmd = app.add_subcommand("report",
+                                 "Write an HTML report (index.html) from a training run, an eval output and "
+                                 "render outputs; or several models side by side (--model, repeated).");
   struct Args {
     ModelDirs single;
     std::vector<std::string> models;
     std::string out, title = "UP-LVSM report";
   };
   auto a = std::make_shared<Args>();
-  cmd->add_option("--run", a->single.run, "training run directory (config.json, metrics.jsonl)")->check(CLI::ExistingDirectory);
+  cmd->add_option("--run", a->single.run, "training run directory (config.json, metrics.jsonl)")
+      ->check(CLI::ExistingDirectory);
   cmd->add_option("--eval", a->single.eval, "directory written by `uplvsm eval`")->check(CLI::ExistingDirectory);
   cmd->add_option("--video", a->single.videos, "directories written by `uplvsm render` (one or more)")
       ->check(CLI::ExistingDirectory);

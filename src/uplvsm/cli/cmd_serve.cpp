@@ -31,13 +31,13 @@ volatile std::sig_atomic_t g_stop_signal = 0;
 extern "C" void on_serve_signal(int sig) { g_stop_signal = sig; }
 
 void run_viewer(const ServeArgs& a) {
-  auto model = serve::ViewerModel::load(a.model.checkpoint, a.model.config, parse_device(a.common.device),
-                                        a.amp == Amp::Bf16);
+  auto model =
+      serve::ViewerModel::load(a.model.checkpoint, a.model.config, parse_device(a.common.device), a.amp == Amp::Bf16);
   const auto& s = a.scenes;
-  auto catalog = s.data.empty() ? std::make_unique<serve::SceneCatalog>()
-                                : std::make_unique<serve::SceneCatalog>(s.data, s.split, s.index,
-                                                                        model.preprocess_options(),
-                                                                        static_cast<size_t>(a.max_scenes));
+  auto catalog = s.data.empty()
+                     ? std::make_unique<serve::SceneCatalog>()
+                     : std::make_unique<serve::SceneCatalog>(s.data, s.split, s.index, model.preprocess_options(),
+                                                             static_cast<size_t>(a.max_scenes));
   serve::ServerOptions o;
   o.host = a.host;
   o.port = a.port;
@@ -47,8 +47,10 @@ void run_viewer(const ServeArgs& a) {
   serve::ViewerServer server(model, *catalog, o);
   const int port = server.bind();
   if (!server.loopback())
-    spdlog::warn("serve: listening on {} — every machine that can reach it can use this viewer (no authentication); "
-                 "the default --host 127.0.0.1 keeps it on this computer", a.host);
+    spdlog::warn(
+        "serve: listening on {} — every machine that can reach it can use this viewer (no authentication); "
+        "the default --host 127.0.0.1 keeps it on this computer",
+        a.host);
   const std::string host = a.host.find(':') != std::string::npos ? "[" + a.host + "]" : a.host;
   std::cout << fmt::format("uplvsm viewer: {}x{} model{}{}, {} dataset scene(s)\n", model.image_size(),
                            model.image_size(), model.has_mapper() ? ", camera mapper" : "",
@@ -77,16 +79,18 @@ void run_viewer(const ServeArgs& a) {
 
 void add_serve_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "serve", "Interactive novel-view viewer in the browser: pick a dataset scene (--data) or upload two photos, "
-               "drag the camera, record a path (MP4, camera-path JSON). Serves on 127.0.0.1 unless --host says "
-               "otherwise.");
+      "serve",
+      "Interactive novel-view viewer in the browser: pick a dataset scene (--data) or upload two photos, "
+      "drag the camera, record a path (MP4, camera-path JSON). Serves on 127.0.0.1 unless --host says "
+      "otherwise.");
   auto a = std::make_shared<ServeArgs>();
   add_common_options(cmd, a->common);
   add_model_options(cmd, a->model);
   add_scene_source_options(cmd, a->scenes, "dataset root whose scenes the page lists (optional: uploads always work)",
                            "evaluation index choosing each scene's two input views (default "
                            "<data>/evaluation_index.json when present, else frames 0 and n/2)");
-  cmd->add_option("--max-scenes", a->max_scenes, "dataset scenes listed")->check(CLI::Range(1, 100000))
+  cmd->add_option("--max-scenes", a->max_scenes, "dataset scenes listed")
+      ->check(CLI::Range(1, 100000))
       ->capture_default_str();
   cmd->add_option("--host", a->host, "address to listen on (anything but loopback is reachable by others)")
       ->capture_default_str();

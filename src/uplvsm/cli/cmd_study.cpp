@@ -10,10 +10,10 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/io/atomic_file.h"
-#include "uplvsm/io/image.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/data/photo.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/study/attention_map.h"
 #include "uplvsm/study/pose_probe.h"
@@ -56,8 +56,9 @@ StudyModel start(const PoseArgs& a) {
   apply_common_options(a.common);
   StudyModel m;
   m.device = parse_device(a.common.device);
-  m.net = model::require_uplvsm(model::load_model_with_config_file(a.model.checkpoint, a.model.config, m.device, &m.config),
-                                "study pose-pairs/pose-probe/pose-sensitivity/tsne");
+  m.net =
+      model::require_uplvsm(model::load_model_with_config_file(a.model.checkpoint, a.model.config, m.device, &m.config),
+                            "study pose-pairs/pose-probe/pose-sensitivity/tsne");
   return m;
 }
 
@@ -73,8 +74,9 @@ study::PosePairs pairs_of(model::UPLVSM& net, const Config& config, const PoseAr
 }
 
 void add_pose_pairs(CLI::App& study) {
-  auto* cmd = study.add_subcommand("pose-pairs", "Export (latent pose, real pose) pairs of a split to CSV (the "
-                                                 "input of probes and t-SNE)");
+  auto* cmd = study.add_subcommand("pose-pairs",
+                                   "Export (latent pose, real pose) pairs of a split to CSV (the "
+                                   "input of probes and t-SNE)");
   auto a = std::make_shared<PoseArgs>();
   add_pose_options(cmd, *a);
   cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
@@ -90,9 +92,10 @@ void add_pose_pairs(CLI::App& study) {
 
 void add_pose_probe(CLI::App& study) {
   auto* cmd = study.add_subcommand(
-      "pose-probe", "Probe the latent poses (paper Table 7): fit a 2-layer MLP (and a linear map) latent -> real pose "
-                    "on --train-split, report translation accuracy @0.1/0.2/0.3 baselines and rotation accuracy "
-                    "@10/20/30 degrees on --split; writes probe.json and the pair CSVs");
+      "pose-probe",
+      "Probe the latent poses (paper Table 7): fit a 2-layer MLP (and a linear map) latent -> real pose "
+      "on --train-split, report translation accuracy @0.1/0.2/0.3 baselines and rotation accuracy "
+      "@10/20/30 degrees on --split; writes probe.json and the pair CSVs");
   auto a = std::make_shared<PoseArgs>();
   add_pose_options(cmd, *a);
   cmd->add_option("--train-split", a->train_split, "split the probes are fitted on")->capture_default_str();
@@ -129,8 +132,8 @@ void add_pose_probe(CLI::App& study) {
     const auto text = result.dump(2) + "\n";
     io::write_file_atomic((fs::path(a->out) / "probe.json").string(), text.data(), text.size());
     auto row = [](const char* name, const study::PoseAccuracy& p) {
-      return fmt::format("  {:<7} trans@0.1/0.2/0.3 {:5.1f} {:5.1f} {:5.1f}   rot@10/20/30 {:5.1f} {:5.1f} {:5.1f}\n", name,
-                         100 * p.translation_accuracy[0], 100 * p.translation_accuracy[1],
+      return fmt::format("  {:<7} trans@0.1/0.2/0.3 {:5.1f} {:5.1f} {:5.1f}   rot@10/20/30 {:5.1f} {:5.1f} {:5.1f}\n",
+                         name, 100 * p.translation_accuracy[0], 100 * p.translation_accuracy[1],
                          100 * p.translation_accuracy[2], 100 * p.rotation_accuracy[0], 100 * p.rotation_accuracy[1],
                          100 * p.rotation_accuracy[2]);
     };
@@ -146,16 +149,17 @@ void print_sensitivity(const nlohmann::json& s, const std::string& out) {
                        m.at("views").get<int64_t>(), m.at("sensitivity").get<double>(), m.at("psnr").get<double>(),
                        m.at("grad_ratio").get<double>());
   };
-  std::cout << fmt::format("pose sensitivity -> {}/sensitivity.json\n", out)
-            << row("targets", s.at("targets")) << row("inputs (reconstructed)", s.at("inputs"))
+  std::cout << fmt::format("pose sensitivity -> {}/sensitivity.json\n", out) << row("targets", s.at("targets"))
+            << row("inputs (reconstructed)", s.at("inputs"))
             << row("all but the first input", s.at("all_but_first_input"));
 }
 
 void add_pose_sensitivity(CLI::App& study) {
-  auto* cmd = study.add_subcommand(
-      "pose-sensitivity", "Does the decoder use the latent pose? Each view rendered at its own pose and at the first "
-                          "input's: render change against truth change (0: the pose is ignored), and how well the "
-                          "input views themselves are reconstructed; writes sensitivity.json and views.csv");
+  auto* cmd =
+      study.add_subcommand("pose-sensitivity",
+                           "Does the decoder use the latent pose? Each view rendered at its own pose and at the first "
+                           "input's: render change against truth change (0: the pose is ignored), and how well the "
+                           "input views themselves are reconstructed; writes sensitivity.json and views.csv");
   auto a = std::make_shared<PoseArgs>();
   add_pose_options(cmd, *a);
   cmd->add_option("--split", a->split, "dataset split")->capture_default_str();
@@ -185,8 +189,9 @@ void add_pose_sensitivity(CLI::App& study) {
 
 void add_tsne(CLI::App& study) {
   auto* cmd = study.add_subcommand(
-      "tsne", "t-SNE of latent and real poses together (paper appendix figure): tsne.png with each pair in one "
-              "colour, tsne.csv with the 2-D points, pairs.csv");
+      "tsne",
+      "t-SNE of latent and real poses together (paper appendix figure): tsne.png with each pair in one "
+      "colour, tsne.csv with the 2-D points, pairs.csv");
   auto a = std::make_shared<PoseArgs>();
   auto perplexity = std::make_shared<double>(30.0);
   add_pose_options(cmd, *a);
@@ -242,7 +247,7 @@ void add_attention_options(CLI::App* cmd, AttentionArgs& a) {
 
 // The two views to draw, by name: the --images pair, or the first two context views of the index's scenes.
 std::vector<std::pair<std::string, data::SceneViews>> attention_views(const AttentionArgs& a,
-                                                                 const data::PreprocessOptions& prep) {
+                                                                      const data::PreprocessOptions& prep) {
   std::vector<std::pair<std::string, data::SceneViews>> pairs;
   if (!a.images.empty()) {
     pairs.emplace_back("images", data::load_photos(a.images, a.fov, prep));
@@ -274,7 +279,8 @@ void run_attention(const AttentionArgs& a) {
     throw std::runtime_error("study attention: give either --data (dataset scenes) or --images A B (two photos)");
   Config config;
   const auto device = parse_device(a.common.device);
-  auto net = model::require_uplvsm(model::load_model_with_config_file(a.model.checkpoint, a.model.config, device, &config), "study attention");
+  auto net = model::require_uplvsm(
+      model::load_model_with_config_file(a.model.checkpoint, a.model.config, device, &config), "study attention");
   const auto prep = data::preprocess_options(config);
   const auto pairs = attention_views(a, prep);
   const int64_t grid = config.model.image_size / config.model.patch_size;
@@ -285,7 +291,10 @@ void run_attention(const AttentionArgs& a) {
     auto r = study::cross_view_attention(net, views.images.to(device), views.fxfycxcy.to(device), row, col);
     const auto png = (fs::path(a.out) / ("attention_" + name + ".png")).string();
     io::write_png(png, study::attention_figure(views.images, r));
-    listing.push_back({{"scene", name}, {"patch", {row, col}}, {"png", png}, {"attention", matrix_rows(r.attention)},
+    listing.push_back({{"scene", name},
+                       {"patch", {row, col}},
+                       {"png", png},
+                       {"attention", matrix_rows(r.attention)},
                        {"similarity", matrix_rows(r.similarity)}});
     std::cout << fmt::format("{}: patch ({}, {}), attention on view 2 sums to {:.3f} -> {}\n", name, row, col,
                              r.attention.sum().item<double>(), png);
@@ -295,10 +304,11 @@ void run_attention(const AttentionArgs& a) {
 }
 
 void add_attention(CLI::App& study) {
-  auto* cmd = study.add_subcommand(
-      "attention", "Cross-view attention figure (paper): for a patch of input view 1, the last encoder layer's "
-                   "attention over view 2 (mean over heads) beside the tokenizer-feature cosine similarity; "
-                   "attention_<scene>.png per scene and attention.json with the maps");
+  auto* cmd =
+      study.add_subcommand("attention",
+                           "Cross-view attention figure (paper): for a patch of input view 1, the last encoder layer's "
+                           "attention over view 2 (mean over heads) beside the tokenizer-feature cosine similarity; "
+                           "attention_<scene>.png per scene and attention.json with the maps");
   auto a = std::make_shared<AttentionArgs>();
   add_attention_options(cmd, *a);
   cmd->callback([a] { run_attention(*a); });
@@ -308,8 +318,9 @@ void add_attention(CLI::App& study) {
 
 void add_study_command(CLI::App& app) {
   auto* study = app.add_subcommand(
-      "study", "The paper's analyses as tools (pose-pairs, pose-probe, pose-sensitivity, tsne, attention, scaling, "
-               "pose-noise)");
+      "study",
+      "The paper's analyses as tools (pose-pairs, pose-probe, pose-sensitivity, tsne, attention, scaling, "
+      "pose-noise)");
   study->require_subcommand(1);
   add_pose_pairs(*study);
   add_pose_probe(*study);

@@ -11,6 +11,7 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
@@ -43,8 +44,9 @@ struct GridRun {
 
 void add_grid_options(CLI::App* cmd, GridArgs& a) {
   add_common_options(cmd, a.common);
-  cmd->add_option("--config", a.configs, "one config per series (model variant), e.g. configs/tiny.json "
-                                         "configs/tiny_ptlvsm.json configs/tiny_lvsm.json")
+  cmd->add_option("--config", a.configs,
+                  "one config per series (model variant), e.g. configs/tiny.json "
+                  "configs/tiny_ptlvsm.json configs/tiny_lvsm.json")
       ->required()
       ->check(CLI::ExistingFile);
   cmd->add_option("--data", a.data, "dataset root: train/ for training, test/ + evaluation_index.json for scoring")
@@ -61,7 +63,9 @@ void add_grid_options(CLI::App* cmd, GridArgs& a) {
       ->capture_default_str();
   auto* backbone = cmd->add_option("--lpips-backbone", a.lpips_backbone, "LPIPS backbone weights (as for eval)")
                        ->check(CLI::ExistingFile);
-  cmd->add_option("--lpips-lin", a.lpips_lin, "LPIPS lin weights (as for eval)")->check(CLI::ExistingFile)->needs(backbone);
+  cmd->add_option("--lpips-lin", a.lpips_lin, "LPIPS lin weights (as for eval)")
+      ->check(CLI::ExistingFile)
+      ->needs(backbone);
   backbone->needs("--lpips-lin");
 }
 
@@ -102,9 +106,8 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   const auto dir = fs::path(a.out) / "runs" / r.dir_name;
   const auto result_path = dir / "result.json";
   if (fs::exists(result_path)) {
-    std::ifstream in(result_path);
     spdlog::info("study: {} @ {} already done ({})", r.series, r.setting, result_path.string());
-    return cell_from_json(nlohmann::json::parse(in));
+    return cell_from_json(read_json_file(result_path.string(), "study result"));
   }
   train::TrainOptions topt;
   topt.data_root = a.data;
@@ -130,9 +133,14 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   auto summary = eval::evaluate(net, test, prep, eopt);
   const auto& row = summary.table.at("model");
   auto finite_or_null = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
-  nlohmann::json j = {{"series", r.series},       {"setting", r.setting},   {"x", r.x},
-                      {"psnr", row.at("psnr")},   {"ssim", row.at("ssim")}, {"lpips", finite_or_null(row.at("lpips"))},
-                      {"steps", trained.step},    {"scenes", summary.scenes},
+  nlohmann::json j = {{"series", r.series},
+                      {"setting", r.setting},
+                      {"x", r.x},
+                      {"psnr", row.at("psnr")},
+                      {"ssim", row.at("ssim")},
+                      {"lpips", finite_or_null(row.at("lpips"))},
+                      {"steps", trained.step},
+                      {"scenes", summary.scenes},
                       {"copy_nearest_psnr", summary.table.at("copy_nearest").at("psnr")}};
   const auto text = j.dump(2);
   io::write_file_atomic(result_path.string(), text.data(), text.size());
@@ -181,7 +189,9 @@ void run_grid(const std::vector<GridRun>& runs, const GridArgs& a, const GridFig
   fs::create_directories(a.out);
   nlohmann::json plan = nlohmann::json::array();
   for (const auto& r : runs)
-    plan.push_back({{"series", r.series}, {"setting", r.setting}, {"dir", "runs/" + r.dir_name},
+    plan.push_back({{"series", r.series},
+                    {"setting", r.setting},
+                    {"dir", "runs/" + r.dir_name},
                     {"config", config_to_json(r.config)}});
   const auto plan_text = nlohmann::json{{"study", fig.title}, {"data", a.data}, {"runs", plan}}.dump(2);
   io::write_file_atomic((fs::path(a.out) / "study.json").string(), plan_text.data(), plan_text.size());
@@ -193,8 +203,8 @@ void run_grid(const std::vector<GridRun>& runs, const GridArgs& a, const GridFig
     cells.push_back(run_cell(runs[i], a, device, lpips));
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     spdlog::info("study: {}/{} runs done, {} elapsed, ETA {} | {} @ {}: PSNR {:.2f}, SSIM {:.4f}", i + 1, runs.size(),
-                 format_duration(elapsed), format_duration(elapsed / (i + 1) * (runs.size() - i - 1)),
-                 runs[i].series, runs[i].setting, cells.back().psnr, cells.back().ssim);
+                 format_duration(elapsed), format_duration(elapsed / (i + 1) * (runs.size() - i - 1)), runs[i].series,
+                 runs[i].setting, cells.back().psnr, cells.back().ssim);
   }
   write_grid_outputs(cells, a, fig, description);
 }
@@ -222,9 +232,10 @@ std::vector<int64_t> parse_subsets(const std::vector<std::string>& tokens, int64
 
 void add_scaling(CLI::App& study) {
   auto* cmd = study.add_subcommand(
-      "scaling", "Scalability study (paper Table 3): train each --config on nested subsets of the training scenes "
-                 "(the first N of the train split) with the same step budget, score all on one test set; table with "
-                 "the average gain per subset step (4x data in the paper), plots vs scenes (log x)");
+      "scaling",
+      "Scalability study (paper Table 3): train each --config on nested subsets of the training scenes "
+      "(the first N of the train split) with the same step budget, score all on one test set; table with "
+      "the average gain per subset step (4x data in the paper), plots vs scenes (log x)");
   auto a = std::make_shared<GridArgs>();
   auto subsets = std::make_shared<std::vector<std::string>>();
   add_grid_options(cmd, *a);
@@ -252,9 +263,10 @@ void add_scaling(CLI::App& study) {
 
 void add_pose_noise(CLI::App& study) {
   auto* cmd = study.add_subcommand(
-      "pose-noise", "Pose-noise study (paper appendix): train each --config with Gaussian noise of the given "
-                    "variances added to the (translation, quaternion) of every training camera, score all on the "
-                    "clean test set. UP-LVSM never reads training poses, so it should not move; LVSM does");
+      "pose-noise",
+      "Pose-noise study (paper appendix): train each --config with Gaussian noise of the given "
+      "variances added to the (translation, quaternion) of every training camera, score all on the "
+      "clean test set. UP-LVSM never reads training poses, so it should not move; LVSM does");
   auto a = std::make_shared<GridArgs>();
   auto levels = std::make_shared<std::vector<double>>(std::vector<double>{0, 0.001, 0.01, 0.1});
   add_grid_options(cmd, *a);
@@ -266,8 +278,8 @@ void add_pose_noise(CLI::App& study) {
     for (const auto& [series, config] : load_series(*a))
       for (size_t i = 0; i < levels->size(); ++i) {
         const double v = (*levels)[i];
-        GridRun r{series, fmt::format("noise {:g}", v), fmt::format("{}__noise{:g}", series, v),
-                  static_cast<double>(i), config};
+        GridRun r{series, fmt::format("noise {:g}", v), fmt::format("{}__noise{:g}", series, v), static_cast<double>(i),
+                  config};
         r.config.training.pose_noise_variance = v;
         runs.push_back(r);
       }

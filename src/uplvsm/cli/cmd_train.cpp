@@ -149,10 +149,11 @@ void run_train(const TrainArgs& a) {
 
 void add_train_command(CLI::App& app) {
   auto* cmd = app.add_subcommand(
-      "train", "Train UP-LVSM (no camera poses used) with the official recipe: AdamW + warmup/cosine, grad clip and "
-               "skip rules; checkpoints <run>/checkpoints/ckpt_*.safetensors; --resume auto continues exactly. "
-               "Data parallel: start one process per device with torchrun's variables (RANK, WORLD_SIZE, "
-               "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process.");
+      "train",
+      "Train UP-LVSM (no camera poses used) with the official recipe: AdamW + warmup/cosine, grad clip and "
+      "skip rules; checkpoints <run>/checkpoints/ckpt_*.safetensors; --resume auto continues exactly. "
+      "Data parallel: start one process per device with torchrun's variables (RANK, WORLD_SIZE, "
+      "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process.");
   auto a = std::make_shared<TrainArgs>();
   add_train_options(cmd, *a);
   cmd->callback([a] { run_train(*a); });

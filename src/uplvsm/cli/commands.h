@@ -1,7 +1,7 @@
 // The subcommands of the `uplvsm` binary. Each add_* registers one subcommand (options + action) on the app.
 #pragma once
-#include <CLI/CLI.hpp>
 #include <torch/torch.h>
+#include <CLI/CLI.hpp>
 
 #include <string>
 

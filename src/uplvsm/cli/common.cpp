@@ -48,8 +48,8 @@ CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help) {
 
 CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help) {
   std::map<std::string, TargetPoseChoice> names;
-  for (auto c : {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper,
-                 TargetPoseChoice::Dataset})
+  for (auto c :
+       {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper, TargetPoseChoice::Dataset})
     names.emplace(to_string(c), c);
   return cmd->add_option("--target-poses", choice, help)
       ->transform(CLI::CheckedTransformer(names))

@@ -1,6 +1,6 @@
 // uplvsm: novel views from two unposed photos (UP-LVSM), as one native binary. `uplvsm --help` lists subcommands.
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <exception>
 #include <iostream>
@@ -13,7 +13,8 @@ int main(int argc, char** argv) {
   uplvsm::ensure_passive_openmp(argv);
   CLI::App app{
       "uplvsm - UP-LVSM novel view synthesis from unposed images (ICLR 2026, 'The Less You Depend, The More You "
-      "Learn'), native C++/LibTorch.\nTypical flow: make-dataset -> train -> eval -> render -> report; serve opens the viewer."};
+      "Learn'), native C++/LibTorch.\nTypical flow: make-dataset -> train -> eval -> render -> report; serve opens the "
+      "viewer."};
   app.require_subcommand(1);
   // Global options, accepted before or after the subcommand's name.
   app.fallthrough();

@@ -214,9 +214,7 @@ std::string to_string(TargetPoseChoice t) { return kTargetPoseNames.at(static_ca
 Variant parse_variant(const std::string& name, const std::string& field) {
   return parse_choice<Variant>(name, field, kVariantNames);
 }
-Amp parse_amp(const std::string& name, const std::string& field) {
-  return parse_choice<Amp>(name, field, kAmpNames);
-}
+Amp parse_amp(const std::string& name, const std::string& field) { return parse_choice<Amp>(name, field, kAmpNames); }
 TargetPoseChoice parse_target_pose_choice(const std::string& name, const std::string& field) {
   return parse_choice<TargetPoseChoice>(name, field, kTargetPoseNames);
 }
@@ -240,8 +238,7 @@ Config config_from_json(const json& j, const std::string& source) {
   return c;
 }
 
-Config apply_config_overrides(const Config& c, const std::vector<std::string>& assignments,
-                              const std::string& source) {
+Config apply_config_overrides(const Config& c, const std::vector<std::string>& assignments, const std::string& source) {
   if (assignments.empty()) return c;
   json j = config_to_json(c);
   for (const auto& a : assignments) {
@@ -306,7 +303,8 @@ void validate_config(const Config& c, const std::string& s) {
           "model.dinov2.pos_embed_init 'sincos' needs embed_dim divisible by 4");
   const auto& tr = c.training;
   require(tr.num_input_views >= 1 && tr.num_target_views >= 1, s, "training: need >= 1 input and target view");
-  require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s, "training.num_views must be >= num_input_views and >= 2");
+  require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s,
+          "training.num_views must be >= num_input_views and >= 2");
   require(tr.batch_size >= 1 && tr.grad_accum_steps >= 1, s, "training.batch_size and grad_accum_steps must be >= 1");
   require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,

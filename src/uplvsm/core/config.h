@@ -11,8 +11,8 @@
 namespace uplvsm {
 
 // The string-valued choices, parsed once when a config is read (JSON keeps their names).
-enum class Variant { UPLVSM, PTLVSM, LVSM };              // model.variant: "uplvsm", "ptlvsm", "lvsm"
-enum class Amp { None, Bf16 };                           // training.amp: "none", "bf16"
+enum class Variant { UPLVSM, PTLVSM, LVSM };                       // model.variant: "uplvsm", "ptlvsm", "lvsm"
+enum class Amp { None, Bf16 };                                     // training.amp: "none", "bf16"
 enum class TargetPoseChoice { Auto, Estimator, Mapper, Dataset };  // training.target_poses
 
 std::string to_string(Variant v);
@@ -56,7 +56,7 @@ struct Dinov2Config {
 
 struct ModelConfig {
   Variant variant = Variant::UPLVSM;  // ptlvsm: posed targets; lvsm: posed inputs and targets
-  bool pose_mapper = false;        // camera control: the linear pose mapper (model/pose_mapper.h), uplvsm only
+  bool pose_mapper = false;           // camera control: the linear pose mapper (model/pose_mapper.h), uplvsm only
   // Diagnostic, not unposed: the uplvsm encoder reads every input view's real camera (its Plücker ray tokens, in
   // camera-control units) instead of the identity marker on view 0 - LVSM's encoder-decoder, the same scene-latent
   // bottleneck with known cameras. Needs training.target_poses 'dataset'.

@@ -21,11 +21,15 @@ inline std::string json_excerpt(const nlohmann::json& v) {
 
 // A JSON integer within int64; `where` names the field in the error ("config x.json: training.warmup").
 inline int64_t json_integer(const nlohmann::json& v, const std::string& where) {
-  const bool fits = v.is_number_integer() &&
-                    (!v.is_number_unsigned() ||
-                     v.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<int64_t>::max()));
+  const bool fits =
+      v.is_number_integer() &&
+      (!v.is_number_unsigned() || v.get<uint64_t>() <= static_cast<uint64_t>(std::numeric_limits<int64_t>::max()));
   if (!fits) throw std::runtime_error(where + ": expected an integer, got " + json_excerpt(v));
   return v.get<int64_t>();
 }
+
+// A whole JSON file. Errors say "<what> <path>: cannot open" or "<what> <path>: not valid JSON (<parser message>)",
+// `what` naming the kind of file ("subset manifest"; empty: the path alone).
+nlohmann::json read_json_file(const std::string& path, const std::string& what = "");
 
 }  // namespace uplvsm

@@ -16,8 +16,14 @@ std::string format_duration(double s) {
 }
 
 ProgressBar::ProgressBar(std::string label, int64_t total, std::string unit, int64_t start)
-    : label_(std::move(label)), unit_(std::move(unit)), total_(total), start_(start), done_(start),
-      t0_(std::chrono::steady_clock::now()), last_draw_(t0_), tty_(isatty(fileno(stderr)) != 0) {}
+    : label_(std::move(label)),
+      unit_(std::move(unit)),
+      total_(total),
+      start_(start),
+      done_(start),
+      t0_(std::chrono::steady_clock::now()),
+      last_draw_(t0_),
+      tty_(isatty(fileno(stderr)) != 0) {}
 
 ProgressBar::~ProgressBar() { finish(); }
 

@@ -136,9 +136,9 @@ namespace {
 // How wide OpenBLAS's kernels of a core family are: 0 SSE fallbacks, 1 AVX2, 2 AVX-512, 3 AVX-512 BF16; -1 unknown.
 int core_tier(std::string core) {
   for (auto& c : core) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  for (const char* name : {"prescott", "core2", "nehalem", "sandybridge", "katmai", "coppermine", "northwood", "atom",
-                           "penryn", "dunnington", "opteron", "barcelona", "bobcat", "bulldozer", "piledriver",
-                           "steamroller", "excavator"})
+  for (const char* name :
+       {"prescott", "core2", "nehalem", "sandybridge", "katmai", "coppermine", "northwood", "atom", "penryn",
+        "dunnington", "opteron", "barcelona", "bobcat", "bulldozer", "piledriver", "steamroller", "excavator"})
     if (core == name) return 0;
   if (core == "haswell" || core == "zen" || core == "skylake") return 1;
   if (core == "skylakex") return 2;
@@ -149,21 +149,24 @@ int core_tier(std::string core) {
 
 std::string blas_warning(const RuntimeInfo& info, const CpuFeatures& cpu, const char* env_coretype) {
   if (info.blas_config.empty() && info.blas_library.find("/blas/") != std::string::npos)
-    return fmt::format("LibTorch runs on the reference BLAS ({}), about 60x slower than OpenBLAS: import uplvsm "
-                       "before torch (it loads OpenBLAS first), or point libblas.so.3 at OpenBLAS (update-alternatives "
-                       "--config libblas.so.3-x86_64-linux-gnu)",
-                       info.blas_library);
+    return fmt::format(
+        "LibTorch runs on the reference BLAS ({}), about 60x slower than OpenBLAS: import uplvsm "
+        "before torch (it loads OpenBLAS first), or point libblas.so.3 at OpenBLAS (update-alternatives "
+        "--config libblas.so.3-x86_64-linux-gnu)",
+        info.blas_library);
   const std::string best = best_openblas_core(cpu);
   const int loaded = core_tier(info.blas_core), wanted = core_tier(best);
   if (info.blas_core.empty() || best.empty() || loaded < 0 || loaded >= wanted) return "";
   if (env_coretype != nullptr)
-    return fmt::format("OPENBLAS_CORETYPE={} in the environment holds OpenBLAS to its {} kernels, slower than this "
-                       "CPU allows: start Python without it (unset OPENBLAS_CORETYPE) or with OPENBLAS_CORETYPE={}",
-                       env_coretype, info.blas_core, best);
+    return fmt::format(
+        "OPENBLAS_CORETYPE={} in the environment holds OpenBLAS to its {} kernels, slower than this "
+        "CPU allows: start Python without it (unset OPENBLAS_CORETYPE) or with OPENBLAS_CORETYPE={}",
+        env_coretype, info.blas_core, best);
   if (loaded == 0)
-    return fmt::format("OpenBLAS does not recognise this CPU and runs its {} fallback kernels (about 3x slower): "
-                       "start Python with OPENBLAS_CORETYPE={} (the uplvsm binary sets it itself)",
-                       info.blas_core, best);
+    return fmt::format(
+        "OpenBLAS does not recognise this CPU and runs its {} fallback kernels (about 3x slower): "
+        "start Python with OPENBLAS_CORETYPE={} (the uplvsm binary sets it itself)",
+        info.blas_core, best);
   return fmt::format("OpenBLAS runs its {} kernels, narrower than this CPU's: start Python with OPENBLAS_CORETYPE={}",
                      info.blas_core, best);
 }
@@ -196,12 +199,13 @@ RuntimeInfo runtime_info() {
 }
 
 std::string format_runtime_info(const RuntimeInfo& info) {
-  std::string blas_kind = info.blas_config.empty()
-                              ? (info.blas_library.find("/blas/") != std::string::npos ? "reference BLAS (slow!)"
-                                                                                        : "unknown BLAS")
-                              : "OpenBLAS";
+  std::string blas_kind =
+      info.blas_config.empty()
+          ? (info.blas_library.find("/blas/") != std::string::npos ? "reference BLAS (slow!)" : "unknown BLAS")
+          : "OpenBLAS";
   return fmt::format(
-      "LibTorch     {}\nBLAS         {} ({})\nBLAS config  {}\nBLAS core    {}{}\nthreads      {} intra-op, {} inter-op "
+      "LibTorch     {}\nBLAS         {} ({})\nBLAS config  {}\nBLAS core    {}{}\nthreads      {} intra-op, {} "
+      "inter-op "
       "(cores available: {})\nOpenMP wait  {}\nallocator    {}\nCUDA         {}\n",
       info.torch_version, blas_kind, info.blas_library, info.blas_config.empty() ? "-" : info.blas_config,
       info.blas_core.empty() ? "-" : info.blas_core,
@@ -218,7 +222,8 @@ std::optional<AvailableMemory> available_memory(const torch::Device& device) {
       std::istringstream fields(line);
       std::string key;
       int64_t kib = 0;
-      if (fields >> key >> kib && key == "MemAvailable:") return AvailableMemory{kib * 1024, "MemAvailable in /proc/meminfo"};
+      if (fields >> key >> kib && key == "MemAvailable:")
+        return AvailableMemory{kib * 1024, "MemAvailable in /proc/meminfo"};
     }
     return std::nullopt;
   }
@@ -253,7 +258,8 @@ torch::Device parse_device(const std::string& name) {
   if (name == "cpu") return torch::Device(torch::kCPU);
   if (name.rfind("cuda", 0) == 0) {
     if (!torch::cuda::is_available())
-      throw std::runtime_error("--device " + name + ": this LibTorch build has no CUDA device available "
+      throw std::runtime_error("--device " + name +
+                               ": this LibTorch build has no CUDA device available "
                                "(build against a CUDA LibTorch via CMAKE_PREFIX_PATH, or use --device cpu)");
     try {
       return torch::Device(name);

@@ -15,7 +15,7 @@ struct RuntimeInfo {
   int threads = 0;
   int interop_threads = 0;
   std::string omp_wait_policy;
-  std::string allocator;     // how large host allocations are served (init_runtime tunes glibc malloc)
+  std::string allocator;  // how large host allocations are served (init_runtime tunes glibc malloc)
   bool cuda_available = false;
   int cuda_devices = 0;
 };

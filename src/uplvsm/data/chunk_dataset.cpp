@@ -31,25 +31,26 @@ std::string describe(const torch::Tensor& t) {
 // Checks one scene's fields against the chunk rules; `where` = "<file>: scene <i> (key <k>)".
 void validate_scene(const RawScene& s, const std::string& where) {
   if (!s.timestamps.defined() || s.timestamps.dim() != 1 || s.timestamps.scalar_type() != torch::kInt64)
-    throw std::runtime_error(fmt::format("{}: field 'timestamps' must be int64 [N], got {}", where,
-                                         describe(s.timestamps)));
+    throw std::runtime_error(
+        fmt::format("{}: field 'timestamps' must be int64 [N], got {}", where, describe(s.timestamps)));
   int64_t n = s.timestamps.size(0);
   if (!s.cameras.defined() || s.cameras.scalar_type() != torch::kFloat32 || s.cameras.dim() != 2 ||
       s.cameras.size(1) != 18)
-    throw std::runtime_error(fmt::format("{}: field 'cameras' must be float32 [N,18], got {}", where,
-                                         describe(s.cameras)));
+    throw std::runtime_error(
+        fmt::format("{}: field 'cameras' must be float32 [N,18], got {}", where, describe(s.cameras)));
   if (s.cameras.size(0) != n)
-    throw std::runtime_error(fmt::format("{}: field 'cameras' has {} rows but timestamps has N={}", where,
-                                         s.cameras.size(0), n));
+    throw std::runtime_error(
+        fmt::format("{}: field 'cameras' has {} rows but timestamps has N={}", where, s.cameras.size(0), n));
   if (static_cast<int64_t>(s.images.size()) != n)
-    throw std::runtime_error(fmt::format("{}: field 'images' has {} entries but timestamps has N={}", where,
-                                         s.images.size(), n));
+    throw std::runtime_error(
+        fmt::format("{}: field 'images' has {} entries but timestamps has N={}", where, s.images.size(), n));
   for (size_t j = 0; j < s.images.size(); ++j) {
     const auto& im = s.images[j];
     if (!im.defined() || im.scalar_type() != torch::kUInt8 || im.dim() != 1 || im.numel() == 0)
-      throw std::runtime_error(fmt::format("{}: field 'images' entry {} must be a non-empty uint8 1-D tensor of JPEG "
-                                           "bytes, got {}",
-                                           where, j, describe(im)));
+      throw std::runtime_error(
+          fmt::format("{}: field 'images' entry {} must be a non-empty uint8 1-D tensor of JPEG "
+                      "bytes, got {}",
+                      where, j, describe(im)));
   }
 }
 
@@ -69,7 +70,8 @@ std::string string_field(const PyObject& dict, const char* name, const std::stri
   return v.text;
 }
 
-torch::Tensor tensor_field(const io::TorchFile& file, const PyObject& dict, const char* name, const std::string& where) {
+torch::Tensor tensor_field(const io::TorchFile& file, const PyObject& dict, const char* name,
+                           const std::string& where) {
   const auto& v = field(dict, name, where);
   if (!v.is(Kind::Tensor))
     throw std::runtime_error(fmt::format("{}: field '{}' must be a tensor, got {}", where, name, v.describe()));
@@ -77,7 +79,8 @@ torch::Tensor tensor_field(const io::TorchFile& file, const PyObject& dict, cons
 }
 
 RawScene parse_scene(const io::TorchFile& file, const PyObject& item, const std::string& where) {
-  if (!item.is(Kind::Dict)) throw std::runtime_error(fmt::format("{}: expected a dict, got {}", where, item.describe()));
+  if (!item.is(Kind::Dict))
+    throw std::runtime_error(fmt::format("{}: expected a dict, got {}", where, item.describe()));
   RawScene s;
   s.key = string_field(item, "key", where);
   std::string at = fmt::format("{} (key {})", where, s.key);
@@ -89,14 +92,14 @@ RawScene parse_scene(const io::TorchFile& file, const PyObject& item, const std:
   if (s.cameras.is_floating_point()) s.cameras = s.cameras.to(torch::kFloat32);
   const auto& images = field(item, "images", at);
   if (!images.is(Kind::List) && !images.is(Kind::Tuple))
-    throw std::runtime_error(fmt::format("{}: field 'images' must be a list of tensors, got {}", at,
-                                         images.describe()));
+    throw std::runtime_error(
+        fmt::format("{}: field 'images' must be a list of tensors, got {}", at, images.describe()));
   s.images.reserve(images.items.size());
   for (size_t j = 0; j < images.items.size(); ++j) {
     const auto& v = *images.items[j];
     if (!v.is(Kind::Tensor))
-      throw std::runtime_error(fmt::format("{}: field 'images' entry {} must be a tensor, got {}", at, j,
-                                           v.describe()));
+      throw std::runtime_error(
+          fmt::format("{}: field 'images' entry {} must be a tensor, got {}", at, j, v.describe()));
     s.images.push_back(file.tensor(v).contiguous());
   }
   validate_scene(s, at);
@@ -167,13 +170,13 @@ std::vector<RawScene> read_chunk(const std::string& path) {
   try {
     file = std::make_unique<io::TorchFile>(path);
   } catch (const std::exception& e) {
-    throw std::runtime_error(fmt::format("read_chunk: {}: not a readable torch.save file (truncated or corrupt?): {}",
-                                         path, e.what()));
+    throw std::runtime_error(
+        fmt::format("read_chunk: {}: not a readable torch.save file (truncated or corrupt?): {}", path, e.what()));
   }
   const auto& root = file->root();
   if (!root.is(Kind::List))
-    throw std::runtime_error(fmt::format("read_chunk: {}: expected a list of scene dicts, got {}", path,
-                                         root.describe()));
+    throw std::runtime_error(
+        fmt::format("read_chunk: {}: expected a list of scene dicts, got {}", path, root.describe()));
   std::vector<RawScene> scenes;
   scenes.reserve(root.items.size());
   try {
@@ -189,19 +192,13 @@ std::map<std::string, std::string> read_chunk_index(const std::string& split_dir
   std::map<std::string, std::string> index;
   fs::path index_path = fs::path(split_dir) / "index.json";
   if (fs::exists(index_path)) {
-    nlohmann::json j;
-    try {
-      std::ifstream in(index_path);
-      j = nlohmann::json::parse(in);
-    } catch (const std::exception& e) {
-      throw std::runtime_error(fmt::format("{}: not valid JSON: {}", index_path.string(), e.what()));
-    }
+    auto j = read_json_file(index_path.string());
     if (!j.is_object())
       throw std::runtime_error(fmt::format("{}: expected an object {{key: chunk file}}", index_path.string()));
     for (auto& [key, value] : j.items()) {
       if (!value.is_string())
-        throw std::runtime_error(fmt::format("{}: value of key '{}' must be a chunk file name", index_path.string(),
-                                             key));
+        throw std::runtime_error(
+            fmt::format("{}: value of key '{}' must be a chunk file name", index_path.string(), key));
       index[key] = value.get<std::string>();
     }
     return index;
@@ -226,17 +223,12 @@ void write_chunk_index(const std::string& split_dir, const std::map<std::string,
 std::vector<std::string> read_unposed_keys(const std::string& split_dir) {
   const auto path = fs::path(split_dir) / "unposed.json";
   if (!fs::exists(path)) return {};
-  nlohmann::json j;
-  try {
-    std::ifstream in(path);
-    j = nlohmann::json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(fmt::format("{}: not valid JSON: {}", path.string(), e.what()));
-  }
+  auto j = read_json_file(path.string());
   if (!j.is_array()) throw std::runtime_error(fmt::format("{}: expected an array of scene keys", path.string()));
   std::vector<std::string> keys;
   for (const auto& k : j) {
-    if (!k.is_string()) throw std::runtime_error(fmt::format("{}: entry {} is not a scene key", path.string(), json_excerpt(k)));
+    if (!k.is_string())
+      throw std::runtime_error(fmt::format("{}: entry {} is not a scene key", path.string(), json_excerpt(k)));
     keys.push_back(k.get<std::string>());
   }
   return keys;
@@ -267,8 +259,8 @@ ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks
   } else {
     for (const auto& [key, file] : read_chunk_index(dir_)) {
       if (!fs::exists(fs::path(dir_) / file))
-        throw std::runtime_error(fmt::format("ChunkDataset: {}/index.json maps key {} to missing file {}", dir_, key,
-                                             file));
+        throw std::runtime_error(
+            fmt::format("ChunkDataset: {}/index.json maps key {} to missing file {}", dir_, key, file));
       entries_.push_back({key, file});
     }
   }
@@ -298,9 +290,10 @@ void ChunkDataset::keep_only(const std::vector<std::string>& keys) {
   for (const auto& k : wanted)
     if (!by_key_.count(k)) missing.push_back(k);
   if (!missing.empty())
-    throw std::runtime_error(fmt::format("ChunkDataset {}: {} of the {} requested scenes are not in the split (first: "
-                                         "{})",
-                                         dir_, missing.size(), wanted.size(), missing.front()));
+    throw std::runtime_error(
+        fmt::format("ChunkDataset {}: {} of the {} requested scenes are not in the split (first: "
+                    "{})",
+                    dir_, missing.size(), wanted.size(), missing.front()));
   std::vector<Entry> kept;
   for (const auto& e : entries_)
     if (wanted.count(e.key)) kept.push_back(e);
@@ -366,8 +359,8 @@ std::shared_ptr<const ChunkDataset::LoadedChunk> ChunkDataset::load_chunk(const 
         RawScene s;
         s.key = fs::path(chunk).stem().string();
         if (meta->key != s.key)
-          throw std::runtime_error(fmt::format("LVSM metadata {}: scene_name '{}' differs from the file name", chunk,
-                                               meta->key));
+          throw std::runtime_error(
+              fmt::format("LVSM metadata {}: scene_name '{}' differs from the file name", chunk, meta->key));
         loaded->lvsm = meta;
         loaded->scenes.push_back(std::move(s));
       } else {
@@ -396,9 +389,10 @@ const RawScene& ChunkDataset::scene_ref(int64_t i, ChunkPtr& holder) const {
   holder = load_chunk(e.chunk);
   auto it = holder->by_key.find(e.key);
   if (it == holder->by_key.end())
-    throw std::runtime_error(fmt::format("ChunkDataset: {}/index.json says scene {} is in {}, but that chunk has "
-                                         "no such key",
-                                         dir_, e.key, e.chunk));
+    throw std::runtime_error(
+        fmt::format("ChunkDataset: {}/index.json says scene {} is in {}, but that chunk has "
+                    "no such key",
+                    dir_, e.key, e.chunk));
   return holder->scenes[it->second];
 }
 
@@ -439,9 +433,9 @@ SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frame
     auto img = io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
     int h = static_cast<int>(img.size(0)), w = static_cast<int>(img.size(1));
     if (h != h0 || w != w0)
-      throw BadFrameError(fmt::format("{}: frame is {}x{} but frame 0 is {}x{} (pixelSplat skips such frames)",
-                                      what, h, w, h0, w0),
-                          s.key, f, h0, w0, h, w);
+      throw BadFrameError(
+          fmt::format("{}: frame is {}x{} but frame 0 is {}x{} (pixelSplat skips such frames)", what, h, w, h0, w0),
+          s.key, f, h0, w0, h, w);
     auto row = lvsm ? lvsm_camera_row(*lvsm, f, h, w) : s.cameras[f];
     if (!torch::isfinite(row).all().item<bool>())
       throw std::runtime_error(fmt::format("{}: field 'cameras' has a NaN/Inf value", what));

@@ -11,8 +11,8 @@
 #include <list>
 #include <map>
 #include <memory>
-#include <set>
 #include <mutex>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -33,8 +33,13 @@ struct BadFrameError : std::runtime_error {
   int expected_height = 0, expected_width = 0;  // frame 0 of the scene
   int height = 0, width = 0;                    // the bad frame
   BadFrameError(const std::string& message, std::string key, int64_t frame_index, int exp_h, int exp_w, int h, int w)
-      : std::runtime_error(message), scene_key(std::move(key)), frame(frame_index), expected_height(exp_h),
-        expected_width(exp_w), height(h), width(w) {}
+      : std::runtime_error(message),
+        scene_key(std::move(key)),
+        frame(frame_index),
+        expected_height(exp_h),
+        expected_width(exp_w),
+        height(h),
+        width(w) {}
 };
 
 // Writes scenes as one chunk (torch.save format: list of dicts url/timestamps/cameras/images/key), atomically.
@@ -83,7 +88,7 @@ class ChunkDataset {
 
   int64_t size() const { return static_cast<int64_t>(entries_.size()); }
   const std::string& key(int64_t i) const;
-  int64_t num_frames(int64_t i) const;  // may load the scene's chunk the first time
+  int64_t num_frames(int64_t i) const;         // may load the scene's chunk the first time
   int64_t find(const std::string& key) const;  // -1 if absent
   RawScene scene(int64_t i) const;
   std::string chunk_path(int64_t i) const;

@@ -19,7 +19,8 @@ DatasetInfo read_dataset_info(const std::string& root) {
   const auto j = nlohmann::json::parse(bytes.begin(), bytes.end(), nullptr, /*allow_exceptions=*/false);
   if (!j.is_object()) throw std::runtime_error(fmt::format("{}: expected a JSON object", path));
   if (j.contains("generator")) {
-    if (!j["generator"].is_string()) throw std::runtime_error(fmt::format("{}: field 'generator' must be a string", path));
+    if (!j["generator"].is_string())
+      throw std::runtime_error(fmt::format("{}: field 'generator' must be a string", path));
     info.generator = j["generator"].get<std::string>();
   }
   if (j.contains("view_order")) {

@@ -8,8 +8,8 @@
 namespace uplvsm::data {
 
 struct DatasetInfo {
-  std::string generator;       // who wrote the dataset ("rooms", "objects", ...); empty when unknown
-  bool ordered_views = true;   // "view_order": "ordered" | "unordered"
+  std::string generator;      // who wrote the dataset ("rooms", "objects", ...); empty when unknown
+  bool ordered_views = true;  // "view_order": "ordered" | "unordered"
 };
 
 // Reads <root>/dataset.json; a missing file gives the defaults. Throws naming the file and field when present but

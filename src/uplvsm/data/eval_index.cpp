@@ -45,14 +45,7 @@ EvalEntry parse_entry(const std::string& key, const nlohmann::json& value, const
 }  // namespace
 
 std::vector<EvalEntry> read_eval_index(const std::string& path, int64_t* num_null) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(fmt::format("read_eval_index: cannot open {}", path));
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(fmt::format("read_eval_index: {}: not valid JSON: {}", path, e.what()));
-  }
+  auto j = read_json_file(path, "evaluation index");
   if (!j.is_object())
     throw std::runtime_error(fmt::format("read_eval_index: {}: expected an object {{scene key: entry}}", path));
   std::vector<EvalEntry> entries;

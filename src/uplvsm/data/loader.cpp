@@ -28,7 +28,8 @@ uint64_t mix(uint64_t a, uint64_t b) {
 template <class T>
 void shuffle(std::vector<T>& v, size_t begin, std::mt19937_64& rng) {
   for (size_t i = v.size(); i > begin + 1; --i)
-    std::swap(v[i - 1], v[static_cast<size_t>(uniform_int(rng, static_cast<int64_t>(begin), static_cast<int64_t>(i - 1)))]);
+    std::swap(v[i - 1],
+              v[static_cast<size_t>(uniform_int(rng, static_cast<int64_t>(begin), static_cast<int64_t>(i - 1)))]);
 }
 
 // Scene order of one epoch, chunk by chunk as pixelSplat's iterable dataset reads them: chunks in a seeded order,
@@ -84,7 +85,8 @@ std::vector<int64_t> sample_views(int64_t frames, const LoaderOptions& opt, std:
 
 TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step) {
   const int64_t n = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
-  if (n == 0) throw std::runtime_error("training data: split '" + dataset.split() + "' of " + dataset.root() + " has no scenes");
+  if (n == 0)
+    throw std::runtime_error("training data: split '" + dataset.split() + "' of " + dataset.root() + " has no scenes");
   TrainingBatch batch;
   batch.step = step;
   std::vector<torch::Tensor> images, intrinsics, c2ws, targets;
@@ -116,23 +118,25 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
         // Official target_has_input=True: random.sample(range(V), num_target_views).
         std::vector<int64_t> all(opt.num_views);
         std::iota(all.begin(), all.end(), 0);
-        for (int k = 0; k < opt.num_target_views; ++k)
-          std::swap(all[k], all[uniform_int(rng, k, opt.num_views - 1)]);
+        for (int k = 0; k < opt.num_target_views; ++k) std::swap(all[k], all[uniform_int(rng, k, opt.num_views - 1)]);
         targets.push_back(torch::tensor(std::vector<int64_t>(all.begin(), all.begin() + opt.num_target_views)));
         done = true;
       } catch (const std::exception& e) {
         ++batch.replaced_scenes;
-        spdlog::warn("training data: skipping scene {} ({}): {}", dataset.key(scene), dataset.chunk_path(scene), e.what());
+        spdlog::warn("training data: skipping scene {} ({}): {}", dataset.key(scene), dataset.chunk_path(scene),
+                     e.what());
       }
     }
-    if (!done) throw std::runtime_error("training data: could not build a sample from 64 scenes in a row of " + dataset.root());
+    if (!done)
+      throw std::runtime_error("training data: could not build a sample from 64 scenes in a row of " + dataset.root());
   }
   batch.images = torch::stack(images);
   batch.fxfycxcy = torch::stack(intrinsics);
   batch.c2w = torch::stack(c2ws);
   if (opt.pose_noise_variance > 0)
-    batch.c2w = perturb_cameras(batch.c2w, opt.pose_noise_variance,
-                                mix(opt.seed ^ 0x6e6f697365ULL, static_cast<uint64_t>(step * opt.world_size + opt.rank)));
+    batch.c2w =
+        perturb_cameras(batch.c2w, opt.pose_noise_variance,
+                        mix(opt.seed ^ 0x6e6f697365ULL, static_cast<uint64_t>(step * opt.world_size + opt.rank)));
   batch.target_index = torch::stack(targets);
   return batch;
 }

@@ -22,18 +22,18 @@
 namespace uplvsm::data {
 
 struct LoaderOptions {
-  int64_t batch_size = 1;          // per rank
+  int64_t batch_size = 1;  // per rank
   int num_views = 8;
   int num_input_views = 2;
   int num_target_views = 6;
   int min_frame_dist = 25, max_frame_dist = 192;
-  bool ordered_views = true;       // false: any distinct frames (unordered views); min/max_frame_dist unused
+  bool ordered_views = true;  // false: any distinct frames (unordered views); min/max_frame_dist unused
   PreprocessOptions preprocess;
   uint64_t seed = 777;
   int rank = 0, world_size = 1;
   int threads = 2;
-  int prefetch = 4;                // batches decoded ahead
-  int64_t max_scenes = 0;          // train on the split's first N scenes only (nested subsets); 0: all
+  int prefetch = 4;        // batches decoded ahead
+  int64_t max_scenes = 0;  // train on the split's first N scenes only (nested subsets); 0: all
   // N(0, variance) on the 7-D (t, q) encoding of every camera (pose-noise study), drawn from its own stream so the
   // views chosen do not change with it; 0: the dataset's cameras.
   double pose_noise_variance = 0;
@@ -41,9 +41,9 @@ struct LoaderOptions {
 
 struct TrainingBatch {
   int64_t step = 0;
-  torch::Tensor images;    // [b, V, 3, H, W]
-  torch::Tensor fxfycxcy;  // [b, V, 4]
-  torch::Tensor c2w;       // [b, V, 4, 4]
+  torch::Tensor images;        // [b, V, 3, H, W]
+  torch::Tensor fxfycxcy;      // [b, V, 4]
+  torch::Tensor c2w;           // [b, V, 4, 4]
   torch::Tensor target_index;  // int64 [b, num_target_views]: views used as targets (official: may include inputs)
   std::vector<std::string> keys;
   std::vector<std::vector<int64_t>> frames;

@@ -65,20 +65,13 @@ fs::path resolve_image(const std::string& image_path, const fs::path& metadata_p
 }  // namespace
 
 LvsmSceneMetadata read_lvsm_metadata(const std::string& metadata_path) {
-  std::ifstream in(metadata_path);
-  if (!in) throw std::runtime_error(fmt::format("LVSM metadata {}: cannot open", metadata_path));
-  json j;
-  try {
-    j = json::parse(in);
-  } catch (const json::exception& e) {
-    throw std::runtime_error(fmt::format("LVSM metadata {}: not valid JSON ({})", metadata_path, e.what()));
-  }
+  auto j = read_json_file(metadata_path, "LVSM metadata");
   if (!j.is_object() || !j.contains("frames") || !j["frames"].is_array() || j["frames"].empty())
-    throw std::runtime_error(fmt::format("LVSM metadata {}: expected an object with a non-empty 'frames' array",
-                                         metadata_path));
+    throw std::runtime_error(
+        fmt::format("LVSM metadata {}: expected an object with a non-empty 'frames' array", metadata_path));
   LvsmSceneMetadata m;
   m.key = j.contains("scene_name") && j["scene_name"].is_string() ? j["scene_name"].get<std::string>()
-                                                                    : fs::path(metadata_path).stem().string();
+                                                                  : fs::path(metadata_path).stem().string();
   if (m.key.empty()) throw std::runtime_error(fmt::format("LVSM metadata {}: empty scene_name", metadata_path));
   for (size_t i = 0; i < j["frames"].size(); ++i) {
     const auto& f = j["frames"][i];

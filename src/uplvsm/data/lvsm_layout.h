@@ -19,10 +19,10 @@ namespace uplvsm::data {
 
 // One scene's metadata without its images: what a loader needs to read only the frames it wants.
 struct LvsmSceneMetadata {
-  std::string key;                               // scene_name, else the JSON's file stem
-  std::vector<std::string> image_paths;          // resolved (see read_lvsm_metadata)
-  std::vector<std::array<double, 4>> fxfycxcy;   // pixels of each frame's own image
-  std::vector<std::array<double, 12>> w2c;       // 3x4 world-to-camera, row-major
+  std::string key;                              // scene_name, else the JSON's file stem
+  std::vector<std::string> image_paths;         // resolved (see read_lvsm_metadata)
+  std::vector<std::array<double, 4>> fxfycxcy;  // pixels of each frame's own image
+  std::vector<std::array<double, 12>> w2c;      // 3x4 world-to-camera, row-major
   int64_t size() const { return static_cast<int64_t>(image_paths.size()); }
 };
 

@@ -10,8 +10,7 @@ SceneViews load_photos(const std::vector<std::string>& paths, double fov_degrees
   if (paths.empty()) throw std::invalid_argument("load_photos: no photo given");
   // The field of view is the caller's argument, not a property of a file: refused before any photo is read.
   if (!(fov_degrees > 0 && fov_degrees < 180))
-    throw std::invalid_argument("load_photos: field of view must be in (0, 180) degrees, got " +
-                                c10::str(fov_degrees));
+    throw std::invalid_argument("load_photos: field of view must be in (0, 180) degrees, got " + c10::str(fov_degrees));
   std::vector<torch::Tensor> images, fxfycxcy, c2w;
   for (const auto& path : paths) {
     auto view = preprocess_photo(io::read_image(path), fov_degrees, opt, path);

@@ -55,8 +55,8 @@ Taps lanczos_taps(int in_size, int out_size) {
     }
     for (int x = 0; x < xmax; ++x) {
       double w = ww != 0.0 ? k[x] / ww : k[x];
-      taps.weights[static_cast<size_t>(xx) * taps.ksize + x] = static_cast<int32_t>(
-          w < 0 ? (-0.5 + w * (1 << kPrecisionBits)) : (0.5 + w * (1 << kPrecisionBits)));
+      taps.weights[static_cast<size_t>(xx) * taps.ksize + x] =
+          static_cast<int32_t>(w < 0 ? (-0.5 + w * (1 << kPrecisionBits)) : (0.5 + w * (1 << kPrecisionBits)));
     }
     taps.start[xx] = xmin;
     taps.count[xx] = xmax;
@@ -70,8 +70,7 @@ inline uint8_t clip8(int32_t v) {
 }
 
 // Horizontal pass over input rows [row0, row0+rows): in [H,W,3] -> out [rows, out_w, 3].
-void resample_horizontal(const uint8_t* in, int in_w, int row0, int rows, const Taps& taps, int out_w,
-                         uint8_t* out) {
+void resample_horizontal(const uint8_t* in, int in_w, int row0, int rows, const Taps& taps, int out_w, uint8_t* out) {
   for (int y = 0; y < rows; ++y) {
     const uint8_t* src = in + static_cast<size_t>(row0 + y) * in_w * 3;
     uint8_t* dst = out + static_cast<size_t>(y) * out_w * 3;
@@ -145,11 +144,11 @@ int resized_width(int height, int width, int image_size, int patch_size) {
     throw std::runtime_error(fmt::format("resized_width: bad sizes (image {}x{}, image_size {}, patch {})", height,
                                          width, image_size, patch_size));
   double scaled = static_cast<double>(image_size) / height * width;  // Python: Hr / H0 * W0
-  auto truncated = static_cast<int64_t>(scaled);                      // int()
+  auto truncated = static_cast<int64_t>(scaled);                     // int()
   int64_t wr = python_round(static_cast<double>(truncated) / patch_size) * patch_size;
   if (wr <= 0)
-    throw std::runtime_error(fmt::format("resized_width: image {}x{} at {} rows rounds to width 0", height, width,
-                                         image_size));
+    throw std::runtime_error(
+        fmt::format("resized_width: image {}x{} at {} rows rounds to width 0", height, width, image_size));
   return static_cast<int>(wr);
 }
 
@@ -185,16 +184,16 @@ torch::Tensor resize_lanczos_pil(const torch::Tensor& hwc_u8, int out_w, int out
 
 void check_cameras(const torch::Tensor& cameras18, const std::string& what) {
   if (!cameras18.defined() || cameras18.dim() != 2 || cameras18.size(1) != 18 || !cameras18.is_floating_point())
-    throw std::runtime_error(fmt::format("{}: field 'cameras' must be a float tensor [N,18], got {}", what,
-                                         cameras18.defined() ? c10::str(cameras18.scalar_type(), cameras18.sizes())
-                                                             : "undefined"));
+    throw std::runtime_error(
+        fmt::format("{}: field 'cameras' must be a float tensor [N,18], got {}", what,
+                    cameras18.defined() ? c10::str(cameras18.scalar_type(), cameras18.sizes()) : "undefined"));
   auto finite = torch::isfinite(cameras18).all(1);
   if (!finite.all().item<bool>()) {
     int64_t frame = torch::nonzero(finite.logical_not()).select(1, 0)[0].item<int64_t>();
     auto row = cameras18[frame].to(torch::kFloat64).contiguous();
     std::vector<double> values(row.data_ptr<double>(), row.data_ptr<double>() + 18);
-    throw std::runtime_error(fmt::format("{}: field 'cameras' has a NaN/Inf value in frame {}: [{}]", what, frame,
-                                         fmt::join(values, ", ")));
+    throw std::runtime_error(
+        fmt::format("{}: field 'cameras' has a NaN/Inf value in frame {}: [{}]", what, frame, fmt::join(values, ", ")));
   }
 }
 
@@ -233,7 +232,7 @@ torch::Tensor make_cameras18(const torch::Tensor& fxfycxcy_px, const torch::Tens
 }
 
 SceneViews preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
-                 const PreprocessOptions& opt, const std::string& what) {
+                      const PreprocessOptions& opt, const std::string& what) {
   int64_t v = static_cast<int64_t>(hwc_u8_frames.size());
   check_cameras(cameras18, what);
   if (cameras18.size(0) != v)
@@ -248,10 +247,11 @@ SceneViews preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const tor
       throw std::runtime_error(fmt::format("{}: view {} is not a uint8 [H,W,3] image", what, i));
     images[i] = preprocess_frame(f, cams.data_ptr<float>() + i * 18, opt, &k[i * 4]);
     if (images[i].sizes() != images[0].sizes())
-      throw std::runtime_error(fmt::format("{}: view {} preprocesses to {} but view 0 to {} (frames of different "
-                                           "sizes {} vs {})",
-                                           what, i, c10::str(images[i].sizes()), c10::str(images[0].sizes()),
-                                           c10::str(f.sizes()), c10::str(hwc_u8_frames[0].sizes())));
+      throw std::runtime_error(
+          fmt::format("{}: view {} preprocesses to {} but view 0 to {} (frames of different "
+                      "sizes {} vs {})",
+                      what, i, c10::str(images[i].sizes()), c10::str(images[0].sizes()), c10::str(f.sizes()),
+                      c10::str(hwc_u8_frames[0].sizes())));
   }
   SceneViews views;
   views.images = torch::stack(images);
@@ -263,7 +263,7 @@ SceneViews preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const tor
 }
 
 SceneViews preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
-                       const std::string& what) {
+                            const std::string& what) {
   if (!(fov_deg > 0 && fov_deg < 180))
     throw std::runtime_error(fmt::format("{}: field of view must be in (0, 180) degrees, got {:g}", what, fov_deg));
   const double W = static_cast<double>(hwc_u8.size(1)), H = static_cast<double>(hwc_u8.size(0));

@@ -26,12 +26,12 @@ PreprocessOptions square_preprocess_options(const Config& config);
 // `frames` of the result is 0..V-1 (callers that know the scene's frame numbers overwrite it). `what` names the
 // source in errors (NaN camera, wrong shapes, frames whose output size differs).
 SceneViews preprocess(const std::vector<torch::Tensor>& hwc_u8_frames, const torch::Tensor& cameras18,
-                 const PreprocessOptions& opt, const std::string& what = "preprocess");
+                      const PreprocessOptions& opt, const std::string& what = "preprocess");
 
 // A user's photo (uint8 [H,W,3]) as one view: a pinhole camera with the principal point at the centre, square
 // pixels and the given horizontal field of view, identity pose (unused by the unposed model).
 SceneViews preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const PreprocessOptions& opt,
-                       const std::string& what);
+                            const std::string& what);
 
 // Wr = round(int(Hr / H0 * W0) / patch) * patch, with Python's round (half to even), as the official code.
 int resized_width(int height, int width, int image_size, int patch_size);

@@ -11,7 +11,7 @@ namespace uplvsm::data {
 
 // One scene of a pixelSplat chunk (one dict of the torch.save'd list).
 struct RawScene {
-  std::string key;                    // 16 lowercase hex characters for RealEstate10K
+  std::string key;  // 16 lowercase hex characters for RealEstate10K
   std::string url;
   torch::Tensor timestamps;           // int64 [N], microseconds
   torch::Tensor cameras;              // float32 [N,18]: fx/W fy/H cx/W cy/H 0 0, then 3x4 world-to-camera row-major

@@ -61,13 +61,15 @@ PinholeIntrinsics fit_to_image(const PinholeIntrinsics& k, int width, int height
   if (k.width == width && k.height == height) return k;
   const double sx = static_cast<double>(width) / k.width, sy = static_cast<double>(height) / k.height;
   if (std::abs(sx / sy - 1.0) > 0.01)
-    throw std::runtime_error(fmt::format("{}: the model's camera is {}x{} but the image is {}x{} (another aspect "
-                                         "ratio: the camera does not describe this file)",
-                                         what, k.width, k.height, width, height));
+    throw std::runtime_error(
+        fmt::format("{}: the model's camera is {}x{} but the image is {}x{} (another aspect "
+                    "ratio: the camera does not describe this file)",
+                    what, k.width, k.height, width, height));
   if (!warned)
-    warnings.push_back(fmt::format("{}: the model's camera is {}x{} but the image is {}x{}: intrinsics rescaled "
-                                   "(later images of other sizes are rescaled too)",
-                                   what, k.width, k.height, width, height));
+    warnings.push_back(
+        fmt::format("{}: the model's camera is {}x{} but the image is {}x{}: intrinsics rescaled "
+                    "(later images of other sizes are rescaled too)",
+                    what, k.width, k.height, width, height));
   warned = true;
   return {k.fx * sx, k.fy * sy, k.cx * sx, k.cy * sy, width, height};
 }
@@ -76,9 +78,9 @@ void check_finite(const std::vector<float>& row, const std::string& what) {
   static const char* names[6] = {"fx/W", "fy/H", "cx/W", "cy/H", "unused", "unused"};
   for (int i = 0; i < 18; ++i)
     if (!std::isfinite(row[i]))
-      throw std::runtime_error(fmt::format(
-          "import: {}: camera field {} is not finite ({})", what,
-          i < 6 ? std::string(names[i]) : fmt::format("w2c[{}][{}]", (i - 6) / 4, (i - 6) % 4), row[i]));
+      throw std::runtime_error(
+          fmt::format("import: {}: camera field {} is not finite ({})", what,
+                      i < 6 ? std::string(names[i]) : fmt::format("w2c[{}][{}]", (i - 6) / 4, (i - 6) % 4), row[i]));
 }
 
 }  // namespace
@@ -110,7 +112,8 @@ fs::path checked_images_dir(const SceneImportOptions& opt) {
   if (opt.images_dir.empty()) throw std::runtime_error("import: no image folder given");
   fs::path dir = fs::absolute(opt.images_dir).lexically_normal();
   if (dir.filename().empty()) dir = dir.parent_path();  // "photos/" -> "photos"
-  if (!fs::is_directory(dir)) throw std::runtime_error(fmt::format("import: image folder {} is not a folder", dir.string()));
+  if (!fs::is_directory(dir))
+    throw std::runtime_error(fmt::format("import: image folder {} is not a folder", dir.string()));
   if (!opt.colmap_dir.empty() && !opt.transforms_path.empty())
     throw std::runtime_error("import: give a COLMAP model or a transforms.json, not both");
   if (!(opt.fov_deg > 0 && opt.fov_deg < 180))
@@ -137,11 +140,11 @@ ModelImages colmap_images(const fs::path& dir, const fs::path& cdir, std::vector
   const auto cameras_txt = (cdir / "cameras.txt").string(), images_txt = (cdir / "images.txt").string();
   for (const auto& f : {cameras_txt, images_txt})
     if (!fs::exists(f))
-      throw std::runtime_error(fmt::format(
-          "import: {} not found{}", f,
-          fs::exists(cdir / "cameras.bin") ? " (this is a binary model: convert it with `colmap model_converter "
-                                             "--input_path M --output_path M --output_type TXT`)"
-                                           : " (expected a COLMAP text model: cameras.txt, images.txt)"));
+      throw std::runtime_error(fmt::format("import: {} not found{}", f,
+                                           fs::exists(cdir / "cameras.bin")
+                                               ? " (this is a binary model: convert it with `colmap model_converter "
+                                                 "--input_path M --output_path M --output_type TXT`)"
+                                               : " (expected a COLMAP text model: cameras.txt, images.txt)"));
   const auto cameras = read_colmap_cameras(cameras_txt, &warnings);
   ModelImages out{{}, images_txt};
   for (const auto& img : read_colmap_images(images_txt)) {
@@ -190,21 +193,25 @@ int64_t match_model_to_folder(ModelImages& model, const std::vector<fs::path>& f
     if (!mentioned.count(f)) unmentioned.push_back(f.filename().string());
   std::vector<Entry> present;
   for (auto& e : model.entries) {
-    if (fs::is_regular_file(e.path)) present.push_back(std::move(e));
-    else missing.push_back(e.name);
+    if (fs::is_regular_file(e.path))
+      present.push_back(std::move(e));
+    else
+      missing.push_back(e.name);
   }
   model.entries = std::move(present);
   if (!skip_unmatched && !missing.empty())
-    throw std::runtime_error(fmt::format("import: {} image(s) of the model {} are not files under {}: {} (pass "
-                                         "--skip-unmatched to leave them out)",
-                                         missing.size(), model_file, dir.string(), list_some(missing)));
+    throw std::runtime_error(
+        fmt::format("import: {} image(s) of the model {} are not files under {}: {} (pass "
+                    "--skip-unmatched to leave them out)",
+                    missing.size(), model_file, dir.string(), list_some(missing)));
   if (!skip_unmatched && !unmentioned.empty())
-    throw std::runtime_error(fmt::format("import: {} image(s) of {} are not in the model {}: {} (remove them, or "
-                                         "pass --skip-unmatched to leave them out)",
-                                         unmentioned.size(), dir.string(), model_file, list_some(unmentioned)));
+    throw std::runtime_error(
+        fmt::format("import: {} image(s) of {} are not in the model {}: {} (remove them, or "
+                    "pass --skip-unmatched to leave them out)",
+                    unmentioned.size(), dir.string(), model_file, list_some(unmentioned)));
   if (!unmentioned.empty())
-    warnings.push_back(fmt::format("skipped {} image(s) the model does not mention: {}", unmentioned.size(),
-                                   list_some(unmentioned)));
+    warnings.push_back(
+        fmt::format("skipped {} image(s) the model does not mention: {}", unmentioned.size(), list_some(unmentioned)));
   if (!missing.empty())
     warnings.push_back(fmt::format("skipped {} model image(s) without a file: {}", missing.size(), list_some(missing)));
   std::sort(model.entries.begin(), model.entries.end(), [](const Entry& a, const Entry& b) { return a.name < b.name; });
@@ -243,7 +250,7 @@ PinholeIntrinsics pick_intrinsics(const Entry& e, const std::vector<uint8_t>& by
 
 // Decodes image i once (validates it and gives its size), then stores its camera row and its bytes.
 void add_scene_image(int64_t i, const Entry& e, double fov_deg, torch::Tensor& cameras, ImportedScene& out,
-               CameraTally& tally) {
+                     CameraTally& tally) {
   const std::string path = e.path.string();
   const auto bytes = io::read_file(path);
   const auto hwc = io::decode_image(bytes.data(), bytes.size(), path);  // throws naming the file
@@ -272,18 +279,21 @@ std::string joined_sources(const std::set<std::string>& sources) {
 void warn_about_cameras(const CameraTally& tally, int64_t n, const std::string& model_file, double fov_deg,
                         std::vector<std::string>& warnings) {
   if (tally.no_model_focal > 0)
-    warnings.push_back(fmt::format("{}: no focal length (fl_x / camera_angle_x) for {} frame(s): EXIF or the "
-                                   "default field of view used",
-                                   model_file, tally.no_model_focal));
+    warnings.push_back(
+        fmt::format("{}: no focal length (fl_x / camera_angle_x) for {} frame(s): EXIF or the "
+                    "default field of view used",
+                    model_file, tally.no_model_focal));
   if (tally.other_size > 0)
-    warnings.push_back(fmt::format("{} image(s) are not {}x{} like the first: loaders skip frames whose size differs "
-                                   "from frame 0's",
-                                   tally.other_size, tally.w0, tally.h0));
+    warnings.push_back(
+        fmt::format("{} image(s) are not {}x{} like the first: loaders skip frames whose size differs "
+                    "from frame 0's",
+                    tally.other_size, tally.w0, tally.h0));
   if (n < 2) warnings.push_back("only one image: a scene needs at least two views (the model's context pair)");
   if (tally.sources.count("default-fov"))
-    warnings.push_back(fmt::format("no focal length known for some images: a {:g} degree horizontal field of view "
-                                   "assumed (--fov)",
-                                   fov_deg));
+    warnings.push_back(
+        fmt::format("no focal length known for some images: a {:g} degree horizontal field of view "
+                    "assumed (--fov)",
+                    fov_deg));
 }
 
 // The scene key: the user's name or the folder's, sanitised (a warning when the user's name had to change).
@@ -305,10 +315,10 @@ ImportedScene import_scene(const SceneImportOptions& opt) {
   ModelImages model = model_images(opt, dir, files, warnings);
   if (!model.model_file.empty()) out.skipped = match_model_to_folder(model, files, dir, opt.skip_unmatched, warnings);
   if (model.entries.empty())
-    throw std::runtime_error(model.model_file.empty()
-                                 ? fmt::format("import: no JPEG/PNG images (*.jpg, *.jpeg, *.png) in {}", dir.string())
-                                 : fmt::format("import: no image of the model {} is a file under {}", model.model_file,
-                                               dir.string()));
+    throw std::runtime_error(
+        model.model_file.empty()
+            ? fmt::format("import: no JPEG/PNG images (*.jpg, *.jpeg, *.png) in {}", dir.string())
+            : fmt::format("import: no image of the model {} is a file under {}", model.model_file, dir.string()));
 
   const int64_t n = static_cast<int64_t>(model.entries.size());
   out.poses_known = !model.model_file.empty();

@@ -95,11 +95,11 @@ PinholeIntrinsics default_fov_intrinsics(int width, int height, double fov_deg);
 // ---- the import ----
 
 struct SceneImportOptions {
-  std::string images_dir;       // required
-  std::string colmap_dir;       // folder holding cameras.txt and images.txt (e.g. sparse/0); empty: none
-  std::string transforms_path;  // nerfstudio transforms.json; empty: none (at most one of colmap/transforms)
+  std::string images_dir;                 // required
+  std::string colmap_dir;                 // folder holding cameras.txt and images.txt (e.g. sparse/0); empty: none
+  std::string transforms_path;            // nerfstudio transforms.json; empty: none (at most one of colmap/transforms)
   double fov_deg = kDefaultImportFovDeg;  // used when neither a model nor EXIF gives a focal length
-  std::string scene_name;       // scene key; empty: the folder name, sanitised
+  std::string scene_name;                 // scene key; empty: the folder name, sanitised
   // Skip (count and warn) folder images the model does not mention and model entries whose file is missing,
   // instead of refusing the import.
   bool skip_unmatched = false;
@@ -108,7 +108,7 @@ struct SceneImportOptions {
 struct ImportedScene {
   RawScene scene;  // key, url "file://<folder>", timestamps 0..N-1, cameras [N,18], images = the files' bytes
   bool poses_known = false;
-  std::string intrinsics_source;  // "colmap", "transforms", "exif", "default-fov", or e.g. "exif+default-fov"
+  std::string intrinsics_source;         // "colmap", "transforms", "exif", "default-fov", or e.g. "exif+default-fov"
   std::vector<std::string> image_names;  // in frame order (relative to the image folder / as the model names them)
   std::vector<std::string> warnings;
   int64_t skipped = 0;  // images or model entries left out (skip_unmatched)

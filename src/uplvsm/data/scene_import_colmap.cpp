@@ -103,8 +103,8 @@ std::map<int64_t, ColmapCamera> read_colmap_cameras(const std::string& path, std
     const std::string where = fmt::format("{}:{}", path, n + 1);
     const auto tok = tokens(line);
     if (tok.size() < 4)
-      throw std::runtime_error(fmt::format("{}: expected 'CAMERA_ID MODEL WIDTH HEIGHT PARAMS...', got '{}'", where,
-                                           line));
+      throw std::runtime_error(
+          fmt::format("{}: expected 'CAMERA_ID MODEL WIDTH HEIGHT PARAMS...', got '{}'", where, line));
     ColmapCamera cam;
     cam.id = parse_integer(tok[0].first, where, "CAMERA_ID");
     cam.model = tok[1].first;
@@ -113,8 +113,8 @@ std::map<int64_t, ColmapCamera> read_colmap_cameras(const std::string& path, std
     if (model == kColmapModels.end()) {
       std::string known;
       for (const auto& m : kColmapModels) known += std::string(known.empty() ? "" : ", ") + m.name;
-      throw std::runtime_error(fmt::format("{}: unknown camera model '{}' (expected one of {})", where, cam.model,
-                                           known));
+      throw std::runtime_error(
+          fmt::format("{}: unknown camera model '{}' (expected one of {})", where, cam.model, known));
     }
     const int64_t w = parse_integer(tok[2].first, where, "WIDTH"), h = parse_integer(tok[3].first, where, "HEIGHT");
     if (w <= 0 || h <= 0)
@@ -124,8 +124,7 @@ std::map<int64_t, ColmapCamera> read_colmap_cameras(const std::string& path, std
                                            model->num_params, model->params, tok.size() - 4));
     const auto names = tokens(model->params);
     std::vector<double> p;
-    for (int i = 0; i < model->num_params; ++i)
-      p.push_back(parse_number(tok[4 + i].first, where, names[i].first));
+    for (int i = 0; i < model->num_params; ++i) p.push_back(parse_number(tok[4 + i].first, where, names[i].first));
     const int nf = model->single_focal ? 1 : 2;
     cam.intrinsics = {p[0], p[nf - 1], p[nf], p[nf + 1], static_cast<int>(w), static_cast<int>(h)};
     if (!(cam.intrinsics.fx > 0) || !(cam.intrinsics.fy > 0))
@@ -158,9 +157,9 @@ std::vector<ColmapImage> read_colmap_images(const std::string& path) {
     const std::string where = fmt::format("{}:{}", path, n + 1);
     const auto tok = tokens(line);
     if (tok.size() < 10)
-      throw std::runtime_error(fmt::format(
-          "{}: expected 'IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME', got '{}' ({} fields)", where, line,
-          tok.size()));
+      throw std::runtime_error(
+          fmt::format("{}: expected 'IMAGE_ID QW QX QY QZ TX TY TZ CAMERA_ID NAME', got '{}' ({} fields)", where, line,
+                      tok.size()));
     ColmapImage img;
     img.id = parse_integer(tok[0].first, where, "IMAGE_ID");
     double q[4], t[3];

@@ -29,8 +29,10 @@ std::string quote_non_finite_literals(const std::string& text) {
     const char c = text[i];
     if (in_string) {
       out += c;
-      if (c == '\\' && i + 1 < text.size()) out += text[++i];
-      else if (c == '"') in_string = false;
+      if (c == '\\' && i + 1 < text.size())
+        out += text[++i];
+      else if (c == '"')
+        in_string = false;
       continue;
     }
     if (c == '"') in_string = true;
@@ -71,7 +73,6 @@ bool invert3(const double A[3][3], double out[3][3]) {
     }
   return true;
 }
-
 
 // The file as JSON (non-finite literals quoted so they are refused by field, not by the parser), with its frames.
 json read_transforms_json(const std::string& path) {
@@ -142,9 +143,10 @@ Pose opengl_c2w_to_w2c(const double c2w[4][4], const std::string& mwhere) {
       err = std::max(err, std::abs(dot - (a == b ? 1.0 : 0.0)));
     }
   if (err > 1e-2 || !invert3(R, Rinv))
-    throw std::runtime_error(fmt::format("{}: the rotation part is not orthonormal (|R^T R - I| = {:.3g}); expected "
-                                         "a rigid camera-to-world transform",
-                                         mwhere, err));
+    throw std::runtime_error(
+        fmt::format("{}: the rotation part is not orthonormal (|R^T R - I| = {:.3g}); expected "
+                    "a rigid camera-to-world transform",
+                    mwhere, err));
   // w2c = inverse of c2w: R^-1 (exact inverse, so the chunk's c2w reproduces the file's) and -R^-1 t.
   Pose w2c;
   for (int r = 0; r < 3; ++r) {
@@ -178,9 +180,10 @@ TransformsIntrinsics read_frame_intrinsics(const json& root, const json& f, cons
     throw std::runtime_error(fmt::format("{}: fields 'fl_x'/'fl_y': expected positive focal lengths", where));
   for (const auto& a : {k.camera_angle_x, k.camera_angle_y})
     if (a && !(*a > 0 && *a < M_PI))
-      throw std::runtime_error(fmt::format("{}: fields 'camera_angle_x'/'camera_angle_y': expected angles in (0, pi) "
-                                           "radians, got {}",
-                                           where, *a));
+      throw std::runtime_error(
+          fmt::format("{}: fields 'camera_angle_x'/'camera_angle_y': expected angles in (0, pi) "
+                      "radians, got {}",
+                      where, *a));
   return k;
 }
 
@@ -241,8 +244,8 @@ std::optional<PinholeIntrinsics> transforms_intrinsics(const TransformsIntrinsic
   if (!fx && fy) fx = fy;
   if (!fx) return std::nullopt;
   if (!fy) fy = fx;
-  return PinholeIntrinsics{*fx, *fy, k.cx.value_or(0.5 * w), k.cy.value_or(0.5 * h), static_cast<int>(w),
-                           static_cast<int>(h)};
+  return PinholeIntrinsics{
+      *fx, *fy, k.cx.value_or(0.5 * w), k.cy.value_or(0.5 * h), static_cast<int>(w), static_cast<int>(h)};
 }
 
 }  // namespace uplvsm::data

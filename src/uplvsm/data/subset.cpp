@@ -52,8 +52,8 @@ SubsetManifest select_subset(const ChunkDataset& dataset, const SubsetRequest& r
   if (!request.name.empty()) {
     const auto official = find_official_subset(request.name);
     if (!official)
-      throw std::runtime_error(fmt::format("select_subset: unknown subset '{}' (little, medium, large, full)",
-                                           request.name));
+      throw std::runtime_error(
+          fmt::format("select_subset: unknown subset '{}' (little, medium, large, full)", request.name));
     m.name = official->name;
     m.official_scenes = official->scenes;
     everything = official->name == "full";
@@ -66,9 +66,10 @@ SubsetManifest select_subset(const ChunkDataset& dataset, const SubsetRequest& r
     m.name = want_chunks > 0 ? fmt::format("chunks_{}", want_chunks) : fmt::format("scenes_{}", want_scenes);
   }
   if (want_chunks > 0 && !chunked)
-    throw std::runtime_error(fmt::format("select_subset: {}/{} is in the LVSM layout, which has no chunks; select by "
-                                         "scene count",
-                                         dataset.root(), dataset.split()));
+    throw std::runtime_error(
+        fmt::format("select_subset: {}/{} is in the LVSM layout, which has no chunks; select by "
+                    "scene count",
+                    dataset.root(), dataset.split()));
   if (want_chunks > 0) {
     const auto chunks = scenes_by_chunk(dataset);
     if (!everything && want_chunks > static_cast<int64_t>(chunks.size()))
@@ -93,30 +94,28 @@ SubsetManifest select_subset(const ChunkDataset& dataset, const SubsetRequest& r
 }
 
 void write_subset_manifest(const std::string& path, const SubsetManifest& m) {
-  json j = {{"name", m.name},   {"split", m.split},   {"rule", m.rule},
-            {"num_chunks", m.chunks.size()}, {"num_scenes", m.scenes.size()}, {"official_scenes", m.official_scenes},
-            {"chunks", m.chunks}, {"scenes", m.scenes}};
+  json j = {{"name", m.name},
+            {"split", m.split},
+            {"rule", m.rule},
+            {"num_chunks", m.chunks.size()},
+            {"num_scenes", m.scenes.size()},
+            {"official_scenes", m.official_scenes},
+            {"chunks", m.chunks},
+            {"scenes", m.scenes}};
   const auto text = j.dump(2) + "\n";
   io::write_file_atomic(path, text.data(), text.size());
 }
 
 SubsetManifest read_subset_manifest(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(fmt::format("subset manifest {}: cannot open", path));
-  json j;
-  try {
-    j = json::parse(in);
-  } catch (const json::exception& e) {
-    throw std::runtime_error(fmt::format("subset manifest {}: not valid JSON ({})", path, e.what()));
-  }
+  auto j = read_json_file(path, "subset manifest");
   auto strings = [&](const char* field) {
     if (!j.contains(field) || !j[field].is_array())
       throw std::runtime_error(fmt::format("subset manifest {}: field '{}' must be an array of strings", path, field));
     std::vector<std::string> out;
     for (const auto& v : j[field]) {
       if (!v.is_string())
-        throw std::runtime_error(fmt::format("subset manifest {}: field '{}' holds {}, expected strings", path, field,
-                                             json_excerpt(v)));
+        throw std::runtime_error(
+            fmt::format("subset manifest {}: field '{}' holds {}, expected strings", path, field, json_excerpt(v)));
       out.push_back(v.get<std::string>());
     }
     return out;
@@ -126,8 +125,9 @@ SubsetManifest read_subset_manifest(const std::string& path) {
   m.name = j.value("name", "");
   m.split = j.value("split", "");
   m.rule = j.value("rule", "");
-  m.official_scenes =
-      j.contains("official_scenes") ? json_integer(j["official_scenes"], "subset manifest " + path + ": official_scenes") : 0;
+  m.official_scenes = j.contains("official_scenes")
+                          ? json_integer(j["official_scenes"], "subset manifest " + path + ": official_scenes")
+                          : 0;
   m.chunks = j.contains("chunks") ? strings("chunks") : std::vector<std::string>{};
   m.scenes = strings("scenes");
   if (m.scenes.empty()) throw std::runtime_error(fmt::format("subset manifest {}: field 'scenes' is empty", path));

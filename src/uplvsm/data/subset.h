@@ -21,7 +21,7 @@ const std::vector<OfficialSubset>& official_subsets();
 std::optional<OfficialSubset> find_official_subset(const std::string& name);
 
 struct SubsetManifest {
-  std::string name;                 // little / medium / large / full, or custom
+  std::string name;  // little / medium / large / full, or custom
   std::string split;
   std::string rule;                 // how it was selected, in words
   std::vector<std::string> chunks;  // chunk files (empty for LVSM-layout splits)
@@ -40,6 +40,6 @@ struct SubsetRequest {
 SubsetManifest select_subset(const ChunkDataset& dataset, const SubsetRequest& request);
 
 void write_subset_manifest(const std::string& path, const SubsetManifest& manifest);  // JSON, atomic
-SubsetManifest read_subset_manifest(const std::string& path);  // errors name the file and field
+SubsetManifest read_subset_manifest(const std::string& path);                         // errors name the file and field
 
 }  // namespace uplvsm::data

@@ -30,9 +30,10 @@ std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, in
                                            std::mt19937_64& rng) {
   if (num_views < 1) throw std::invalid_argument(fmt::format("sample_training_views: num_views {} < 1", num_views));
   if (num_frames < num_views || (num_views > 1 && num_frames < 2))
-    throw std::invalid_argument(fmt::format("sample_training_views: scene has {} frames, fewer than the {} views "
-                                            "needed",
-                                            num_frames, num_views));
+    throw std::invalid_argument(
+        fmt::format("sample_training_views: scene has {} frames, fewer than the {} views "
+                    "needed",
+                    num_frames, num_views));
   if (num_views == 1) return {uniform_int(rng, 0, num_frames - 1)};
   const int64_t hi = std::min<int64_t>(num_frames - 1, max_gap);
   const int64_t lo = std::max<int64_t>(1, std::min<int64_t>(min_gap, hi));
@@ -60,9 +61,10 @@ std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, in
 
 std::vector<int64_t> sample_unordered_views(int64_t num_frames, int num_views, std::mt19937_64& rng) {
   if (num_views < 1 || num_frames < num_views)
-    throw std::invalid_argument(fmt::format("sample_unordered_views: scene has {} frames, fewer than the {} views "
-                                            "needed",
-                                            num_frames, num_views));
+    throw std::invalid_argument(
+        fmt::format("sample_unordered_views: scene has {} frames, fewer than the {} views "
+                    "needed",
+                    num_frames, num_views));
   // Partial Fisher-Yates: the first num_views entries of a random permutation of the frames.
   std::vector<int64_t> pool(num_frames);
   for (int64_t j = 0; j < num_frames; ++j) pool[j] = j;

@@ -42,8 +42,8 @@ torch::Tensor copy_nearest_input(const torch::Tensor& input_images,
   auto bi = torch::tensor(batch_idx, torch::kInt64).to(device);
   auto vi_t = torch::tensor(view_idx, torch::kInt64).to(device);
   auto picked = input_images.index({bi, vi_t});  // [b * vt, 3, H, W]
-  return picked.reshape({b, static_cast<int64_t>(vt), input_images.size(2), input_images.size(3),
-                         input_images.size(4)});
+  return picked.reshape(
+      {b, static_cast<int64_t>(vt), input_images.size(2), input_images.size(3), input_images.size(4)});
 }
 
 torch::Tensor copy_nearest_direction(const torch::Tensor& input_images, const torch::Tensor& input_c2w,
@@ -57,10 +57,12 @@ torch::Tensor copy_nearest_direction(const torch::Tensor& input_images, const to
   TORCH_CHECK(target_c2w.dim() == 4 && target_c2w.size(0) == b && target_c2w.size(2) == 4 && target_c2w.size(3) == 4,
               "copy_nearest_direction: target_c2w must be [", b, ", vt, 4, 4], got ", target_c2w.sizes());
   using torch::indexing::Slice;
-  auto forward = [](const torch::Tensor& c2w) { return c2w.index({Slice(), Slice(), Slice(0, 3), 2}).to(torch::kFloat64); };
+  auto forward = [](const torch::Tensor& c2w) {
+    return c2w.index({Slice(), Slice(), Slice(0, 3), 2}).to(torch::kFloat64);
+  };
   auto cosine = torch::einsum("btk,bik->bti", {forward(target_c2w), forward(input_c2w)});  // [b, vt, vi]
   // argmax returns the first maximum: ties go to the earlier input view.
-  auto nearest = cosine.argmax(2).to(input_images.device());                              // [b, vt]
+  auto nearest = cosine.argmax(2).to(input_images.device());  // [b, vt]
   auto batch = torch::arange(b, nearest.options()).unsqueeze(1).expand_as(nearest);
   return input_images.index({batch, nearest});
 }

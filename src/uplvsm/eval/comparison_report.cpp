@@ -6,6 +6,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/io/atomic_file.h"
 
 namespace uplvsm::eval {
@@ -28,11 +29,6 @@ overflow-x:auto;font-size:.85em})";
 // Small renders are scaled up by integer factors to about a column's width (CSS max-width then fits them in).
 constexpr int64_t kColumnWidth = 600;
 constexpr size_t kGridsPerColumn = 3;
-
-nlohmann::json read_json(const fs::path& path) {
-  const auto bytes = io::read_file(path.string());
-  return nlohmann::json::parse(bytes.begin(), bytes.end());
-}
 
 std::string videos_html(const ComparedModel& m, const fs::path& sub, const std::string& rel) {
   std::string html;
@@ -63,14 +59,16 @@ std::string grids_html(const fs::path& sub, const std::string& rel) {
   }
   if (html.empty()) return "";
   return "<h3>Held-out scenes</h3>\n<p class=\"caption\">Rows: target views. Columns: the two input views, "
-         "prediction, ground truth, |error|, copy-nearest baseline.</p>\n" + html;
+         "prediction, ground truth, |error|, copy-nearest baseline.</p>\n" +
+         html;
 }
 
 std::string column_html(const ComparedModel& m, const fs::path& sub, const std::string& rel) {
   std::string html = "<section>\n<h2>" + html_escape(m.label) + "</h2>\n";
   if (!m.caption.empty()) html += "<p class=\"caption\">" + html_escape(m.caption) + "</p>\n";
   html += "<p><a href=\"" + html_escape(rel) + "/index.html\">full report</a></p>\n";
-  if (fs::is_regular_file(sub / "metrics.json")) html += results_table_html(read_json(sub / "metrics.json"), /*full_only=*/true);
+  if (fs::is_regular_file(sub / "metrics.json"))
+    html += results_table_html(read_json_file((sub / "metrics.json").string()), /*full_only=*/true);
   html += videos_html(m, sub, rel);
   html += grids_html(sub, rel);
   if (fs::is_regular_file(sub / "training_curve.png"))

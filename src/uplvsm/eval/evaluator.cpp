@@ -6,8 +6,8 @@
 #include <algorithm>
 #include <array>
 #include <cctype>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <future>
 #include <iterator>
@@ -72,10 +72,11 @@ std::vector<Job> plan_jobs(const data::ChunkDataset& dataset, const EvalOptions&
     }
     if (opt.max_scenes > 0 && static_cast<int64_t>(jobs.size()) >= opt.max_scenes) continue;
     if (opt.target_poses != model::TargetPoses::Estimator && !dataset.poses_known(i))
-      throw std::runtime_error(fmt::format("eval: scene {} has no ground-truth cameras (imported without poses, listed "
-                                           "in {}/{}/unposed.json); target poses from '{}' need them — evaluate it "
-                                           "with the estimator protocol",
-                                           e.key, dataset.root(), dataset.split(), model::to_string(opt.target_poses)));
+      throw std::runtime_error(
+          fmt::format("eval: scene {} has no ground-truth cameras (imported without poses, listed "
+                      "in {}/{}/unposed.json); target poses from '{}' need them — evaluate it "
+                      "with the estimator protocol",
+                      e.key, dataset.root(), dataset.split(), model::to_string(opt.target_poses)));
     const size_t pos = jobs.size();
     jobs.push_back({std::move(e), i, pos, static_cast<int64_t>(pos) < opt.num_visualised});
   }
@@ -288,7 +289,8 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
 static void merge_shards(const EvalOptions& opt, RunState& state) {
   nlohmann::json mine{{"bad_frames", state.bad_frames}, {"grids", state.grids}, {"scenes", nlohmann::json::array()}};
   for (size_t pos = 0; pos < state.results.size(); ++pos)
-    if (state.results[pos]) mine["scenes"].push_back({{"position", pos}, {"scene", scene_to_json(*state.results[pos])}});
+    if (state.results[pos])
+      mine["scenes"].push_back({{"position", pos}, {"scene", scene_to_json(*state.results[pos])}});
   const auto all = opt.gather(mine.dump());
   TORCH_CHECK(static_cast<int>(all.size()) == opt.shard_count, "eval: gathered ", all.size(), " shards, expected ",
               opt.shard_count);
@@ -305,9 +307,8 @@ static void merge_shards(const EvalOptions& opt, RunState& state) {
 
 // This shard's scenes in batches, in eval mode without gradients; the next batch is decoded on a helper thread
 // while one runs.
-static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& dataset,
-                     const data::PreprocessOptions& prep, const std::vector<Job>& jobs, const EvalOptions& opt,
-                     RunState& state) {
+static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                     const std::vector<Job>& jobs, const EvalOptions& opt, RunState& state) {
   model::EvalModeGuard mode(*net);
   torch::NoGradGuard no_grad;
   ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
@@ -339,8 +340,8 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   const std::string index_path =
       opt.index_path.empty() ? (fs::path(dataset.root()) / "evaluation_index.json").string() : opt.index_path;
   EvalSummary counts;
-  TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count,
-              "eval: shard ", opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");
+  TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count, "eval: shard ",
+              opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");
   const auto all_jobs = plan_jobs(dataset, opt, index_path, counts);
   std::vector<Job> jobs;  // this shard's
   for (const auto& job : all_jobs)
@@ -366,13 +367,13 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   if (s.scenes == 0) {
     spdlog::warn("eval: no scene was evaluated ({})", index_path);
   } else {
-    spdlog::info("eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} edges {:.3f} LPIPS {} | copy nearest {:.3f} / {:.4f} "
-                 "| mean colour {:.3f} / {:.4f}",
-                 s.scenes, format_duration(s.seconds), s.table["model"]["psnr"], s.table["model"]["ssim"],
-                 s.table["model"]["grad_ratio"],
-                 opt.lpips ? fmt::format("{:.4f}", s.table["model"]["lpips"]) : "unavailable",
-                 s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
-                 s.table["mean_colour"]["ssim"]);
+    spdlog::info(
+        "eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} edges {:.3f} LPIPS {} | copy nearest {:.3f} / {:.4f} "
+        "| mean colour {:.3f} / {:.4f}",
+        s.scenes, format_duration(s.seconds), s.table["model"]["psnr"], s.table["model"]["ssim"],
+        s.table["model"]["grad_ratio"], opt.lpips ? fmt::format("{:.4f}", s.table["model"]["lpips"]) : "unavailable",
+        s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
+        s.table["mean_colour"]["ssim"]);
   }
   if (!opt.out_dir.empty() && opt.shard_rank == 0) write_results(opt.out_dir, s, opt.extra);
   return s;

@@ -28,9 +28,9 @@ namespace uplvsm::eval {
 constexpr double kUnavailable = std::numeric_limits<double>::quiet_NaN();  // LPIPS without its weights
 
 struct EvalOptions {
-  std::string index_path;  // empty: <dataset root>/evaluation_index.json
-  int64_t max_scenes = 0;  // 0: all (counted after dropping null entries and keys absent from the dataset)
-  int64_t batch_size = 4;  // scenes per forward
+  std::string index_path;              // empty: <dataset root>/evaluation_index.json
+  int64_t max_scenes = 0;              // 0: all (counted after dropping null entries and keys absent from the dataset)
+  int64_t batch_size = 4;              // scenes per forward
   torch::Device device = torch::kCPU;  // where inputs go; the caller puts the model there
   int64_t num_visualised = 8;          // PNG grids for the first scenes (index order)
   std::string out_dir;                 // empty: write nothing, only return the summary
@@ -74,9 +74,9 @@ struct SceneResult {
 using MetricValues = std::array<double, 12>;
 template <class M>
 MetricValues metric_values(const M& m) {
-  return {m.psnr,       m.ssim,      m.lpips,      m.grad_ratio,       //
-          m.psnr_copy,  m.ssim_copy, m.lpips_copy, m.grad_ratio_copy,  //
-          m.psnr_mean,  m.ssim_mean, m.lpips_mean, m.grad_ratio_mean};
+  return {m.psnr,      m.ssim,      m.lpips,      m.grad_ratio,       //
+          m.psnr_copy, m.ssim_copy, m.lpips_copy, m.grad_ratio_copy,  //
+          m.psnr_mean, m.ssim_mean, m.lpips_mean, m.grad_ratio_mean};
 }
 template <class M>
 void set_metric_values(M& m, const MetricValues& v) {
@@ -97,11 +97,11 @@ struct EvalSummary {
   // the mean over the scenes that have such targets (the paper's appendix table; latentSplat's split).
   std::map<std::string, std::map<std::string, std::map<std::string, double>>> spans;
   std::map<std::string, int64_t> span_scenes;
-  std::vector<SceneResult> per_scene;            // index (key) order
+  std::vector<SceneResult> per_scene;  // index (key) order
   double seconds = 0;
-  int64_t skipped_null = 0;        // null entries of the index
-  int64_t skipped_missing = 0;     // keys of the index absent from the dataset
-  int64_t skipped_bad_frames = 0;  // scenes with a frame of another size than frame 0 (pixelSplat skips them)
+  int64_t skipped_null = 0;              // null entries of the index
+  int64_t skipped_missing = 0;           // keys of the index absent from the dataset
+  int64_t skipped_bad_frames = 0;        // scenes with a frame of another size than frame 0 (pixelSplat skips them)
   std::vector<std::string> scene_grids;  // paths of the PNG grids written
   nlohmann::json lpips = {{"available", false}};  // {"available", "net"}; set by evaluate()
 };

@@ -19,8 +19,8 @@ LpipsImpl::LpipsImpl(LpipsNet n) : net(n) {
   backbone = register_module("net", model::VggFeatures(vgg ? model::Backbone::Vgg16 : model::Backbone::AlexNet));
   // Official pretrained_networks.py slicing: relu1_2..relu5_3 for vgg16, relu1..relu5 for alexnet.
   slice_ends = vgg ? std::vector<int64_t>{4, 9, 16, 23, 30} : std::vector<int64_t>{2, 5, 8, 10, 12};
-  const std::vector<int64_t> channels = vgg ? std::vector<int64_t>{64, 128, 256, 512, 512}
-                                            : std::vector<int64_t>{64, 192, 384, 256, 256};
+  const std::vector<int64_t> channels =
+      vgg ? std::vector<int64_t>{64, 128, 256, 512, 512} : std::vector<int64_t>{64, 192, 384, 256, 256};
   for (size_t k = 0; k < channels.size(); ++k)
     lin.push_back(register_buffer(fmt::format("lin{}", k), torch::zeros({1, channels[k], 1, 1})));
 }
@@ -45,8 +45,10 @@ std::vector<torch::Tensor> LpipsImpl::features(const torch::Tensor& scaled) {
 }
 
 torch::Tensor LpipsImpl::per_layer(const torch::Tensor& in0, const torch::Tensor& in1, bool weighted) {
-  TORCH_CHECK(in0.sizes() == in1.sizes() && in0.dim() == 4 && in0.size(1) == 3, "LPIPS: expected two [N, 3, H, W] "
-              "batches of the same shape, got ", in0.sizes(), " and ", in1.sizes());
+  TORCH_CHECK(in0.sizes() == in1.sizes() && in0.dim() == 4 && in0.size(1) == 3,
+              "LPIPS: expected two [N, 3, H, W] "
+              "batches of the same shape, got ",
+              in0.sizes(), " and ", in1.sizes());
   auto f0 = features(scale_input(in0)), f1 = features(scale_input(in1));
   auto unit = [](const torch::Tensor& f) { return f / (f.pow(2).sum(1, true).sqrt() + 1e-10); };
   std::vector<torch::Tensor> terms;
@@ -78,7 +80,8 @@ Lpips load_lpips(LpipsNet net, const std::string& backbone_path, const std::stri
     if (it->second.sizes() != lpips->lin[k].sizes())
       throw std::runtime_error(fmt::format("{}: '{}' has shape [{}], expected [{}] for the {} network", lin_path,
                                            it->first, fmt::join(it->second.sizes(), ", "),
-                                           fmt::join(lpips->lin[k].sizes(), ", "), net == LpipsNet::Vgg ? "vgg" : "alex"));
+                                           fmt::join(lpips->lin[k].sizes(), ", "),
+                                           net == LpipsNet::Vgg ? "vgg" : "alex"));
     lpips->lin[k].copy_(it->second.to(torch::kFloat32));
   }
   lpips->eval();

@@ -7,9 +7,9 @@
 namespace uplvsm::eval {
 namespace {
 
-constexpr int64_t kRadius = 5;    // int(3.5 * 1.5 + 0.5): scipy's truncate rule
+constexpr int64_t kRadius = 5;  // int(3.5 * 1.5 + 0.5): scipy's truncate rule
 constexpr double kSigma = 1.5;
-constexpr double kCovNorm = 121.0 / 120.0;  // NP / (NP - 1), NP = 11 * 11 (sample covariance)
+constexpr double kCovNorm = 121.0 / 120.0;              // NP / (NP - 1), NP = 11 * 11 (sample covariance)
 constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;  // (K * data_range)^2, data_range 1
 
 void check_pair(const torch::Tensor& pred, const torch::Tensor& gt, const char* what) {
@@ -17,8 +17,8 @@ void check_pair(const torch::Tensor& pred, const torch::Tensor& gt, const char* 
   if (pred.sizes() != gt.sizes())
     throw std::runtime_error(std::string(what) + ": pred " + c10::str(pred.sizes()) + " and gt " +
                              c10::str(gt.sizes()) + " differ in shape");
-  if (pred.dim() < 3) throw std::runtime_error(std::string(what) + ": expected [..., C, H, W], got " +
-                                               c10::str(pred.sizes()));
+  if (pred.dim() < 3)
+    throw std::runtime_error(std::string(what) + ": expected [..., C, H, W], got " + c10::str(pred.sizes()));
   if (!pred.is_floating_point() || !gt.is_floating_point())
     throw std::runtime_error(std::string(what) + ": expected floating-point images");
 }

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 
+#include "uplvsm/core/json_input.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
@@ -52,13 +53,7 @@ std::optional<std::string> copy_asset(const std::string& src, const fs::path& ou
 }
 
 nlohmann::json read_metrics(const std::string& path) {
-  const auto bytes = io::read_file(path);
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(bytes.begin(), bytes.end());
-  } catch (const nlohmann::json::exception& e) {
-    throw std::runtime_error(path + ": not valid JSON: " + e.what());
-  }
+  auto j = read_json_file(path);
   if (!j.is_object() || !j.contains("table") || !j["table"].is_object())
     throw std::runtime_error(path + ": no \"table\" object (expected evaluate()'s metrics.json)");
   return j;
@@ -108,8 +103,8 @@ std::vector<Group> table_groups(const nlohmann::json& m) {
     for (const auto& [key, name] : std::vector<std::pair<std::string, std::string>>{
              {"interpolation", "Interpolation"}, {"extrapolation", "Extrapolation"}}) {
       const auto n = span_counts.contains(key) && span_counts[key].is_number() ? span_counts[key].get<int64_t>() : 0;
-      groups.push_back({spans.contains(key) ? spans[key] : nlohmann::json::object(),
-                        fmt::format("{} ({} scenes)", name, n)});
+      groups.push_back(
+          {spans.contains(key) ? spans[key] : nlohmann::json::object(), fmt::format("{} ({} scenes)", name, n)});
     }
   }
   return groups;
@@ -132,8 +127,8 @@ std::string curve_section(const ReportInputs& in, const fs::path& out, std::vect
   if (points.empty()) return section("Training", "<p>The training log has no entries.</p>");
   io::write_png((out / "training_curve.png").string(), training_curve(points));
   const auto& last = points.back();
-  auto caption = fmt::format("{} log entries, last step {:.0f}: loss {:.4g}, PSNR {:.2f} dB", points.size(),
-                             last.step, last.loss, last.psnr);
+  auto caption = fmt::format("{} log entries, last step {:.0f}: loss {:.4g}, PSNR {:.2f} dB", points.size(), last.step,
+                             last.loss, last.psnr);
   return section("Training", "<img src=\"training_curve.png\" alt=\"training curve\">\n<p class=\"caption\">" +
                                  html_escape(caption) + " (<a href=\"train_log.jsonl\">log</a>)</p>");
 }
@@ -154,17 +149,18 @@ std::string metrics_section(const ReportInputs& in, const fs::path& out, std::ve
     copy_asset((dir / csv).string(), out, csv, missing);
     links += fmt::format(", <a href=\"{0}\">{0}</a>", csv);
   }
-  std::string caption = "PSNR (dB, higher is better), SSIM and LPIPS (lower is better) per target view, averaged "
-                        "per scene then over scenes. Copy nearest input: each target predicted by the input view nearest in frame "
-                        "index. Mean colour: each target predicted by its own mean colour (an oracle constant).";
+  std::string caption =
+      "PSNR (dB, higher is better), SSIM and LPIPS (lower is better) per target view, averaged "
+      "per scene then over scenes. Copy nearest input: each target predicted by the input view nearest in frame "
+      "index. Mean colour: each target predicted by its own mean colour (an oracle constant).";
   const auto& counts = m.contains("bucket_scenes") ? m["bucket_scenes"] : nlohmann::json::object();
   if (counts.contains("ignore") && counts["ignore"].is_number())
     caption += fmt::format(" Overlap buckets follow NoPoSplat; {} scenes with overlap above 0.8 count in Full only.",
                            counts["ignore"].get<int64_t>());
   if (m.contains("seconds") && m["seconds"].is_number())
     caption += fmt::format(" Evaluation time {}.", format_duration(m["seconds"].get<double>()));
-  return section("Results", results_table_html(m) + "<p class=\"caption\">" + html_escape(caption) + "</p>\n<p>" +
-                                links + "</p>");
+  return section("Results",
+                 results_table_html(m) + "<p class=\"caption\">" + html_escape(caption) + "</p>\n<p>" + links + "</p>");
 }
 
 std::string video_section(const ReportInputs& in, const fs::path& out, std::vector<std::string>& missing) {
@@ -194,12 +190,14 @@ std::string grids_section(const ReportInputs& in, const fs::path& out, std::vect
     if (!rel) continue;
     used.push_back(name);
     body += "<figure><img src=\"" + html_escape(*rel) + "\"" + pixel_width_attr(png_width(in.scene_grids[i]), 960) +
-            " alt=\"" + html_escape(name) + "\"><figcaption>" +
-            html_escape(fs::path(name).stem().string()) + "</figcaption></figure>\n";
+            " alt=\"" + html_escape(name) + "\"><figcaption>" + html_escape(fs::path(name).stem().string()) +
+            "</figcaption></figure>\n";
   }
   if (body.empty()) return "";
-  return section("Scenes", "<p class=\"caption\">Rows: target views. Columns: input views, prediction, ground "
-                           "truth, |error| heat map, copy-nearest baseline.</p>\n" + body);
+  return section("Scenes",
+                 "<p class=\"caption\">Rows: target views. Columns: input views, prediction, ground "
+                 "truth, |error| heat map, copy-nearest baseline.</p>\n" +
+                     body);
 }
 
 std::string info_section(const ReportInputs& in, const fs::path& out) {
@@ -295,11 +293,13 @@ std::string results_table_html(const nlohmann::json& m, bool full_only) {
   }
   html += "</table>\n";
   if (!has_lpips)
-    html += "<p class=\"caption\">LPIPS unavailable: the evaluation was run without LPIPS weights "
-            "(<code>uplvsm eval --lpips-backbone ... --lpips-lin ...</code>).</p>\n";
+    html +=
+        "<p class=\"caption\">LPIPS unavailable: the evaluation was run without LPIPS weights "
+        "(<code>uplvsm eval --lpips-backbone ... --lpips-lin ...</code>).</p>\n";
   if (has_metric(groups, "grad_ratio"))
-    html += "<p class=\"caption\">Edges: the gradient-energy ratio mean|&nabla;prediction| / mean|&nabla;truth| "
-            "(1: as much edge as the truth, 0: flat; a blur scores in between; docs/model.md).</p>\n";
+    html +=
+        "<p class=\"caption\">Edges: the gradient-energy ratio mean|&nabla;prediction| / mean|&nabla;truth| "
+        "(1: as much edge as the truth, 0: flat; a blur scores in between; docs/model.md).</p>\n";
   return html;
 }
 
@@ -320,8 +320,8 @@ std::vector<TrainPoint> read_train_log(const std::string& path) {
       points.push_back({j["step"].get<double>(), kNaN, kNaN, kNaN, number_or_nan(j["eval"], "psnr")});
       continue;
     }
-    points.push_back({j["step"].get<double>(), number_or_nan(j, "loss"), number_or_nan(j, "psnr"),
-                      number_or_nan(j, "lr")});
+    points.push_back(
+        {j["step"].get<double>(), number_or_nan(j, "loss"), number_or_nan(j, "psnr"), number_or_nan(j, "lr")});
   }
   if (bad > 0) spdlog::warn("report: {}: skipped {} lines that are not log entries", path, bad);
   return points;
@@ -344,7 +344,12 @@ torch::Tensor training_curve(const std::vector<TrainPoint>& points) {
   }
   io::PlotOptions top{"Training loss", "step", "loss", false, positive, 800, 360};
   io::PlotOptions bottom{"Training PSNR", "step", "PSNR (dB)", false, false, 800, 360};
-  return torch::cat({io::plot_lines({loss}, top), io::plot_lines(held_out.x.empty() ? std::vector<io::Series>{psnr} : std::vector<io::Series>{psnr, held_out}, bottom)}, 0).contiguous();
+  return torch::cat(
+             {io::plot_lines({loss}, top), io::plot_lines(held_out.x.empty() ? std::vector<io::Series>{psnr}
+                                                                             : std::vector<io::Series>{psnr, held_out},
+                                                          bottom)},
+             0)
+      .contiguous();
 }
 
 std::string write_report(const std::string& out_dir, const ReportInputs& in) {

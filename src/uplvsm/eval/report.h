@@ -15,16 +15,16 @@ namespace uplvsm::eval {
 
 // One rendered video of a report (an MP4 and/or a GIF of the same frames).
 struct VideoAsset {
-  std::string label;           // e.g. "latent interpolation", "orbit (camera mapper)"
-  std::string mp4, gif;        // may be empty
-  int64_t width = 0;           // frame width in pixels (0: unknown), to upscale small videos without blurring
+  std::string label;     // e.g. "latent interpolation", "orbit (camera mapper)"
+  std::string mp4, gif;  // may be empty
+  int64_t width = 0;     // frame width in pixels (0: unknown), to upscale small videos without blurring
 };
 
 struct ReportInputs {
   std::string title;
-  nlohmann::json config;              // shown pretty-printed and saved as config.json (null: omitted)
-  std::string metrics_json;           // evaluate()'s metrics.json; its per_scene.csv / per_view.csv come along
-  std::string train_log_jsonl;        // lines {"step":..,"loss":..,"psnr":..,"lr":..}; may be empty
+  nlohmann::json config;        // shown pretty-printed and saved as config.json (null: omitted)
+  std::string metrics_json;     // evaluate()'s metrics.json; its per_scene.csv / per_view.csv come along
+  std::string train_log_jsonl;  // lines {"step":..,"loss":..,"psnr":..,"lr":..}; may be empty
   std::vector<std::string> scene_grids;
   std::vector<VideoAsset> videos;
   std::string runtime_info;

@@ -50,8 +50,8 @@ std::string per_view_csv(const EvalSummary& s) {
   std::string out = "key,frame,extrapolated," + std::string(kValueColumns) + "\n";
   for (const auto& r : s.per_scene)
     for (const auto& v : r.views)
-      out += fmt::format("{},{},{},{}\n", csv_field(r.key), v.frame, v.extrapolated ? 1 : 0,
-                         csv_values(metric_values(v)));
+      out +=
+          fmt::format("{},{},{},{}\n", csv_field(r.key), v.frame, v.extrapolated ? 1 : 0, csv_values(metric_values(v)));
   return out;
 }
 
@@ -63,8 +63,8 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
   nlohmann::json j;
   j["scenes"] = s.scenes;
   j["views"] = views;
-  j["skipped"] = {{"null_entries", s.skipped_null}, {"missing_keys", s.skipped_missing},
-                  {"bad_frames", s.skipped_bad_frames}};
+  j["skipped"] = {
+      {"null_entries", s.skipped_null}, {"missing_keys", s.skipped_missing}, {"bad_frames", s.skipped_bad_frames}};
   j["table"] = s.table;
   j["buckets"] = s.buckets;
   j["bucket_scenes"] = s.bucket_scenes;
@@ -76,18 +76,23 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
   j["scene_grids"] = s.scene_grids;
   j["conventions"] = {
       {"psnr", "clamp to [0,1], MSE over C,H,W per image (float64), mse clamped at 1e-10, -10 log10(mse)"},
-      {"ssim", "skimage structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0, "
-               "data_range=1.0)"},
-      {"lpips", "lpips.LPIPS(net, version='0.1')(pred, gt, normalize=True), float32, unclamped; null when the "
-                "backbone/lin weights were not given"},
-      {"grad_ratio", "gradient-energy ratio mean|grad pred| / mean|grad gt|: mean absolute forward difference along x "
-                     "and y over all channels of the [0,1]-clamped images (float64), per image; gt floored at 1e-6"},
+      {"ssim",
+       "skimage structural_similarity(gt, pred, win_size=11, gaussian_weights=True, channel_axis=0, "
+       "data_range=1.0)"},
+      {"lpips",
+       "lpips.LPIPS(net, version='0.1')(pred, gt, normalize=True), float32, unclamped; null when the "
+       "backbone/lin weights were not given"},
+      {"grad_ratio",
+       "gradient-energy ratio mean|grad pred| / mean|grad gt|: mean absolute forward difference along x "
+       "and y over all channels of the [0,1]-clamped images (float64), per image; gt floored at 1e-6"},
       {"averaging", "mean over each scene's targets, then mean over scenes"},
       {"buckets", "NoPoSplat get_overlap_tag: 0.05<=o<=0.3 small, o<=0.55 medium, o<=0.8 large, else ignore"},
-      {"spans", "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
-                "scene mean over its targets of each kind, then mean over the scenes that have such targets"},
-      {"copy_nearest", "each target predicted by the input view nearest in frame index (ordered views) or in "
-                       "viewing direction (unordered views: dataset.json view_order)"},
+      {"spans",
+       "a target outside [min(context), max(context)] frame is extrapolation, else interpolation; per "
+       "scene mean over its targets of each kind, then mean over the scenes that have such targets"},
+      {"copy_nearest",
+       "each target predicted by the input view nearest in frame index (ordered views) or in "
+       "viewing direction (unordered views: dataset.json view_order)"},
       {"mean_colour", "oracle: each target predicted by its own per-channel mean colour"}};
   return j;
 }

@@ -16,13 +16,22 @@ double number(const nlohmann::json& j, const char* key) {
 nlohmann::json scene_to_json(const SceneResult& r) {
   nlohmann::json views = nlohmann::json::array();
   for (const auto& v : r.views)
-    views.push_back({{"frame", v.frame}, {"psnr", v.psnr}, {"ssim", v.ssim}, {"lpips", v.lpips},
-                     {"psnr_copy", v.psnr_copy}, {"ssim_copy", v.ssim_copy}, {"lpips_copy", v.lpips_copy},
-                     {"psnr_mean", v.psnr_mean}, {"ssim_mean", v.ssim_mean}, {"lpips_mean", v.lpips_mean},
-                     {"grad_ratio", v.grad_ratio}, {"grad_ratio_copy", v.grad_ratio_copy},
+    views.push_back({{"frame", v.frame},
+                     {"psnr", v.psnr},
+                     {"ssim", v.ssim},
+                     {"lpips", v.lpips},
+                     {"psnr_copy", v.psnr_copy},
+                     {"ssim_copy", v.ssim_copy},
+                     {"lpips_copy", v.lpips_copy},
+                     {"psnr_mean", v.psnr_mean},
+                     {"ssim_mean", v.ssim_mean},
+                     {"lpips_mean", v.lpips_mean},
+                     {"grad_ratio", v.grad_ratio},
+                     {"grad_ratio_copy", v.grad_ratio_copy},
                      {"grad_ratio_mean", v.grad_ratio_mean},
                      {"extrapolated", v.extrapolated}});
-  nlohmann::json j{{"key", r.key}, {"context", r.context}, {"target", r.target}, {"bucket", r.bucket}, {"views", views}};
+  nlohmann::json j{
+      {"key", r.key}, {"context", r.context}, {"target", r.target}, {"bucket", r.bucket}, {"views", views}};
   if (r.overlap) j["overlap"] = *r.overlap;
   return j;
 }

@@ -14,7 +14,7 @@ std::pair<torch::Tensor, torch::Tensor> compute_rays(const torch::Tensor& c2w, c
   auto k = fxfycxcy.reshape({-1, 4}).to(c2w.scalar_type());
   TORCH_CHECK(cam.size(0) == k.size(0), "compute_rays: ", cam.size(0), " cameras but ", k.size(0), " intrinsics");
   auto opts = c2w.options();
-  auto xs = torch::arange(width, opts).add_(0.5);   // pixel centres
+  auto xs = torch::arange(width, opts).add_(0.5);  // pixel centres
   auto ys = torch::arange(height, opts).add_(0.5);
   auto fx = k.select(1, 0).view({-1, 1, 1}), fy = k.select(1, 1).view({-1, 1, 1});
   auto cx = k.select(1, 2).view({-1, 1, 1}), cy = k.select(1, 3).view({-1, 1, 1});

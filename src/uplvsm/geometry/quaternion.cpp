@@ -8,10 +8,10 @@ torch::Tensor quat_to_rotation(const torch::Tensor& q) {
   TORCH_CHECK(q.size(-1) == 4, "quat_to_rotation: expected [..., 4] quaternions, got ", q.sizes());
   auto i = q.select(-1, 0), j = q.select(-1, 1), k = q.select(-1, 2), r = q.select(-1, 3);
   auto s = 2.0 / (q * q).sum(-1);
-  auto o = torch::stack({1 - s * (j * j + k * k), s * (i * j - k * r), s * (i * k + j * r),
-                         s * (i * j + k * r), 1 - s * (i * i + k * k), s * (j * k - i * r),
-                         s * (i * k - j * r), s * (j * k + i * r), 1 - s * (i * i + j * j)},
-                        -1);
+  auto o = torch::stack(
+      {1 - s * (j * j + k * k), s * (i * j - k * r), s * (i * k + j * r), s * (i * j + k * r), 1 - s * (i * i + k * k),
+       s * (j * k - i * r), s * (i * k - j * r), s * (j * k + i * r), 1 - s * (i * i + j * j)},
+      -1);
   auto shape = q.sizes().vec();
   shape.back() = 3;
   shape.push_back(3);
@@ -27,16 +27,17 @@ torch::Tensor rotation_to_quat(const torch::Tensor& R) {
   auto m10 = m.select(1, 3), m11 = m.select(1, 4), m12 = m.select(1, 5);
   auto m20 = m.select(1, 6), m21 = m.select(1, 7), m22 = m.select(1, 8);
   // sqrt(max(0, x)) with a zero subgradient at 0, as pytorch3d's _sqrt_positive_part.
-  auto sqrt_pos = [](const torch::Tensor& x) { return torch::where(x > 0, torch::sqrt(x.clamp_min(1e-30)), torch::zeros_like(x)); };
-  auto q_abs = sqrt_pos(torch::stack({1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22,
-                                      1 - m00 - m11 + m22}, -1));
+  auto sqrt_pos = [](const torch::Tensor& x) {
+    return torch::where(x > 0, torch::sqrt(x.clamp_min(1e-30)), torch::zeros_like(x));
+  };
+  auto q_abs =
+      sqrt_pos(torch::stack({1 + m00 + m11 + m22, 1 + m00 - m11 - m22, 1 - m00 + m11 - m22, 1 - m00 - m11 + m22}, -1));
   // Candidates (w, x, y, z) scaled by each |component|; the best-conditioned one is picked.
-  auto cand = torch::stack(
-      {torch::stack({q_abs.select(1, 0).pow(2), m21 - m12, m02 - m20, m10 - m01}, -1),
-       torch::stack({m21 - m12, q_abs.select(1, 1).pow(2), m10 + m01, m02 + m20}, -1),
-       torch::stack({m02 - m20, m10 + m01, q_abs.select(1, 2).pow(2), m12 + m21}, -1),
-       torch::stack({m10 - m01, m20 + m02, m21 + m12, q_abs.select(1, 3).pow(2)}, -1)},
-      1);  // [N, 4, 4]
+  auto cand = torch::stack({torch::stack({q_abs.select(1, 0).pow(2), m21 - m12, m02 - m20, m10 - m01}, -1),
+                            torch::stack({m21 - m12, q_abs.select(1, 1).pow(2), m10 + m01, m02 + m20}, -1),
+                            torch::stack({m02 - m20, m10 + m01, q_abs.select(1, 2).pow(2), m12 + m21}, -1),
+                            torch::stack({m10 - m01, m20 + m02, m21 + m12, q_abs.select(1, 3).pow(2)}, -1)},
+                           1);  // [N, 4, 4]
   auto denom = 2.0 * q_abs.unsqueeze(-1).clamp_min(0.1);
   cand = cand / denom;
   auto best = q_abs.argmax(-1);
@@ -56,7 +57,8 @@ torch::Tensor quat_slerp(const torch::Tensor& q0_in, const torch::Tensor& q1_in,
   auto theta = torch::acos(dot);
   auto sin_theta = torch::sin(theta);
   auto near = sin_theta < 1e-8;
-  auto w0 = torch::where(near, torch::full_like(dot, 1.0 - t), torch::sin((1.0 - t) * theta) / sin_theta.clamp_min(1e-12));
+  auto w0 =
+      torch::where(near, torch::full_like(dot, 1.0 - t), torch::sin((1.0 - t) * theta) / sin_theta.clamp_min(1e-12));
   auto w1 = torch::where(near, torch::full_like(dot, t), torch::sin(t * theta) / sin_theta.clamp_min(1e-12));
   auto q = w0 * q0 + w1 * q1;
   q = q / q.norm(2, -1, true).clamp_min(1e-12);

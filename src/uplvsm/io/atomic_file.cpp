@@ -56,8 +56,8 @@ std::string temp_path_for(const std::string& path) {
   ensure_parent_dir(path);
   static std::atomic<uint64_t> counter{0};
   fs::path p(path);
-  std::string name = "." + p.filename().string() + ".tmp." + std::to_string(::getpid()) + "." +
-                     std::to_string(counter.fetch_add(1));
+  std::string name =
+      "." + p.filename().string() + ".tmp." + std::to_string(::getpid()) + "." + std::to_string(counter.fetch_add(1));
   return (p.parent_path() / name).string();
 }
 

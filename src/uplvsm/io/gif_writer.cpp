@@ -74,8 +74,7 @@ Box make_box(std::vector<int> bins, const std::vector<HistBin>& hist) {
 // Splits a box at the pixel-weighted median of its longest axis; both halves are non-empty.
 std::pair<Box, Box> split_box(Box box, const std::vector<HistBin>& hist) {
   int axis = box.longest_axis;
-  std::sort(box.bins.begin(), box.bins.end(),
-            [axis](int a, int b) { return bin_coord(a, axis) < bin_coord(b, axis); });
+  std::sort(box.bins.begin(), box.bins.end(), [axis](int a, int b) { return bin_coord(a, axis) < bin_coord(b, axis); });
   uint64_t half = box.count / 2, acc = 0;
   size_t cut = 1;
   for (; cut < box.bins.size(); ++cut) {

@@ -3,8 +3,8 @@
 
 #include <cstdio>  // jpeglib.h needs FILE and size_t declared first
 
-#include <jpeglib.h>
 #include <jerror.h>
+#include <jpeglib.h>
 #include <png.h>
 
 #include <atomic>
@@ -84,8 +84,8 @@ bool jpeg_decode_raw(const uint8_t* data, size_t size, JpegError* err, uint8_t* 
   jpeg_start_decompress(&cinfo);
   if (static_cast<int>(cinfo.output_height) != height || static_cast<int>(cinfo.output_width) != width ||
       cinfo.output_components != 3) {
-    std::snprintf(err->message, sizeof(err->message), "unexpected output geometry %ux%ux%d",
-                  cinfo.output_height, cinfo.output_width, cinfo.output_components);
+    std::snprintf(err->message, sizeof(err->message), "unexpected output geometry %ux%ux%d", cinfo.output_height,
+                  cinfo.output_width, cinfo.output_components);
     jpeg_destroy_decompress(&cinfo);
     return false;
   }
@@ -158,8 +158,8 @@ torch::Tensor read_png(const uint8_t* data, size_t size, const std::string& path
   bool alpha = (image.format & PNG_FORMAT_FLAG_ALPHA) != 0;
   image.format = alpha ? PNG_FORMAT_RGBA : PNG_FORMAT_RGB;
   int channels = alpha ? 4 : 3;
-  auto out = torch::empty({static_cast<int64_t>(image.height), static_cast<int64_t>(image.width), channels},
-                          torch::kUInt8);
+  auto out =
+      torch::empty({static_cast<int64_t>(image.height), static_cast<int64_t>(image.width), channels}, torch::kUInt8);
   if (!png_image_finish_read(&image, nullptr, out.data_ptr<uint8_t>(), 0, nullptr)) {
     std::string message = image.message;
     png_image_free(&image);
@@ -171,7 +171,8 @@ torch::Tensor read_png(const uint8_t* data, size_t size, const std::string& path
 }  // namespace
 
 void set_max_image_pixels(int64_t pixels) {
-  if (pixels < 0) throw std::invalid_argument(fmt::format("max image pixels must be >= 0 (0: no limit), got {}", pixels));
+  if (pixels < 0)
+    throw std::invalid_argument(fmt::format("max image pixels must be >= 0 (0: no limit), got {}", pixels));
   g_max_image_pixels = pixels;
 }
 
@@ -184,9 +185,10 @@ void check_image_pixels(int64_t height, int64_t width, const std::string& what) 
   int64_t pixels = 0;
   const bool overflow = __builtin_mul_overflow(height, width, &pixels);
   if (limit > 0 && (overflow || pixels > limit))
-    throw std::runtime_error(fmt::format("{}: image of {}x{} = {} pixels exceeds the limit of {} pixels (a possible "
-                                         "decompression bomb; raise it with --max-image-pixels)",
-                                         what, width, height, overflow ? "too many" : std::to_string(pixels), limit));
+    throw std::runtime_error(
+        fmt::format("{}: image of {}x{} = {} pixels exceeds the limit of {} pixels (a possible "
+                    "decompression bomb; raise it with --max-image-pixels)",
+                    what, width, height, overflow ? "too many" : std::to_string(pixels), limit));
 }
 
 std::pair<int, int> jpeg_size(const uint8_t* data, size_t size, const std::string& what) {
@@ -214,7 +216,8 @@ torch::Tensor decode_jpeg(const uint8_t* data, size_t size, const std::string& w
 
 std::vector<uint8_t> encode_jpeg(const torch::Tensor& hwc_u8, int quality) {
   check_u8_image(hwc_u8, "encode_jpeg", true);
-  if (quality < 1 || quality > 100) throw std::runtime_error(fmt::format("encode_jpeg: quality {} not in 1..100", quality));
+  if (quality < 1 || quality > 100)
+    throw std::runtime_error(fmt::format("encode_jpeg: quality {} not in 1..100", quality));
   auto img = hwc_u8.contiguous();
   int channels = img.dim() == 3 ? 3 : 1;
   JpegError err;
@@ -297,9 +300,9 @@ torch::Tensor to_float_chw(const torch::Tensor& hwc_u8) {
 
 torch::Tensor to_u8_hwc(const torch::Tensor& chw_float) {
   if (!chw_float.defined() || chw_float.dim() != 3 || chw_float.size(0) != 3 || !chw_float.is_floating_point())
-    throw std::runtime_error(fmt::format("to_u8_hwc: expected a float tensor [3,H,W], got {}",
-                                         chw_float.defined() ? c10::str(chw_float.scalar_type(), chw_float.sizes())
-                                                             : "undefined"));
+    throw std::runtime_error(
+        fmt::format("to_u8_hwc: expected a float tensor [3,H,W], got {}",
+                    chw_float.defined() ? c10::str(chw_float.scalar_type(), chw_float.sizes()) : "undefined"));
   auto t = chw_float.detach().to(torch::kCPU, torch::kFloat32).clamp(0.0, 1.0).mul(255.0f).round();
   return t.to(torch::kUInt8).permute({1, 2, 0}).contiguous();
 }

@@ -2,9 +2,9 @@
 // the frame, x label at the bottom, legend in the top-right corner of the plotting area.
 #include "uplvsm/io/plot.h"
 
+#include <fmt/format.h>
 #include <algorithm>
 #include <cmath>
-#include <fmt/format.h>
 #include <limits>
 #include <stdexcept>
 
@@ -15,7 +15,7 @@ namespace {
 
 const Rgb kBlack{0, 0, 0}, kWhite{255, 255, 255}, kGrid{225, 225, 225}, kLegendBorder{160, 160, 160};
 // matplotlib's "tab10": distinct, colour-blind friendly enough, familiar.
-const Rgb kColours[10] = {{31, 119, 180}, {255, 127, 14}, {44, 160, 44},  {214, 39, 40},  {148, 103, 189},
+const Rgb kColours[10] = {{31, 119, 180}, {255, 127, 14},  {44, 160, 44},   {214, 39, 40},  {148, 103, 189},
                           {140, 86, 75},  {227, 119, 194}, {127, 127, 127}, {188, 189, 34}, {23, 190, 207}};
 
 // One axis: limits and ticks in plotted coordinates (log10 of the value on log axes).
@@ -137,8 +137,8 @@ void draw_labels(torch::Tensor& img, const Layout& l, const PlotOptions& opt) {
   if (!opt.title.empty())
     draw_text(img, (opt.width - text_width(opt.title, l.title_scale)) / 2, pad, opt.title, kBlack, l.title_scale);
   if (!opt.xlabel.empty())
-    draw_text(img, (l.x0 + l.x1 - text_width(opt.xlabel)) / 2, opt.height - pad - text_height(opt.xlabel),
-              opt.xlabel, kBlack);
+    draw_text(img, (l.x0 + l.x1 - text_width(opt.xlabel)) / 2, opt.height - pad - text_height(opt.xlabel), opt.xlabel,
+              kBlack);
   if (!opt.ylabel.empty()) {  // drawn horizontally, then turned a quarter counter-clockwise
     torch::Tensor label = blank_image(text_height(opt.ylabel), text_width(opt.ylabel));
     draw_text(label, 0, 0, opt.ylabel, kBlack);
@@ -213,8 +213,8 @@ std::string format_tick(double value, double step) {
 
 torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& opt) {
   if (opt.width < 160 || opt.height < 120)
-    throw std::runtime_error(fmt::format("plot_lines: size {}x{} is too small (at least 160x120)", opt.width,
-                                         opt.height));
+    throw std::runtime_error(
+        fmt::format("plot_lines: size {}x{} is too small (at least 160x120)", opt.width, opt.height));
   Axis ax = make_axis(series, true, opt, opt.width - 120);
   Axis ay = make_axis(series, false, opt, opt.height - 100);
   Layout l = compute_layout(opt, ax, ay);

@@ -82,8 +82,10 @@ bool clip_segment(double& x0, double& y0, double& x1, double& y1, double xmin, d
       continue;
     }
     double t = q[i] / p[i];
-    if (p[i] < 0) t0 = std::max(t0, t);
-    else t1 = std::min(t1, t);
+    if (p[i] < 0)
+      t0 = std::max(t0, t);
+    else
+      t1 = std::min(t1, t);
     if (t0 > t1) return false;
   }
   double ox = x0, oy = y0;
@@ -101,8 +103,10 @@ int cell_extent(const std::vector<std::vector<torch::Tensor>>& cells, size_t r, 
 int text_width(const std::string& text, int scale) {
   int best = 0, cur = 0;
   for (char ch : text) {
-    if (ch == '\n') best = std::max(best, cur), cur = 0;
-    else ++cur;
+    if (ch == '\n')
+      best = std::max(best, cur), cur = 0;
+    else
+      ++cur;
   }
   best = std::max(best, cur);
   return best == 0 ? 0 : scale * (best * kGlyphAdvance - (kGlyphAdvance - kGlyphWidth));
@@ -140,8 +144,10 @@ void draw_line(torch::Tensor& img, int x0, int y0, int x1, int y1, Rgb colour, i
   int dx = std::abs(bx - ax), dy = -std::abs(by - ay), sx = ax < bx ? 1 : -1, sy = ay < by ? 1 : -1;
   int err = dx + dy, lo = -(thickness - 1) / 2;
   while (true) {
-    if (thickness == 1) c.set(ax, ay, colour);
-    else fill_clipped(c, ax + lo, ay + lo, ax + lo + thickness, ay + lo + thickness, colour);
+    if (thickness == 1)
+      c.set(ax, ay, colour);
+    else
+      fill_clipped(c, ax + lo, ay + lo, ax + lo + thickness, ay + lo + thickness, colour);
     if (ax == bx && ay == by) break;
     int e2 = 2 * err;
     if (e2 >= dy) err += dy, ax += sx;

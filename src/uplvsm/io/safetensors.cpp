@@ -95,8 +95,7 @@ SafetensorsEntry parse_entry(const std::string& path, const std::string& name, c
     e.shape.push_back(n);
   }
   const json& off = j["data_offsets"];
-  if (!off.is_array() || off.size() != 2)
-    throw error(path, "tensor '" + name + "': data_offsets must be [begin, end]");
+  if (!off.is_array() || off.size() != 2) throw error(path, "tensor '" + name + "': data_offsets must be [begin, end]");
   e.begin = json_int(path, name, "data_offsets", off[0]);
   e.end = json_int(path, name, "data_offsets", off[1]);
   if (e.begin < 0 || e.end < e.begin)
@@ -153,8 +152,7 @@ void check_no_overlap(const std::string& path, const std::map<std::string, Safet
 
 // Parses the header from the first bytes of the file; `header_end` receives the start of the data buffer.
 std::map<std::string, SafetensorsEntry> parse_header(const std::string& path, const uint8_t* data, size_t size,
-                                                    std::map<std::string, std::string>* metadata,
-                                                    size_t* header_end) {
+                                                     std::map<std::string, std::string>* metadata, size_t* header_end) {
   if (size < 8) throw error(path, "file is " + std::to_string(size) + " bytes, shorter than the 8-byte header length");
   uint64_t n = read_le_u64(data);
   if (n > size - 8)
@@ -203,7 +201,7 @@ std::string torch_dtype_to_safetensors(torch::Dtype dtype) {
 }
 
 std::map<std::string, SafetensorsEntry> read_safetensors_header(const std::string& path,
-                                                               std::map<std::string, std::string>* metadata) {
+                                                                std::map<std::string, std::string>* metadata) {
   MappedFile file(path);
   size_t header_end = 0;
   return parse_header(path, file.data, file.size, metadata, &header_end);
@@ -242,8 +240,8 @@ void write_safetensors(const std::string& path, const TensorMap& tensors,
     torch::Tensor t = tensor.detach().to(torch::kCPU).contiguous();
     int64_t bytes = t.numel() * static_cast<int64_t>(t.element_size());
     if (header.size() > 1) header += ",";
-    header += json(name).dump() + ":{\"dtype\":\"" + dtype + "\",\"shape\":" + dims_json(t) +
-              ",\"data_offsets\":[" + std::to_string(offset) + "," + std::to_string(offset + bytes) + "]}";
+    header += json(name).dump() + ":{\"dtype\":\"" + dtype + "\",\"shape\":" + dims_json(t) + ",\"data_offsets\":[" +
+              std::to_string(offset) + "," + std::to_string(offset + bytes) + "]}";
     offset += bytes;
     contiguous.push_back(std::move(t));
   }

@@ -12,7 +12,7 @@ namespace uplvsm::io {
 using TensorMap = std::map<std::string, torch::Tensor>;
 
 struct Safetensors {
-  TensorMap tensors;                              // CPU, contiguous, in the file's dtype (callers cast)
+  TensorMap tensors;                            // CPU, contiguous, in the file's dtype (callers cast)
   std::map<std::string, std::string> metadata;  // the "__metadata__" entry (empty when absent)
 };
 
@@ -30,7 +30,7 @@ Safetensors read_safetensors(const std::string& path);
 
 // Reads and validates only the header (tensor names -> entries); metadata goes to `metadata` when given.
 std::map<std::string, SafetensorsEntry> read_safetensors_header(const std::string& path,
-                                                               std::map<std::string, std::string>* metadata = nullptr);
+                                                                std::map<std::string, std::string>* metadata = nullptr);
 
 // Writes atomically (temp file + rename). Tensors are made contiguous on the CPU and stored in name order with
 // contiguous offsets; the header is padded with spaces to a multiple of 8 bytes, as the Python library does.

@@ -27,7 +27,8 @@ std::string read_all(const std::string& path) {
 
 // ('storage', storage_type, key, location, numel[, view_metadata]) -> Storage object.
 PyPtr storage_from_pid(const PyObject& pid) {
-  if (pid.kind != Kind::Tuple || pid.items.size() < 5 || !pid.items[0]->is(Kind::Str) || pid.items[0]->text != "storage")
+  if (pid.kind != Kind::Tuple || pid.items.size() < 5 || !pid.items[0]->is(Kind::Str) ||
+      pid.items[0]->text != "storage")
     throw std::runtime_error("persistent id is not a ('storage', type, key, location, numel) tuple");
   const auto& type = *pid.items[1];
   const auto& key = *pid.items[2];
@@ -54,7 +55,7 @@ struct TorchFile::Impl {
   // Bytes that copies of strided views may still allocate: a view can repeat stored values (stride 0, or one
   // tensor referenced many times), so without a budget a small file could demand any amount of memory.
   mutable int64_t copy_budget = 0;
-  std::map<std::string, TensorRef> storages;           // key -> storage (dtype, numel), from the pickle
+  std::map<std::string, TensorRef> storages;            // key -> storage (dtype, numel), from the pickle
   mutable std::map<std::string, torch::Tensor> loaded;  // key -> 1-D storage tensor
   // zip
   std::unique_ptr<caffe2::serialize::PyTorchStreamReader> zip;
@@ -67,7 +68,8 @@ struct TorchFile::Impl {
       auto s = storage_from_pid(pid);
       auto [it, inserted] = storages.emplace(s->tensor.storage_key, s->tensor);
       if (!inserted && (it->second.dtype != s->tensor.dtype || it->second.storage_numel != s->tensor.storage_numel))
-        throw std::runtime_error(fmt::format("storage '{}' is described twice with different types", s->tensor.storage_key));
+        throw std::runtime_error(
+            fmt::format("storage '{}' is described twice with different types", s->tensor.storage_key));
       return s;
     };
   }
@@ -82,16 +84,20 @@ struct TorchFile::Impl {
         auto [ptr, n] = zip->getRecord("byteorder");
         std::string order(static_cast<const char*>(ptr.get()), n);
         if (order != "little")
-          throw std::runtime_error(fmt::format("{}: byteorder '{}' (only little-endian files are supported)", path, order));
+          throw std::runtime_error(
+              fmt::format("{}: byteorder '{}' (only little-endian files are supported)", path, order));
       }
       if (!zip->hasRecord("data.pkl"))
-        throw std::runtime_error(fmt::format("{}: zip archive has no data.pkl (not a torch.save file; TorchScript "
-                                             "archives are not supported)", path));
+        throw std::runtime_error(
+            fmt::format("{}: zip archive has no data.pkl (not a torch.save file; TorchScript "
+                        "archives are not supported)",
+                        path));
       auto [ptr, n] = zip->getRecord("data.pkl");
       size_t pos = 0;
       root = unpickle(static_cast<const uint8_t*>(ptr.get()), n, &pos, recorder(), path + " data.pkl");
     } catch (const c10::Error& e) {
-      throw std::runtime_error(fmt::format("{}: corrupt or truncated torch zip archive ({})", path, e.what_without_backtrace()));
+      throw std::runtime_error(
+          fmt::format("{}: corrupt or truncated torch zip archive ({})", path, e.what_without_backtrace()));
     }
   }
 
@@ -111,12 +117,14 @@ struct TorchFile::Impl {
       throw std::runtime_error(fmt::format("{}: written on a big-endian machine (not supported)", path));
     root = unpickle(d, bytes.size(), &pos, recorder(), path);
     auto keys = unpickle(d, bytes.size(), &pos, none, path + " (storage keys)");
-    if (!keys->is(Kind::List)) throw std::runtime_error(fmt::format("{}: storage key list is {}", path, keys->describe()));
+    if (!keys->is(Kind::List))
+      throw std::runtime_error(fmt::format("{}: storage key list is {}", path, keys->describe()));
     for (const auto& key : keys->items) {
       if (!key->is(Kind::Str) || !storages.count(key->text))
         throw std::runtime_error(fmt::format("{}: storage key list names a storage the pickle never used", path));
       const auto& s = storages.at(key->text);
-      if (bytes.size() - pos < 8) throw std::runtime_error(fmt::format("{}: truncated before storage '{}'", path, key->text));
+      if (bytes.size() - pos < 8)
+        throw std::runtime_error(fmt::format("{}: truncated before storage '{}'", path, key->text));
       int64_t count = 0;
       std::memcpy(&count, d + pos, 8);
       if (count != s.storage_numel)
@@ -124,7 +132,8 @@ struct TorchFile::Impl {
                                              count, s.storage_numel));
       size_t nbytes = size_t(count) * c10::elementSize(s.dtype);
       if (bytes.size() - pos - 8 < nbytes)
-        throw std::runtime_error(fmt::format("{}: truncated inside storage '{}' ({} bytes expected)", path, key->text, nbytes));
+        throw std::runtime_error(
+            fmt::format("{}: truncated inside storage '{}' ({} bytes expected)", path, key->text, nbytes));
       legacy_offsets[key->text] = pos + 8;
       pos += 8 + nbytes;
     }
@@ -145,7 +154,8 @@ struct TorchFile::Impl {
         if (int64_t(n) < nbytes)
           throw std::runtime_error(fmt::format("{}: record '{}' has {} bytes, {} expected", path, record, n, nbytes));
         auto holder = std::make_shared<at::DataPtr>(std::move(ptr));
-        out = torch::from_blob(holder->get(), {ref.storage_numel}, [holder](void*) {}, options);
+        out = torch::from_blob(
+            holder->get(), {ref.storage_numel}, [holder](void*) {}, options);
       } catch (const c10::Error& e) {
         throw std::runtime_error(fmt::format("{}: cannot read '{}' ({})", path, record, e.what_without_backtrace()));
       }
@@ -176,7 +186,8 @@ TorchFile::TorchFile(const std::string& path) : impl_(std::make_unique<Impl>()) 
     impl_->bytes = read_all(path);
     impl_->open_legacy();
   } else {
-    throw std::runtime_error(fmt::format("{}: not a torch.save file (neither a zip archive nor a legacy pickle)", path));
+    throw std::runtime_error(
+        fmt::format("{}: not a torch.save file (neither a zip archive nor a legacy pickle)", path));
   }
 }
 
@@ -187,27 +198,31 @@ const std::string& TorchFile::path() const { return impl_->path; }
 const std::string& TorchFile::format() const { return impl_->format; }
 
 torch::Tensor TorchFile::tensor(const PyObject& t) const {
-  if (!t.is(Kind::Tensor)) throw std::runtime_error(fmt::format("{}: expected a tensor, got {}", impl_->path, t.describe()));
+  if (!t.is(Kind::Tensor))
+    throw std::runtime_error(fmt::format("{}: expected a tensor, got {}", impl_->path, t.describe()));
   auto storage = impl_->storage(t.tensor);
   auto view = storage.as_strided(t.tensor.sizes, t.tensor.strides, t.tensor.offset);
   if (view.is_contiguous()) return view;
   const int64_t bytes = view.numel() * int64_t(view.element_size());
   if (bytes > impl_->copy_budget)
-    throw std::runtime_error(fmt::format("{}: strided tensor views would copy more bytes than the file holds ({} more "
-                                         "needed, {} left)",
-                                         impl_->path, bytes, impl_->copy_budget));
+    throw std::runtime_error(
+        fmt::format("{}: strided tensor views would copy more bytes than the file holds ({} more "
+                    "needed, {} left)",
+                    impl_->path, bytes, impl_->copy_budget));
   impl_->copy_budget -= bytes;
   return view.contiguous();
 }
 
 std::map<std::string, torch::Tensor> TorchFile::tensors(const PyObject& dict, const std::string& where) const {
   if (!dict.is(Kind::Dict))
-    throw std::runtime_error(fmt::format("{}: {} is {}, expected a dict of tensors", impl_->path, where, dict.describe()));
+    throw std::runtime_error(
+        fmt::format("{}: {} is {}, expected a dict of tensors", impl_->path, where, dict.describe()));
   std::map<std::string, torch::Tensor> out;
   for (const auto& [k, v] : dict.dict) {
     if (!k->is(Kind::Str)) throw std::runtime_error(fmt::format("{}: {} has a non-string key", impl_->path, where));
     if (!v->is(Kind::Tensor))
-      throw std::runtime_error(fmt::format("{}: {}['{}'] is {}, expected a tensor", impl_->path, where, k->text, v->describe()));
+      throw std::runtime_error(
+          fmt::format("{}: {}['{}'] is {}, expected a tensor", impl_->path, where, k->text, v->describe()));
     if (!out.emplace(k->text, tensor(*v)).second)
       throw std::runtime_error(fmt::format("{}: {} repeats key '{}'", impl_->path, where, k->text));
   }
@@ -248,10 +263,12 @@ std::map<std::string, torch::Tensor> read_torch_state_dict(const std::string& pa
   }
   std::string keys;
   if (root.is(Kind::Dict))
-    for (const auto& [k, v] : root.dict) keys += fmt::format(" '{}' ({})", k->is(Kind::Str) ? k->text : "?", v->describe());
-  throw std::runtime_error(fmt::format("{}: no state dict found: the top level is {} and none of 'model', 'state_dict', "
-                                       "'model_state_dict' holds a dict of tensors; keys found:{}",
-                                       path, root.describe(), keys.empty() ? " none" : keys));
+    for (const auto& [k, v] : root.dict)
+      keys += fmt::format(" '{}' ({})", k->is(Kind::Str) ? k->text : "?", v->describe());
+  throw std::runtime_error(
+      fmt::format("{}: no state dict found: the top level is {} and none of 'model', 'state_dict', "
+                  "'model_state_dict' holds a dict of tensors; keys found:{}",
+                  path, root.describe(), keys.empty() ? " none" : keys));
 }
 
 }  // namespace uplvsm::io

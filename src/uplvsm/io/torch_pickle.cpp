@@ -6,9 +6,12 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/io/torch_pickle_globals.h"
+
 namespace uplvsm::io {
 
 using Kind = PyObject::Kind;
+using namespace pickle_globals;
 
 PyObject::~PyObject() {
   std::vector<PyPtr> pending;
@@ -40,7 +43,8 @@ std::string PyObject::describe() const {
   switch (kind) {
     case Kind::None: return "None";
     case Kind::Bool: return "bool";
-    case Kind::Int: case Kind::BigInt: return "int";
+    case Kind::Int:
+    case Kind::BigInt: return "int";
     case Kind::Float: return "float";
     case Kind::Str: return "str";
     case Kind::Bytes: return "bytes";
@@ -58,12 +62,15 @@ std::string PyObject::describe() const {
 
 torch::Dtype storage_type_to_dtype(const std::string& name) {
   static const std::vector<std::pair<std::string, torch::Dtype>> table = {
-      {"FloatStorage", torch::kFloat32}, {"DoubleStorage", torch::kFloat64}, {"HalfStorage", torch::kFloat16},
-      {"BFloat16Storage", torch::kBFloat16}, {"LongStorage", torch::kInt64},  {"IntStorage", torch::kInt32},
-      {"ShortStorage", torch::kInt16},     {"CharStorage", torch::kInt8},    {"ByteStorage", torch::kUInt8},
-      {"BoolStorage", torch::kBool},       {"UntypedStorage", torch::kUInt8}, {"float32", torch::kFloat32},
-      {"float16", torch::kFloat16},        {"bfloat16", torch::kBFloat16},   {"float64", torch::kFloat64},
-      {"int64", torch::kInt64},            {"int32", torch::kInt32},         {"uint8", torch::kUInt8}};
+      {"FloatStorage", torch::kFloat32}, {"DoubleStorage", torch::kFloat64},
+      {"HalfStorage", torch::kFloat16},  {"BFloat16Storage", torch::kBFloat16},
+      {"LongStorage", torch::kInt64},    {"IntStorage", torch::kInt32},
+      {"ShortStorage", torch::kInt16},   {"CharStorage", torch::kInt8},
+      {"ByteStorage", torch::kUInt8},    {"BoolStorage", torch::kBool},
+      {"UntypedStorage", torch::kUInt8}, {"float32", torch::kFloat32},
+      {"float16", torch::kFloat16},      {"bfloat16", torch::kBFloat16},
+      {"float64", torch::kFloat64},      {"int64", torch::kInt64},
+      {"int32", torch::kInt32},          {"uint8", torch::kUInt8}};
   auto dot = name.rfind('.');
   std::string base = dot == std::string::npos ? name : name.substr(dot + 1);
   for (const auto& [n, t] : table)
@@ -72,123 +79,6 @@ torch::Dtype storage_type_to_dtype(const std::string& name) {
 }
 
 namespace {
-
-PyPtr make(Kind kind) {
-  auto p = std::make_shared<PyObject>();
-  p->kind = kind;
-  return p;
-}
-PyPtr make_int(int64_t v) {
-  auto p = make(Kind::Int);
-  p->integer = v;
-  return p;
-}
-PyPtr make_text(Kind kind, std::string s) {
-  auto p = make(kind);
-  p->text = std::move(s);
-  return p;
-}
-
-int64_t as_int(const PyObject& o, const char* what) {
-  if (o.kind == Kind::Int) return o.integer;
-  if (o.kind == Kind::Bool) return o.boolean;
-  throw std::runtime_error(fmt::format("{}: expected an int, got {}", what, o.describe()));
-}
-
-std::vector<int64_t> as_int_list(const PyObject& o, const char* what) {
-  if (o.kind != Kind::Tuple && o.kind != Kind::List)
-    throw std::runtime_error(fmt::format("{}: expected a tuple of ints, got {}", what, o.describe()));
-  std::vector<int64_t> out;
-  for (const auto& item : o.items) out.push_back(as_int(*item, what));
-  return out;
-}
-
-// torch._utils._rebuild_tensor_v2(storage, storage_offset, size, stride, requires_grad, backward_hooks, ...)
-PyPtr rebuild_tensor(const PyObject& args) {
-  if (args.kind != Kind::Tuple || args.items.size() < 4)
-    throw std::runtime_error("_rebuild_tensor: expected (storage, offset, size, stride, ...)");
-  const auto& storage = *args.items[0];
-  if (storage.kind != Kind::Storage)
-    throw std::runtime_error(fmt::format("_rebuild_tensor: first argument is {}, expected a storage", storage.describe()));
-  auto t = make(Kind::Tensor);
-  t->tensor = storage.tensor;
-  t->tensor.offset = as_int(*args.items[1], "tensor storage offset");
-  t->tensor.sizes = as_int_list(*args.items[2], "tensor size");
-  t->tensor.strides = as_int_list(*args.items[3], "tensor stride");
-  if (t->tensor.sizes.size() != t->tensor.strides.size())
-    throw std::runtime_error("_rebuild_tensor: size and stride have different lengths");
-  // The furthest element addressed must lie inside the storage, and the element count must be representable
-  // (a view of stride 0 can claim any number of elements of one stored value).
-  int64_t last = t->tensor.offset, numel = 1;
-  bool empty = false;
-  for (size_t i = 0; i < t->tensor.sizes.size(); ++i) {
-    if (t->tensor.sizes[i] < 0 || t->tensor.strides[i] < 0)
-      throw std::runtime_error("_rebuild_tensor: negative size or stride");
-    int64_t span = 0;
-    if (t->tensor.sizes[i] == 0) empty = true;
-    else if (__builtin_mul_overflow(t->tensor.sizes[i] - 1, t->tensor.strides[i], &span) ||
-             __builtin_add_overflow(last, span, &last) || __builtin_mul_overflow(numel, t->tensor.sizes[i], &numel) ||
-             numel > (int64_t(1) << 48))
-      throw std::runtime_error("_rebuild_tensor: view extent overflows");
-  }
-  if (t->tensor.offset < 0 || (!empty && last >= storage.tensor.storage_numel))
-    throw std::runtime_error(fmt::format("_rebuild_tensor: view reaches element {} of a storage with {} elements", last,
-                                         storage.tensor.storage_numel));
-  return t;
-}
-
-// The bytes a latin-1 text stands for (the unpickler holds text as UTF-8): code points 0..255, one byte each.
-std::string latin1_bytes(const std::string& utf8) {
-  std::string out;
-  for (size_t i = 0; i < utf8.size(); ++i) {
-    const auto c = static_cast<unsigned char>(utf8[i]);
-    if (c < 0x80) {
-      out.push_back(static_cast<char>(c));
-    } else if ((c & 0xFE) == 0xC2 && i + 1 < utf8.size() && (static_cast<unsigned char>(utf8[i + 1]) & 0xC0) == 0x80) {
-      out.push_back(static_cast<char>(((c & 0x03) << 6) | (static_cast<unsigned char>(utf8[++i]) & 0x3F)));
-    } else {
-      throw std::runtime_error("_codecs.encode: text is not latin-1 (a character beyond U+00FF or bad UTF-8)");
-    }
-  }
-  return out;
-}
-
-// What REDUCE/NEWOBJ build: the few callables torch.save uses become real values, everything else stays opaque.
-PyPtr call(const PyPtr& callee, const PyPtr& args) {
-  const std::string name = callee->kind == Kind::Global ? callee->text : "";
-  // Protocol 2 has no bytes opcode for Python 3 bytes: they arrive as _codecs.encode(<latin-1 text>, "latin1").
-  if (name == "_codecs.encode" && args->kind == Kind::Tuple && args->items.size() == 2 &&
-      args->items[0]->kind == Kind::Str && args->items[1]->kind == Kind::Str &&
-      (args->items[1]->text == "latin1" || args->items[1]->text == "latin-1"))
-    return make_text(Kind::Bytes, latin1_bytes(args->items[0]->text));
-  if (name == "collections.OrderedDict" || name == "builtins.dict" || name == "__builtin__.dict") {
-    auto dict = make(Kind::Dict);
-    // Old files call OrderedDict([[key, value], ...]); newer ones fill it with SETITEMS afterwards.
-    if (args->kind == Kind::Tuple && !args->items.empty())
-      for (const auto& pair : args->items[0]->items) {
-        if ((pair->kind != Kind::List && pair->kind != Kind::Tuple) || pair->items.size() != 2)
-          throw std::runtime_error("OrderedDict(...) argument is not a list of (key, value) pairs");
-        dict->dict.emplace_back(pair->items[0], pair->items[1]);
-      }
-    return dict;
-  }
-  if (name == "torch._utils._rebuild_tensor_v2" || name == "torch._utils._rebuild_tensor") return rebuild_tensor(*args);
-  if (name == "torch._utils._rebuild_parameter" || name == "torch._utils._rebuild_parameter_with_state") {
-    if (args->kind != Kind::Tuple || args->items.empty()) throw std::runtime_error("_rebuild_parameter: no data");
-    return args->items[0];
-  }
-  // LibTorch's own pickler (torch::pickle_save) wraps containers in their TorchScript type: the value is args[0].
-  if (name == "torch.jit._pickle.restore_type_tag" && args->kind == Kind::Tuple && !args->items.empty())
-    return args->items[0];
-  if ((name == "builtins.set" || name == "__builtin__.set") && args->kind == Kind::Tuple) {
-    auto s = make(Kind::Set);
-    if (!args->items.empty()) s->items = args->items[0]->items;
-    return s;
-  }
-  auto c = make(Kind::Call);
-  c->items = {callee, args};
-  return c;
-}
 
 class Machine {
  public:
@@ -209,7 +99,8 @@ class Machine {
 
  private:
   [[noreturn]] void fail(const std::string& what) const {
-    throw std::runtime_error(fmt::format("{}: invalid pickle at byte {} (opcode 0x{:02x}): {}", source_, op_at_, op_, what));
+    throw std::runtime_error(
+        fmt::format("{}: invalid pickle at byte {} (opcode 0x{:02x}): {}", source_, op_at_, op_, what));
   }
   void need(size_t k) const {
     if (k > n_ - p_) fail(fmt::format("needs {} more bytes but the data ends (truncated file?)", k));
@@ -289,8 +180,10 @@ class Machine {
     }
   }
   void append(PyObject& list, const std::vector<PyPtr>& items) {
-    if (list.kind == Kind::List || list.kind == Kind::Set) list.items.insert(list.items.end(), items.begin(), items.end());
-    else if (list.kind != Kind::Call) fail("APPEND on a " + list.describe());
+    if (list.kind == Kind::List || list.kind == Kind::Set)
+      list.items.insert(list.items.end(), items.begin(), items.end());
+    else if (list.kind != Kind::Call)
+      fail("APPEND on a " + list.describe());
   }
   int64_t signed_le(const std::string& bytes) {
     int64_t v = 0;
@@ -299,8 +192,10 @@ class Machine {
     return v;
   }
   void push_long(const std::string& bytes) {
-    if (bytes.size() <= 8) push(make_int(signed_le(bytes)));
-    else push(make_text(Kind::BigInt, bytes));
+    if (bytes.size() <= 8)
+      push(make_int(signed_le(bytes)));
+    else
+      push(make_text(Kind::BigInt, bytes));
   }
 
   // One opcode. Each group below handles its opcodes and returns false for any other; an opcode no group knows is
@@ -328,6 +223,8 @@ void Machine::step() {
   fail("unsupported opcode");
 }
 
+// The opcode handlers are written as tables, one opcode per line.
+// clang-format off
 // Framing, marks and plain stack manipulation.
 bool Machine::step_stack() {
   switch (op_) {
@@ -440,10 +337,10 @@ bool Machine::step_call() {
   switch (op_) {
     case 'R': case 0x81: {  // REDUCE / NEWOBJ
       auto args = pop(), callee = pop();
-      try { push(call(callee, args)); } catch (const std::runtime_error& e) { fail(e.what()); }
+      try { push(call_global(callee, args)); } catch (const std::runtime_error& e) { fail(e.what()); }
       break;
     }
-    case 0x92: { auto kwargs = pop(), args = pop(), callee = pop(); push(call(callee, args)); break; }
+    case 0x92: { auto kwargs = pop(), args = pop(), callee = pop(); push(call_global(callee, args)); break; }
     case 'b': pop(); top(); break;  // BUILD: object state (OrderedDict._metadata, ...) is not needed for weights
     case 'Q': {
       auto pid = pop();
@@ -455,6 +352,7 @@ bool Machine::step_call() {
   }
   return true;
 }
+// clang-format on
 
 }  // namespace
 

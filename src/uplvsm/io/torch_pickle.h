@@ -31,10 +31,10 @@ struct PyObject {
   bool boolean = false;
   int64_t integer = 0;
   double real = 0;
-  std::string text;                          // Str, Bytes, BigInt (raw little-endian bytes), Global "module.name"
-  std::vector<PyPtr> items;                  // List, Tuple, Set; Call: [callee, args]
-  std::vector<std::pair<PyPtr, PyPtr>> dict; // Dict, in insertion order
-  TensorRef tensor;                          // Storage (key, dtype, numel) and Tensor
+  std::string text;                           // Str, Bytes, BigInt (raw little-endian bytes), Global "module.name"
+  std::vector<PyPtr> items;                   // List, Tuple, Set; Call: [callee, args]
+  std::vector<std::pair<PyPtr, PyPtr>> dict;  // Dict, in insertion order
+  TensorRef tensor;                           // Storage (key, dtype, numel) and Tensor
 
   PyObject() = default;
   PyObject(const PyObject&) = default;

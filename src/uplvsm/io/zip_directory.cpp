@@ -42,7 +42,8 @@ struct Directory {
 Directory find_directory(std::ifstream& in, const std::string& path, uint64_t file_size) {
   const uint64_t tail_size = std::min<uint64_t>(file_size, 22 + 65535 + 20);
   const Bytes tail = read_range(in, path, file_size - tail_size, tail_size);
-  if (tail_size < 22) throw std::runtime_error(fmt::format("{}: {} bytes, too short for a zip archive", path, file_size));
+  if (tail_size < 22)
+    throw std::runtime_error(fmt::format("{}: {} bytes, too short for a zip archive", path, file_size));
   for (size_t at = tail_size - 22 + 1; at-- > 0;) {
     if (tail.le(at, 4) != kEndOfDirectory) continue;
     Directory d{tail.le(at + 10, 2), tail.le(at + 12, 4), tail.le(at + 16, 4)};
@@ -57,12 +58,14 @@ Directory find_directory(std::ifstream& in, const std::string& path, uint64_t fi
       d = {z.le(32, 8), z.le(40, 8), z.le(48, 8)};
     }
     if (d.offset > file_size || d.size > file_size - d.offset)
-      throw std::runtime_error(fmt::format("{}: truncated or corrupt zip archive (central directory of {} bytes at "
-                                           "offset {} is beyond the file size {})",
-                                           path, d.size, d.offset, file_size));
+      throw std::runtime_error(
+          fmt::format("{}: truncated or corrupt zip archive (central directory of {} bytes at "
+                      "offset {} is beyond the file size {})",
+                      path, d.size, d.offset, file_size));
     return d;
   }
-  throw std::runtime_error(fmt::format("{}: truncated or corrupt zip archive (no end-of-central-directory record)", path));
+  throw std::runtime_error(
+      fmt::format("{}: truncated or corrupt zip archive (no end-of-central-directory record)", path));
 }
 
 // Sizes and offset stored as 0xffffffff in an entry are in its zip64 extra field (id 1), in this order.
@@ -86,9 +89,10 @@ void apply_zip64_extra(const Bytes& cd, size_t extra_at, size_t extra_len, ZipEn
 
 void check_entry(const ZipEntry& e, uint64_t file_size, const std::string& path) {
   if (e.local_header_offset > file_size || e.compressed_size > file_size - e.local_header_offset)
-    throw std::runtime_error(fmt::format("{}: truncated or corrupt zip archive (record '{}' of {} bytes at offset {} "
-                                         "is beyond the file size {})",
-                                         path, e.name, e.compressed_size, e.local_header_offset, file_size));
+    throw std::runtime_error(
+        fmt::format("{}: truncated or corrupt zip archive (record '{}' of {} bytes at offset {} "
+                    "is beyond the file size {})",
+                    path, e.name, e.compressed_size, e.local_header_offset, file_size));
   const bool stored_ok = e.method != 0 || e.uncompressed_size == e.compressed_size;
   const bool deflate_ok = e.method != 8 || e.uncompressed_size / kMaxDeflateRatio <= e.compressed_size;
   if (!stored_ok || !deflate_ok)

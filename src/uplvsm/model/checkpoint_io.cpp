@@ -35,13 +35,15 @@ CheckpointFile read_checkpoint(const std::string& path_in) {
   auto meta = [&](const char* key) -> const std::string& {
     auto it = st.metadata.find(key);
     if (it == st.metadata.end())
-      throw std::runtime_error(fmt::format("checkpoint {}: header metadata lacks '{}' (not a uplvsm checkpoint; "
-                                           "official .pt files are read by `uplvsm convert`)",
-                                           out.path, key));
+      throw std::runtime_error(
+          fmt::format("checkpoint {}: header metadata lacks '{}' (not a uplvsm checkpoint; "
+                      "official .pt files are read by `uplvsm convert`)",
+                      out.path, key));
     return it->second;
   };
   if (meta("format") != kCheckpointFormat)
-    throw std::runtime_error(fmt::format("checkpoint {}: format '{}', expected '{}'", out.path, meta("format"), kCheckpointFormat));
+    throw std::runtime_error(
+        fmt::format("checkpoint {}: format '{}', expected '{}'", out.path, meta("format"), kCheckpointFormat));
   try {
     out.config = config_from_json(nlohmann::json::parse(meta("config")), out.path + " (embedded config)");
     out.state = nlohmann::json::parse(meta("state"));
@@ -62,8 +64,8 @@ void write_checkpoint(const std::string& path, const Config& config, const nlohm
                       const NamedTensors& model, const NamedTensors& optimizer) {
   io::TensorMap all(model.begin(), model.end());
   for (const auto& [name, tensor] : optimizer) all[kOptimizerPrefix + name] = tensor;
-  io::write_safetensors(path, all,
-                        {{"format", kCheckpointFormat}, {"config", config_to_json(config).dump()}, {"state", state.dump()}});
+  io::write_safetensors(
+      path, all, {{"format", kCheckpointFormat}, {"config", config_to_json(config).dump()}, {"state", state.dump()}});
 }
 
 }  // namespace uplvsm::model

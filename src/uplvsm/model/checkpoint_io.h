@@ -18,9 +18,9 @@ inline constexpr const char* kCheckpointFormat = "uplvsm-checkpoint-v1";
 struct CheckpointFile {
   std::string path;
   Config config;
-  nlohmann::json state;   // training state (step, scheduler step, ...)
-  NamedTensors model;     // state_dict tensors
-  NamedTensors optimizer; // "<kind>/<param name>" without the prefix
+  nlohmann::json state;    // training state (step, scheduler step, ...)
+  NamedTensors model;      // state_dict tensors
+  NamedTensors optimizer;  // "<kind>/<param name>" without the prefix
 };
 
 // A file, or a directory: a run dir (uses <dir>/checkpoints) or a checkpoints dir -> its lexicographically last

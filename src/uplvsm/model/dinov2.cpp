@@ -58,8 +58,8 @@ torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
   const int64_t q = dim / 4;
   auto omega = torch::pow(10000.0, -torch::arange(q, torch::kFloat64) / static_cast<double>(q));
   auto coord = torch::arange(grid, torch::kFloat64);
-  auto x = coord.repeat({grid}).unsqueeze(1) * omega;                   // column index of patch (row-major order)
-  auto y = coord.repeat_interleave(grid).unsqueeze(1) * omega;          // row index
+  auto x = coord.repeat({grid}).unsqueeze(1) * omega;           // column index of patch (row-major order)
+  auto y = coord.repeat_interleave(grid).unsqueeze(1) * omega;  // row index
   auto table = torch::cat({torch::sin(x), torch::cos(x), torch::sin(y), torch::cos(y)}, 1);
   return torch::cat({torch::zeros({1, dim}, torch::kFloat64), table}, 0).unsqueeze(0).to(torch::kFloat32);
 }
@@ -67,14 +67,15 @@ torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
 Dinov2Impl::Dinov2Impl(const Dinov2Config& c, int64_t patch) : config(c), patch_size(patch) {
   const int64_t D = c.embed_dim;
   cls_token = register_parameter("cls_token", torch::randn({1, 1, D}) * 1e-6);
-  pos_embed = register_parameter("pos_embed", c.pos_embed_init == "sincos"
-                                                  ? sincos_pos_embed(c.pos_grid, D)
-                                                  : torch::randn({1, 1 + c.pos_grid * c.pos_grid, D}).clamp_(-2, 2) * 0.02);
+  pos_embed =
+      register_parameter("pos_embed", c.pos_embed_init == "sincos"
+                                          ? sincos_pos_embed(c.pos_grid, D)
+                                          : torch::randn({1, 1 + c.pos_grid * c.pos_grid, D}).clamp_(-2, 2) * 0.02);
   if (c.num_register_tokens > 0)
     register_tokens = register_parameter("register_tokens", torch::randn({1, c.num_register_tokens, D}) * 1e-6);
   auto patch_embed = register_module("patch_embed", std::make_shared<torch::nn::Module>());
-  patch_embed_proj = patch_embed->register_module(
-      "proj", torch::nn::Conv2d(torch::nn::Conv2dOptions(3, D, patch).stride(patch)));
+  patch_embed_proj =
+      patch_embed->register_module("proj", torch::nn::Conv2d(torch::nn::Conv2dOptions(3, D, patch).stride(patch)));
   blocks = register_module("blocks", torch::nn::ModuleList());
   for (int64_t i = 0; i < c.depth; ++i) blocks->push_back(DinoBlock(c));
   norm = register_module("norm", LayerNorm(D, 1e-6, true));
@@ -96,8 +97,8 @@ torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width
   auto cls_pe = pe.index({Slice(), Slice(0, 1)});
   auto grid = pe.index({Slice(), Slice(1)}).reshape({1, M, M, -1}).permute({0, 3, 1, 2});
   namespace F = torch::nn::functional;
-  auto opts = F::InterpolateFuncOptions().mode(torch::kBicubic).align_corners(false).antialias(
-      config.interpolate_antialias);
+  auto opts =
+      F::InterpolateFuncOptions().mode(torch::kBicubic).align_corners(false).antialias(config.interpolate_antialias);
   if (config.interpolate_offset != 0.0) {
     // Coordinates follow the given scale factor, not gh / M: reproduces the official 0.1-offset values.
     opts.scale_factor(std::vector<double>{(gh + config.interpolate_offset) / M, (gw + config.interpolate_offset) / M});
@@ -106,8 +107,8 @@ torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width
     opts.size(std::vector<int64_t>{gh, gw});
   }
   auto resized = F::interpolate(grid, opts);
-  TORCH_CHECK(resized.size(2) == gh && resized.size(3) == gw, "DINOv2 pos-embed interpolation gave ",
-              resized.sizes(), " for a ", gh, "x", gw, " grid");
+  TORCH_CHECK(resized.size(2) == gh && resized.size(3) == gw, "DINOv2 pos-embed interpolation gave ", resized.sizes(),
+              " for a ", gh, "x", gw, " grid");
   auto patches = resized.permute({0, 2, 3, 1}).reshape({1, gh * gw, -1});
   return torch::cat({cls_pe, patches}, 1).to(pos_embed.scalar_type());
 }
@@ -120,7 +121,8 @@ DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x) {
   t = torch::cat({cls_token.expand({N, -1, -1}), t}, 1) + interpolate_pos_encoding(H, W);
   const int64_t R = config.num_register_tokens;
   if (R > 0)
-    t = torch::cat({t.index({Slice(), Slice(0, 1)}), register_tokens.expand({N, -1, -1}), t.index({Slice(), Slice(1)})}, 1);
+    t = torch::cat({t.index({Slice(), Slice(0, 1)}), register_tokens.expand({N, -1, -1}), t.index({Slice(), Slice(1)})},
+                   1);
   t = run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list = blocks](size_t i, const torch::Tensor& x) {
     return list->ptr<DinoBlockImpl>(i)->forward(x);
   });

@@ -44,9 +44,9 @@ struct DinoBlockImpl : torch::nn::Module {
 TORCH_MODULE(DinoBlock);
 
 struct DinoFeatures {
-  torch::Tensor cls;          // [N, D] after the final norm
-  torch::Tensor patch_tokens; // [N, h*w, D] after the final norm, row-major patch order
-  torch::Tensor prenorm;      // [N, 1 + R + h*w, D] before the final norm
+  torch::Tensor cls;           // [N, D] after the final norm
+  torch::Tensor patch_tokens;  // [N, h*w, D] after the final norm, row-major patch order
+  torch::Tensor prenorm;       // [N, 1 + R + h*w, D] before the final norm
 };
 
 // MAE's fixed-scale 2-D sine-cosine position table, [1, 1 + grid*grid, dim] in row-major patch order: channels

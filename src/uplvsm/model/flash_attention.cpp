@@ -76,8 +76,8 @@ struct FusedAttentionFunction : torch::autograd::Function<FusedAttentionFunction
     at::parallel_for(0, p.B * p.H, 1, [&](int64_t begin, int64_t end) {
       flash::backward_delta(p, o.data_ptr(), strides_of(o), dout.data_ptr(), strides_of(dout), begin, end,
                             delta.data_ptr<float>());
-      flash::backward_tasks(p, dout.data_ptr(), strides_of(dout), lse.data_ptr<float>(), delta.data_ptr<float>(),
-                            begin, end, dq.data_ptr(), strides_of(dq), dk.data_ptr(), strides_of(dk), dv.data_ptr(),
+      flash::backward_tasks(p, dout.data_ptr(), strides_of(dout), lse.data_ptr<float>(), delta.data_ptr<float>(), begin,
+                            end, dq.data_ptr(), strides_of(dq), dk.data_ptr(), strides_of(dk), dv.data_ptr(),
                             strides_of(dv));
     });
     return {dq, dk, dv};
@@ -92,8 +92,8 @@ AttentionKernel attention_kernel() { return kernel_choice(); }
 bool fused_attention_applies(torch::Device device, torch::ScalarType dtype, int64_t d_head) {
   if (attention_kernel() != AttentionKernel::Fused || !device.is_cpu()) return false;
   if (dtype != torch::kFloat32 && dtype != torch::kBFloat16) return false;
-  return flash::flash_kernels_available(
-      dtype == torch::kBFloat16 ? flash::Precision::Bf16 : flash::Precision::Fp32, d_head);
+  return flash::flash_kernels_available(dtype == torch::kBFloat16 ? flash::Precision::Bf16 : flash::Precision::Fp32,
+                                        d_head);
 }
 
 torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {

@@ -137,11 +137,11 @@ void backward_head_fp32(const Problem& p, int64_t bh, const void* dout, Strides 
       const int64_t rows = std::min(kBwdQueryTile, Lq - i0);
       const float* Qi = Qs + i0 * D;
       const float* dOi = dO + i0 * D;
-      gemm(rows, key_pad, D, Qi, D, 1, Kt + j0, ld_t, S, kBwdKeyTile, false);     // S = Qs K^T
-      gemm(rows, key_pad, D, dOi, D, 1, Vt + j0, ld_t, dP, kBwdKeyTile, false);   // dP = dO V^T
+      gemm(rows, key_pad, D, Qi, D, 1, Kt + j0, ld_t, S, kBwdKeyTile, false);    // S = Qs K^T
+      gemm(rows, key_pad, D, dOi, D, 1, Vt + j0, ld_t, dP, kBwdKeyTile, false);  // dP = dO V^T
       softmax_backward_tile(rows, keys, kBwdKeyTile, 1.0f, S, dP, lse_h + i0, delta_h + i0);
-      gemm(keys, D, rows, S, 1, kBwdKeyTile, dOi, D, dV, D, true);                // dV += P^T dO
-      gemm(keys, D, rows, dP, 1, kBwdKeyTile, Qi, D, dK, D, true);                // dK += dS^T Qs
+      gemm(keys, D, rows, S, 1, kBwdKeyTile, dOi, D, dV, D, true);                    // dV += P^T dO
+      gemm(keys, D, rows, dP, 1, kBwdKeyTile, Qi, D, dK, D, true);                    // dK += dS^T Qs
       gemm(rows, D, keys, dP, kBwdKeyTile, 1, Kf + j0 * D, D, dQ + i0 * D, D, true);  // dQ += dS K
     }
     for (int64_t j = 0; j < keys; ++j) {

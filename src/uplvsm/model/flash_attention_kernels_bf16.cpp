@@ -8,15 +8,33 @@ namespace {
 
 // Scratch slots (fp32 kernels use 0..9).
 enum Slot : int {
-  kKp = 10, kVp, kQ, kS, kO, kP, kQrows, kQtp, kDOrows, kDOtp, kVtp, kKrp, kDQ, kDP, kPpairs, kDSpairs, kDSrows,
-  kDKt, kDVt, kRow
+  kKp = 10,
+  kVp,
+  kQ,
+  kS,
+  kO,
+  kP,
+  kQrows,
+  kQtp,
+  kDOrows,
+  kDOtp,
+  kVtp,
+  kKrp,
+  kDQ,
+  kDP,
+  kPpairs,
+  kDSpairs,
+  kDSrows,
+  kDKt,
+  kDVt,
+  kRow
 };
 
 // C[R x 16*NV] (+)= A[R x 2*K2] B[2*K2 x 16*NV]: A rows are bf16 pairs (one uint32 each) lda words apart; B is
 // packed in pairs, word (p2, n) = (B[2 p2][n], B[2 p2 + 1][n]), rows ldb words apart.
 template <int R, int NV>
-UPLVSM_AVX512_BF16 void micro_kernel_bf16(int64_t K2, const uint32_t* A, int64_t lda, const uint32_t* B,
-                                          int64_t ldb, float* C, int64_t ldc, bool accumulate) {
+UPLVSM_AVX512_BF16 void micro_kernel_bf16(int64_t K2, const uint32_t* A, int64_t lda, const uint32_t* B, int64_t ldb,
+                                          float* C, int64_t ldc, bool accumulate) {
   __m512 acc[R][NV];
 #pragma GCC unroll 8
   for (int r = 0; r < R; ++r)
@@ -109,14 +127,14 @@ UPLVSM_AVX512_BF16 void tile_to_bf16(const float* src, int64_t ld_src, int64_t r
 
 // B operand with pairs along rows from an fp32 [rows x cols] tile: word (i2, j) = (T[2 i2][j], T[2 i2 + 1][j]);
 // a missing odd row is zero. cols is padded to 16 with zeros.
-UPLVSM_AVX512_BF16 void tile_to_row_pairs(const float* src, int64_t ld_src, int64_t rows, int64_t cols,
-                                          uint32_t* dst, int64_t ld_dst) {
+UPLVSM_AVX512_BF16 void tile_to_row_pairs(const float* src, int64_t ld_src, int64_t rows, int64_t cols, uint32_t* dst,
+                                          int64_t ld_dst) {
   for (int64_t i2 = 0; i2 < (rows + 1) / 2; ++i2)
     for (int64_t j = 0; j < cols; j += 16) {
       const __mmask16 mask = tail_mask(cols - j);
       const __m512 lo = _mm512_maskz_loadu_ps(mask, src + 2 * i2 * ld_src + j);
-      const __m512 hi = 2 * i2 + 1 < rows ? _mm512_maskz_loadu_ps(mask, src + (2 * i2 + 1) * ld_src + j)
-                                          : _mm512_setzero_ps();
+      const __m512 hi =
+          2 * i2 + 1 < rows ? _mm512_maskz_loadu_ps(mask, src + (2 * i2 + 1) * ld_src + j) : _mm512_setzero_ps();
       const __m512i wlo = _mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(lo));
       const __m512i whi = _mm512_slli_epi32(_mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(hi)), 16);
       _mm512_storeu_si512(dst + i2 * ld_dst + j, _mm512_or_si512(wlo, whi));
@@ -158,8 +176,7 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
   float m[kQueryTile], l[kQueryTile];
   for (int64_t i0 = row_begin; i0 < row_end; i0 += kQueryTile) {
     const int64_t rows = std::min(kQueryTile, row_end - i0);
-    for (int64_t r = 0; r < rows; ++r)
-      std::memcpy(Q + r * D, row_ptr(p, p.q, p.sq, bh, i0 + r), D * sizeof(uint16_t));
+    for (int64_t r = 0; r < rows; ++r) std::memcpy(Q + r * D, row_ptr(p, p.q, p.sq, bh, i0 + r), D * sizeof(uint16_t));
     std::fill(O, O + rows * D, 0.0f);
     std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
     std::fill(l, l + rows, 0.0f);
@@ -217,7 +234,7 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
     std::fill(dVt, dVt + D * kTk, 0.0f);
     for (int64_t i0 = 0; i0 < Lq; i0 += kTq) {
       const int64_t rows = std::min(kTq, Lq - i0), row_pairs = (rows + 1) / 2;
-      gemm_bf16(rows, key_pad, D / 2, words(Qrows + i0 * D), D / 2, Kp + j0, ld_k, S, kTk, false);    // q k^T
+      gemm_bf16(rows, key_pad, D / 2, words(Qrows + i0 * D), D / 2, Kp + j0, ld_k, S, kTk, false);     // q k^T
       gemm_bf16(rows, key_pad, D / 2, words(dOrows + i0 * D), D / 2, Vtp + j0, ld_k, dP, kTk, false);  // dO v^T
       softmax_backward_tile(rows, keys, kTk, p.scale, S, dP, lse_h + i0, delta_h + i0);
       tile_to_row_pairs(S, kTk, rows, key_pad, Ppairs, kTk);

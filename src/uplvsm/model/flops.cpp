@@ -22,9 +22,9 @@ SharedFlops shared_flops(const ModelConfig& c) {
   const auto& dino = c.dinov2;
   const int64_t grid = c.image_size / c.patch_size, n = grid * grid;
   const double p2 = static_cast<double>(c.patch_size * c.patch_size), d = static_cast<double>(c.transformer.d);
-  const double dino_image =
-      2.0 * n * 3 * p2 * dino.embed_dim +
-      dino.depth * transformer_block_flops(1 + dino.num_register_tokens + n, dino.embed_dim, dino.mlp_ratio * dino.embed_dim);
+  const double dino_image = 2.0 * n * 3 * p2 * dino.embed_dim +
+                            dino.depth * transformer_block_flops(1 + dino.num_register_tokens + n, dino.embed_dim,
+                                                                 dino.mlp_ratio * dino.embed_dim);
   return {n, dino_image, 2.0 * n * 6 * p2 * d, 2.0 * n * d * 3 * p2};
 }
 

@@ -20,7 +20,7 @@ double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden);
 // (model_factory.h: forward_flops picks the one of a config).
 FlopCount uplvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
 // posed_input_views: the input views whose tokens get their rays (PT-LVSM 1, LVSM all).
-FlopCount posed_lvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views,
-                                   int64_t target_views, int64_t posed_input_views);
+FlopCount posed_lvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views,
+                                   int64_t posed_input_views);
 
 }  // namespace uplvsm::model

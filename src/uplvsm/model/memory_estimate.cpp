@@ -16,7 +16,8 @@ int64_t dino_block_parameters(const Dinov2Config& c) {
 
 int64_t dinov2_parameters(const Dinov2Config& c, int64_t patch) {
   const int64_t D = c.embed_dim;
-  const int64_t embeddings = D + (1 + c.pos_grid * c.pos_grid) * D + c.num_register_tokens * D + 3 * patch * patch * D + D;
+  const int64_t embeddings =
+      D + (1 + c.pos_grid * c.pos_grid) * D + c.num_register_tokens * D + 3 * patch * patch * D + D;
   return embeddings + c.depth * dino_block_parameters(c) + 2 * D;
 }
 
@@ -63,9 +64,10 @@ TrainingMemory training_memory(const Config& config) {
     return blocks * static_cast<double>(d);
   };
   // The estimator (and DINOv2 over the targets) runs only where target poses come from it.
-  const bool estimator = c.variant == Variant::UPLVSM && (tc.target_poses == TargetPoseChoice::Auto ||
-                                                    tc.target_poses == TargetPoseChoice::Estimator);
-  const double dino_tokens = b * (vi + (estimator ? vt : 0)) * (1 + static_cast<double>(c.dinov2.num_register_tokens) + n);
+  const bool estimator = c.variant == Variant::UPLVSM &&
+                         (tc.target_poses == TargetPoseChoice::Auto || tc.target_poses == TargetPoseChoice::Estimator);
+  const double dino_tokens =
+      b * (vi + (estimator ? vt : 0)) * (1 + static_cast<double>(c.dinov2.num_register_tokens) + n);
   double values = dino_tokens * kept(c.dinov2.depth, c.dinov2.embed_dim);
   if (c.variant == Variant::UPLVSM) {
     values += b * (L + vi * n) * kept(t.encoder_n_layer, t.d);

@@ -82,8 +82,10 @@ ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
   dino.depth = count_indexed(w, vit + "blocks.");
   dino.mlp_ratio = require(w, vit + "blocks.0.mlp.fc1.weight").size(0) / dino.embed_dim;
   dino.qk_norm = has_key(w, vit + "blocks.0.attn.q_norm.weight");
-  if (dino.qk_norm) dino.num_heads = dino.embed_dim / w.at(vit + "blocks.0.attn.q_norm.weight").size(0);
-  else if (dino.embed_dim % 64 == 0) dino.num_heads = dino.embed_dim / 64;  // Meta's ViTs all use 64-wide heads
+  if (dino.qk_norm)
+    dino.num_heads = dino.embed_dim / w.at(vit + "blocks.0.attn.q_norm.weight").size(0);
+  else if (dino.embed_dim % 64 == 0)
+    dino.num_heads = dino.embed_dim / 64;  // Meta's ViTs all use 64-wide heads
   dino.num_register_tokens = has_key(w, vit + "register_tokens") ? w.at(vit + "register_tokens").size(1) : 0;
   const int64_t positions = require(w, vit + "pos_embed").size(1) - 1;
   dino.pos_grid = int64_t(std::lround(std::sqrt(double(positions))));
@@ -106,10 +108,11 @@ NovelViewModel load_model(const std::string& path_in, const torch::Device& devic
   } else {
     auto w = read_pretrained_weights(path);
     if (w.source != WeightSource::Uplvsm)
-      throw std::runtime_error(fmt::format("{}: holds {} weights, not a UP-LVSM model; start a run from them with "
-                                           "`uplvsm train --init {}` or make a checkpoint with `uplvsm convert --input "
-                                           "{} --config <config> --output init.safetensors`",
-                                           path, to_string(w.source), path, path));
+      throw std::runtime_error(
+          fmt::format("{}: holds {} weights, not a UP-LVSM model; start a run from them with "
+                      "`uplvsm train --init {}` or make a checkpoint with `uplvsm convert --input "
+                      "{} --config <config> --output init.safetensors`",
+                      path, to_string(w.source), path, path));
     if (!config_hint) {
       config.name = std::filesystem::path(path).stem().string();
       config.model = infer_model_config(w.tensors, config.model);

@@ -45,7 +45,8 @@ const torch::Tensor& require_c2w(const Views& views, const char* which, TargetPo
 void NovelViewModelImpl::register_tokenizers() {
   auto image_tokenizer = register_module("image_tokenizer", std::make_shared<torch::nn::Module>());
   tokenizer = image_tokenizer->register_module("1", DinoTokenizer(config.dinov2, config.patch_size));
-  target_pose_tokenizer = register_module("target_pose_tokenizer", PoseTokenizer(config.patch_size, config.transformer.d));
+  target_pose_tokenizer =
+      register_module("target_pose_tokenizer", PoseTokenizer(config.patch_size, config.transformer.d));
   canonical_pose_tokenizer =
       register_module("canonical_pose_tokenizer", PoseTokenizer(config.patch_size, config.transformer.d));
 }

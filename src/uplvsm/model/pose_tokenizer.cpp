@@ -17,8 +17,6 @@ PoseTokenizerImpl::PoseTokenizerImpl(int64_t p, int64_t d, int64_t channels) : p
   linear = register_module("1", torch::nn::Linear(torch::nn::LinearOptions(channels * p * p, d).bias(false)));
 }
 
-torch::Tensor PoseTokenizerImpl::forward(const torch::Tensor& plucker) {
-  return linear(patchify(plucker, patch_size));
-}
+torch::Tensor PoseTokenizerImpl::forward(const torch::Tensor& plucker) { return linear(patchify(plucker, patch_size)); }
 
 }  // namespace uplvsm::model

@@ -43,13 +43,14 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
               images.sizes());
   const int64_t b = images.size(0), vi = images.size(1), H = targets.images.size(3), W = targets.images.size(4);
   const int64_t vt = targets.fxfycxcy.size(1);
-  auto [in_c2w, tg_c2w] = scene_normalized(require_c2w(inputs, "input", TargetPoses::Dataset),
-                                           require_c2w(targets, "target", TargetPoses::Dataset), normalize_with_targets);
+  auto [in_c2w, tg_c2w] =
+      scene_normalized(require_c2w(inputs, "input", TargetPoses::Dataset),
+                       require_c2w(targets, "target", TargetPoses::Dataset), normalize_with_targets);
   auto tokens = tokenize(images);  // [b, vi, n, d]
   const int64_t n = tokens.size(2), d = tokens.size(3);
   const int64_t posed = posed_inputs == PosedInputs::All ? vi : 1;
-  auto in_rays = geometry::plucker_rays(in_c2w.narrow(1, 0, posed), inputs.fxfycxcy.narrow(1, 0, posed),
-                                        images.size(3), images.size(4));
+  auto in_rays = geometry::plucker_rays(in_c2w.narrow(1, 0, posed), inputs.fxfycxcy.narrow(1, 0, posed), images.size(3),
+                                        images.size(4));
   tokens = with_camera_tokens(tokens, in_rays);
   auto context = repeat_per_view(tokens.reshape({b, vi * n, d}), vt);  // [b vt, vi n, d]
   auto tg_rays = geometry::plucker_rays(tg_c2w, targets.fxfycxcy, H, W);
@@ -69,8 +70,7 @@ Rendered PosedLVSMImpl::render(const Views& inputs, const Views& targets, Target
 }
 
 CameraRenderer PosedLVSMImpl::camera_control(const Views& inputs) {
-  TORCH_CHECK(inputs.c2w.defined(), name(),
-              " renders from cameras: it needs the input views' c2w (dataset scenes)");
+  TORCH_CHECK(inputs.c2w.defined(), name(), " renders from cameras: it needs the input views' c2w (dataset scenes)");
   return [this, inputs](const torch::Tensor& poses, const torch::Tensor& fxfycxcy, int64_t H, int64_t W) {
     const int64_t b = poses.size(0), n = poses.size(1);
     Views targets{torch::zeros({1, 1, 1, 1, 1}, fxfycxcy.options()).expand({b, n, 3, H, W}), fxfycxcy,

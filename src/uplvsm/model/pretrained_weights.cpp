@@ -76,9 +76,10 @@ NamedTensors dinov2_from_huggingface(const NamedTensors& hf_in, const std::strin
     if (!mapped) unknown.push_back(key);
   }
   if (!unknown.empty())
-    throw std::runtime_error(fmt::format("{}: {} HuggingFace DINOv2 keys have no Meta equivalent, e.g. '{}' (SwiGLU "
-                                         "ViT-g weights are not supported)",
-                                         source, unknown.size(), unknown.front()));
+    throw std::runtime_error(
+        fmt::format("{}: {} HuggingFace DINOv2 keys have no Meta equivalent, e.g. '{}' (SwiGLU "
+                    "ViT-g weights are not supported)",
+                    source, unknown.size(), unknown.front()));
   for (auto& [name, parts] : qkv_parts) {
     for (const char* p : {"query", "key", "value"})
       if (!parts.count(p)) throw std::runtime_error(fmt::format("{}: {} lacks its '{}' part", source, name, p));
@@ -89,8 +90,7 @@ NamedTensors dinov2_from_huggingface(const NamedTensors& hf_in, const std::strin
 }
 
 NamedTensors read_weight_file(const std::string& path, std::string* container, std::string* found_at) {
-  if (!std::filesystem::is_regular_file(path))
-    throw std::runtime_error(fmt::format("weights {}: no such file", path));
+  if (!std::filesystem::is_regular_file(path)) throw std::runtime_error(fmt::format("weights {}: no such file", path));
   std::string kind, where;
   NamedTensors raw;
   if (io::looks_like_torch_file(path)) {
@@ -128,9 +128,10 @@ PretrainedWeights read_pretrained_weights(const std::string& path) {
     w.source = WeightSource::Dinov2HuggingFace;
     w.tensors = dinov2_from_huggingface(raw, path);
   } else {
-    throw std::runtime_error(fmt::format("weights {}: not UP-LVSM (no 'n_light_field_latent') nor DINOv2 (no "
-                                         "'cls_token'/'embeddings.*'); keys:{}",
-                                         path, some_keys(raw)));
+    throw std::runtime_error(
+        fmt::format("weights {}: not UP-LVSM (no 'n_light_field_latent') nor DINOv2 (no "
+                    "'cls_token'/'embeddings.*'); keys:{}",
+                    path, some_keys(raw)));
   }
   return w;
 }

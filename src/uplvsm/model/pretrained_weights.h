@@ -21,12 +21,13 @@ struct PretrainedWeights {
   std::string container;  // "uplvsm checkpoint", "safetensors", "torch zip", "torch legacy"
   std::string found_at;   // where in the file the weights were ("model", "" for the top level)
   WeightSource source = WeightSource::Uplvsm;
-  NamedTensors tensors;   // renamed: UP-LVSM names, or Meta DINOv2 names for DINOv2 sources
+  NamedTensors tensors;  // renamed: UP-LVSM names, or Meta DINOv2 names for DINOv2 sources
 };
 
 // The named tensors of a weight file as stored: safetensors (our checkpoints: the model part), or a torch.save file's
 // state dict (io::read_torch_state_dict). `container` receives the format's name when given.
-NamedTensors read_weight_file(const std::string& path, std::string* container = nullptr, std::string* found_at = nullptr);
+NamedTensors read_weight_file(const std::string& path, std::string* container = nullptr,
+                              std::string* found_at = nullptr);
 
 // Reads a .safetensors / .pt / .pth file and brings its tensors to our names: strips a DDP "module." prefix, turns
 // HuggingFace DINOv2 names into Meta's (query/key/value rows concatenated into qkv). Throws for files that are

@@ -34,7 +34,8 @@ std::string LoadReport::summary(const std::string& source) const {
   if (!skipped.empty()) s += fmt::format(", skipped {} known extra tensors (e.g. {})", skipped.size(), skipped.front());
   if (!defaulted.empty())
     s += fmt::format("\n  {} keys not in the file, left at their initial values:{}", defaulted.size(), list(defaulted));
-  if (!missing.empty()) s += fmt::format("\n  {} missing keys (in the model, not in the file):{}", missing.size(), list(missing));
+  if (!missing.empty())
+    s += fmt::format("\n  {} missing keys (in the model, not in the file):{}", missing.size(), list(missing));
   if (!unexpected.empty())
     s += fmt::format("\n  {} unexpected keys (in the file, not in the model):{}", unexpected.size(), list(unexpected));
   if (!mismatched.empty()) s += fmt::format("\n  {} keys with the wrong shape:{}", mismatched.size(), list(mismatched));
@@ -66,8 +67,8 @@ LoadReport load_state_dict(torch::nn::Module& module, const NamedTensors& tensor
       continue;
     }
     if (it->second.sizes() != value.sizes()) {
-      report.mismatched.push_back(fmt::format("{}: file {} vs model {}", key, shape_str(value.sizes()),
-                                              shape_str(it->second.sizes())));
+      report.mismatched.push_back(
+          fmt::format("{}: file {} vs model {}", key, shape_str(value.sizes()), shape_str(it->second.sizes())));
       continue;
     }
     if (value.is_floating_point() && !torch::isfinite(value).all().item<bool>())

@@ -14,7 +14,7 @@ using NamedTensors = std::map<std::string, torch::Tensor>;
 
 struct LoadReport {
   std::vector<std::string> missing, unexpected, mismatched;  // mismatched: "key: file [..] vs model [..]"
-  std::vector<std::string> skipped;                           // known extras deliberately ignored
+  std::vector<std::string> skipped;                          // known extras deliberately ignored
   std::vector<std::string> defaulted;  // allowed to be absent from the file: left at their initial values
   int64_t loaded = 0;
   bool ok() const { return missing.empty() && unexpected.empty() && mismatched.empty(); }

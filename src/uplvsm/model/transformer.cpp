@@ -13,9 +13,7 @@ LayerNormImpl::LayerNormImpl(int64_t dim_, double eps_, bool with_bias) : dim(di
   if (with_bias) bias = register_parameter("bias", torch::zeros({dim}));
 }
 
-torch::Tensor LayerNormImpl::forward(const torch::Tensor& x) {
-  return torch::layer_norm(x, {dim}, weight, bias, eps);
-}
+torch::Tensor LayerNormImpl::forward(const torch::Tensor& x) { return torch::layer_norm(x, {dim}, weight, bias, eps); }
 
 RMSNormImpl::RMSNormImpl(int64_t dim, double eps_) : eps(eps_) {
   weight = register_parameter("weight", torch::ones({dim}));
@@ -71,10 +69,10 @@ torch::Tensor QKNormAttentionImpl::attention_map(const torch::Tensor& x) {
 }
 
 MLPImpl::MLPImpl(int64_t d, int64_t hidden) {
-  mlp = register_module("mlp", torch::nn::Sequential(torch::nn::Linear(torch::nn::LinearOptions(d, hidden).bias(false)),
-                                                     torch::nn::Functional(
-                                                         [](const torch::Tensor& t) { return torch::gelu(t); }),
-                                                     torch::nn::Linear(torch::nn::LinearOptions(hidden, d).bias(false))));
+  mlp = register_module(
+      "mlp", torch::nn::Sequential(torch::nn::Linear(torch::nn::LinearOptions(d, hidden).bias(false)),
+                                   torch::nn::Functional([](const torch::Tensor& t) { return torch::gelu(t); }),
+                                   torch::nn::Linear(torch::nn::LinearOptions(hidden, d).bias(false))));
 }
 
 TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps) {

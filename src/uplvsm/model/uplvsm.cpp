@@ -14,10 +14,10 @@ UPLVSMImpl::UPLVSMImpl(const ModelConfig& c) : NovelViewModelImpl(c) {
   n_light_field_latent =
       register_parameter("n_light_field_latent", torch::randn({t.n_latent_vectors, t.d}).clamp_(-2, 2).mul_(0.02));
   register_tokenizers();
-  transformer_encoder = register_module(
-      "transformer_encoder", make_transformer_stack(t.encoder_n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
-  transformer_decoder = register_module(
-      "transformer_decoder", make_transformer_stack(t.decoder_n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
+  transformer_encoder = register_module("transformer_encoder",
+                                        make_transformer_stack(t.encoder_n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
+  transformer_decoder = register_module("transformer_decoder",
+                                        make_transformer_stack(t.decoder_n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
   transformer_input_layernorm_decoder =
       register_module("transformer_input_layernorm_decoder", LayerNorm(t.d, 1e-5, false));
   estimator = register_module("estimator", LatentPluckerLearner(t));
@@ -60,17 +60,19 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torc
                                          ForwardTrace* trace) {
   TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "estimate_poses: target images must be [b, v, 3, H, W], got ",
               images.sizes());
-  TORCH_CHECK(!config.encoder_cameras, "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
-                                       "dataset cameras; its pose estimator is never trained");
+  TORCH_CHECK(!config.encoder_cameras,
+              "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
+              "dataset cameras; its pose estimator is never trained");
   const int64_t b = images.size(0), v = images.size(1);
-  auto tokens = tokenize(images);                                                  // [b, v, n, d]
+  auto tokens = tokenize(images);                                                            // [b, v, n, d]
   auto pooled = estimator->pooled(tokens.flatten(0, 1), repeat_per_view(scene_latents, v));  // [b v, d]
-  keep(trace, {{&ForwardTrace::target_dino_tokens, tokens}, {&ForwardTrace::estimator_pooled, pooled.view({b, v, -1})}});
+  keep(trace,
+       {{&ForwardTrace::target_dino_tokens, tokens}, {&ForwardTrace::estimator_pooled, pooled.view({b, v, -1})}});
   return estimator->heads(pooled).view({b, v, 7});
 }
 
 UPLVSMImpl::EncodedInputs UPLVSMImpl::encode_with_input_poses(const torch::Tensor& images,
-                                                               const torch::Tensor& fxfycxcy) {
+                                                              const torch::Tensor& fxfycxcy) {
   auto latents = encode_scene(images, fxfycxcy);
   return {latents, estimate_poses(images, latents)};
 }
@@ -81,7 +83,7 @@ torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const
               pose_enc.sizes());
   const int64_t b = pose_enc.size(0), v = pose_enc.size(1);
   auto rays = geometry::plucker_rays(geometry::pose_encoding_to_c2w(pose_enc), fxfycxcy, H, W);  // [b, v, 6, H, W]
-  auto q = target_pose_tokenizer(rays.flatten(0, 1));  // [b v, n, d]
+  auto q = target_pose_tokenizer(rays.flatten(0, 1));                                            // [b v, n, d]
   const int64_t n = q.size(1);
   auto x = transformer_input_layernorm_decoder(torch::cat({q, repeat_per_view(scene_latents, v)}, 1));
   auto y = run_stack(transformer_decoder, x, grad_checkpoint_every, "uplvsm::decoder").index({Slice(), Slice(0, n)});
@@ -93,13 +95,14 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
                                               const torch::Tensor& scene_latents, TargetPoses source,
                                               ForwardTrace* trace) {
   switch (source) {
-    case TargetPoses::Estimator:
-      return estimate_poses(targets.images, scene_latents, trace);
+    case TargetPoses::Estimator: return estimate_poses(targets.images, scene_latents, trace);
     case TargetPoses::Dataset:
-      return geometry::camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source));
+      return geometry::camera_control_poses(require_c2w(inputs, "input", source),
+                                            require_c2w(targets, "target", source));
     case TargetPoses::Mapper:
-      TORCH_CHECK(pose_mapper, "target poses 'mapper': this model has no pose mapper (model.pose_mapper is false; "
-                               "train one with `uplvsm train --stage mapper`)");
+      TORCH_CHECK(pose_mapper,
+                  "target poses 'mapper': this model has no pose mapper (model.pose_mapper is false; "
+                  "train one with `uplvsm train --stage mapper`)");
       return pose_mapper(
           geometry::camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source)));
   }
@@ -127,8 +130,7 @@ Rendered UPLVSMImpl::render(const Views& inputs, const Views& targets, TargetPos
               to_string(source), "' do not apply");
   auto latents = encode(inputs, trace);
   auto poses = target_latent_poses(inputs, targets, latents, source, trace).to(latents.device());
-  auto render =
-      render_views(latents, poses, targets.fxfycxcy, targets.images.size(3), targets.images.size(4), trace);
+  auto render = render_views(latents, poses, targets.fxfycxcy, targets.images.size(3), targets.images.size(4), trace);
   return {render, poses};
 }
 
@@ -140,8 +142,9 @@ Rendered UPLVSMImpl::forward(const torch::Tensor& input_images, const torch::Ten
 }
 
 CameraRenderer UPLVSMImpl::camera_control(const Views& inputs) {
-  TORCH_CHECK(pose_mapper, "rendering a camera path needs a camera mapper: fine-tune one with `uplvsm train "
-                           "--stage mapper` (or render the latent interpolation between the inputs)");
+  TORCH_CHECK(pose_mapper,
+              "rendering a camera path needs a camera mapper: fine-tune one with `uplvsm train "
+              "--stage mapper` (or render the latent interpolation between the inputs)");
   auto latents = encode_scene(inputs.images, inputs.fxfycxcy);
   return [this, latents](const torch::Tensor& poses, const torch::Tensor& fxfycxcy, int64_t H, int64_t W) {
     return render_views(latents, pose_mapper(poses.to(latents.device(), torch::kFloat32)), fxfycxcy, H, W);

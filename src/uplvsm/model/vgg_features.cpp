@@ -71,13 +71,16 @@ LoadReport load_backbone(VggFeaturesImpl& backbone, const std::string& path) {
   NamedTensors all = read_weight_file(path), features;
   int64_t ignored = 0;
   for (auto& [k, v] : all) {
-    if (k.rfind("features.", 0) == 0) features[k] = v;
-    else ++ignored;
+    if (k.rfind("features.", 0) == 0)
+      features[k] = v;
+    else
+      ++ignored;
   }
   if (features.empty())
-    throw std::runtime_error(fmt::format("{}: no `features.N.weight/bias` tensors (a torchvision-format backbone "
-                                         "file is expected)",
-                                         path));
+    throw std::runtime_error(
+        fmt::format("{}: no `features.N.weight/bias` tensors (a torchvision-format backbone "
+                    "file is expected)",
+                    path));
   auto report = load_state_dict(backbone, features, path);
   for (int64_t i = 0; i < ignored; ++i) report.skipped.push_back("(non-features key)");
   for (auto& p : backbone.parameters()) p.set_requires_grad(false);

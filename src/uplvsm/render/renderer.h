@@ -15,9 +15,9 @@
 namespace uplvsm::render {
 
 struct InterpolationVideo {
-  torch::Tensor frames;    // [F, 3, H, W] in [0, 1], CPU
-  torch::Tensor poses;     // [F, 7] latent poses
-  torch::Tensor key_poses; // [2, 7] the estimator's latent poses of the two inputs
+  torch::Tensor frames;     // [F, 3, H, W] in [0, 1], CPU
+  torch::Tensor poses;      // [F, 7] latent poses
+  torch::Tensor key_poses;  // [2, 7] the estimator's latent poses of the two inputs
 };
 
 // images [2, 3, H, W] in [0, 1], fxfycxcy [2, 4] pixels. Runs without gradients on the model's device.

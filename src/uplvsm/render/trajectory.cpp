@@ -73,9 +73,9 @@ torch::Tensor camera_path_preset(const std::string& name, int64_t frames, const 
                              torch::kFloat64);
       poses.push_back(look_at_pose(p, focus));
     } else if (name == "spiral") {
-      auto p = torch::tensor({o.radius * std::sin(phase), o.radius * (1 - std::cos(phase)) * 0.5,
-                              0.25 * o.radius * (1 - std::cos(phase))},
-                             torch::kFloat64);
+      auto p = torch::tensor(
+          {o.radius * std::sin(phase), o.radius * (1 - std::cos(phase)) * 0.5, 0.25 * o.radius * (1 - std::cos(phase))},
+          torch::kFloat64);
       poses.push_back(look_at_pose(p, focus));
     } else if (name == "dolly") {
       poses.push_back(torch::tensor({0.0, 0.0, o.radius * std::sin(phase), 0.0, 0.0, 0.0, 1.0}, torch::kFloat64));
@@ -92,7 +92,8 @@ namespace {
 std::vector<double> numbers(const nlohmann::json& j, const std::string& where) {
   std::vector<double> out;
   auto number = [&](const nlohmann::json& v) {
-    if (!v.is_number()) throw std::runtime_error(where + ": expected numbers or rows of numbers, got " + json_excerpt(v));
+    if (!v.is_number())
+      throw std::runtime_error(where + ": expected numbers or rows of numbers, got " + json_excerpt(v));
     out.push_back(v.get<double>());
   };
   if (!j.is_array()) throw std::runtime_error(where + ": expected a list of numbers, got " + json_excerpt(j));
@@ -124,7 +125,8 @@ CameraPath read_camera_path(const std::string& path) {
                              "the " + std::to_string(kMaxVideoFrames) + " a video may have");
   const std::string units = j.value("units", "baseline");
   if (units != "baseline" && units != "latent")
-    throw std::runtime_error("camera path " + path + ": \"units\" must be \"baseline\" (real cameras, translations in "
+    throw std::runtime_error("camera path " + path +
+                             ": \"units\" must be \"baseline\" (real cameras, translations in "
                              "input baselines) or \"latent\" (the model's latent poses)");
   std::vector<torch::Tensor> poses, intrinsics;
   for (size_t i = 0; i < j["frames"].size(); ++i) {

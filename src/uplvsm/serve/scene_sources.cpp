@@ -34,8 +34,7 @@ SceneCatalog::SceneCatalog(const std::string& root, const std::string& split, co
   } else {
     for (int64_t i = 0; i < dataset_->size() && scenes_.size() < max_scenes; ++i) add(i, {});
   }
-  if (scenes_.empty())
-    throw std::runtime_error("serve: no scene of " + index + " is in " + root + "/" + split);
+  if (scenes_.empty()) throw std::runtime_error("serve: no scene of " + index + " is in " + root + "/" + split);
 }
 
 SceneCatalog::SceneCatalog() = default;

@@ -18,7 +18,7 @@ namespace uplvsm::serve {
 
 struct Session {
   std::string id;
-  std::string name;                      // the scene's name or "upload"
+  std::string name;  // the scene's name or "upload"
   SceneEncoding scene;
   std::vector<std::vector<uint8_t>> input_jpegs;  // the two preprocessed inputs, as shown on the page
   double created = 0;

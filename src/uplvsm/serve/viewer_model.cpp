@@ -5,8 +5,8 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
-#include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::serve {
@@ -20,7 +20,9 @@ PoseSpace parse_pose_space(const std::string& name) {
 const char* to_string(PoseSpace space) { return space == PoseSpace::Latent ? "latent" : "real"; }
 
 int64_t SceneEncoding::bytes() const {
-  auto size = [](const torch::Tensor& t) { return t.defined() ? t.numel() * static_cast<int64_t>(t.element_size()) : 0; };
+  auto size = [](const torch::Tensor& t) {
+    return t.defined() ? t.numel() * static_cast<int64_t>(t.element_size()) : 0;
+  };
   return size(latents) + size(key_latent) + size(key_real) + size(fxfycxcy);
 }
 

@@ -31,9 +31,9 @@ struct SceneEncoding {
   torch::Tensor key_latent;  // [2, 7] float64 CPU: the estimator's latent poses of the two inputs
   torch::Tensor key_real;    // [2, 7] float64 CPU: the inputs in camera-control units (undefined without a mapper)
   bool key_real_estimated = false;  // key_real[1] inverted through the mapper (photos without cameras)
-  torch::Tensor fxfycxcy;    // [4] float32 pixels: input 0's intrinsics, used for every rendered frame
+  torch::Tensor fxfycxcy;           // [4] float32 pixels: input 0's intrinsics, used for every rendered frame
   int64_t height = 0, width = 0;
-  int64_t bytes() const;     // memory held (latents and poses)
+  int64_t bytes() const;  // memory held (latents and poses)
 };
 
 class ViewerModel {

@@ -49,7 +49,10 @@ int64_t resident_bytes() {
 }
 
 ViewerServer::ViewerServer(ViewerModel& model, SceneCatalog& catalog, ServerOptions options)
-    : model_(model), catalog_(catalog), options_(std::move(options)), sessions_(options_.sessions),
+    : model_(model),
+      catalog_(catalog),
+      options_(std::move(options)),
+      sessions_(options_.sessions),
       http_(std::make_unique<httplib::Server>()) {
   const int threads = options_.http_threads;
   http_->new_task_queue = [threads] { return new httplib::ThreadPool(static_cast<size_t>(threads)); };
@@ -71,8 +74,8 @@ int ViewerServer::bind() {
     if (port_ <= 0) throw std::runtime_error("serve: cannot bind to " + options_.host);
   } else {
     if (!http_->bind_to_port(options_.host, options_.port))
-      throw std::runtime_error(fmt::format("serve: cannot bind to {}:{} (in use? try --port 0)", options_.host,
-                                           options_.port));
+      throw std::runtime_error(
+          fmt::format("serve: cannot bind to {}:{} (in use? try --port 0)", options_.host, options_.port));
     port_ = options_.port;
   }
   return port_;
@@ -98,8 +101,10 @@ void ViewerServer::routes() {
     }
     if (!loopback()) return httplib::Server::HandlerResponse::Unhandled;
     std::string host = req.get_header_value("Host");
-    if (!host.empty() && host.front() == '[') host = host.substr(1, host.find(']') - 1);
-    else host = host.substr(0, host.find(':'));
+    if (!host.empty() && host.front() == '[')
+      host = host.substr(1, host.find(']') - 1);
+    else
+      host = host.substr(0, host.find(':'));
     if (is_loopback_host(host)) return httplib::Server::HandlerResponse::Unhandled;
     send_error(res, 403, "this viewer serves loopback hosts only (Host: " + req.get_header_value("Host") + ")");
     return httplib::Server::HandlerResponse::Handled;
@@ -139,35 +144,41 @@ void ViewerServer::static_routes() {
   http_->Get("/", guarded(asset));
   http_->Get(R"(/[A-Za-z0-9_\-]+\.(html|js|css|svg|png))", guarded(asset));
   http_->Get("/api/info", guarded([this](const httplib::Request&, httplib::Response& res) {
-    send_json(res, {{"image_size", model_.image_size()},
-                    {"has_mapper", model_.has_mapper()},
-                    {"amp", model_.bf16() ? "bf16" : "none"},
-                    {"parameters", model_.parameter_count()},
-                    {"config_name", model_.config().name},
-                    {"scenes", catalog_.scenes().size()},
-                    {"max_upload_bytes", options_.uploads.max_file_bytes},
-                    {"max_upload_pixels", options_.uploads.max_pixels},
-                    {"max_video_frames", options_.max_video_frames}});
-  }));
+               send_json(res, {{"image_size", model_.image_size()},
+                               {"has_mapper", model_.has_mapper()},
+                               {"amp", model_.bf16() ? "bf16" : "none"},
+                               {"parameters", model_.parameter_count()},
+                               {"config_name", model_.config().name},
+                               {"scenes", catalog_.scenes().size()},
+                               {"max_upload_bytes", options_.uploads.max_file_bytes},
+                               {"max_upload_pixels", options_.uploads.max_pixels},
+                               {"max_video_frames", options_.max_video_frames}});
+             }));
   http_->Get("/api/stats", guarded([this](const httplib::Request&, httplib::Response& res) {
-    auto s = sessions_.stats();
-    auto f = stats();
-    send_json(res, {{"sessions", s.sessions}, {"session_bytes", s.bytes}, {"evicted", s.evicted},
-                    {"expired", s.expired}, {"frames", f.frames}, {"superseded", f.superseded},
-                    {"encodes", f.encodes}, {"resident_bytes", resident_bytes()}});
-  }));
+               auto s = sessions_.stats();
+               auto f = stats();
+               send_json(res, {{"sessions", s.sessions},
+                               {"session_bytes", s.bytes},
+                               {"evicted", s.evicted},
+                               {"expired", s.expired},
+                               {"frames", f.frames},
+                               {"superseded", f.superseded},
+                               {"encodes", f.encodes},
+                               {"resident_bytes", resident_bytes()}});
+             }));
   http_->Get("/api/scenes", guarded([this](const httplib::Request&, httplib::Response& res) {
-    nlohmann::json list = nlohmann::json::array();
-    for (const auto& s : catalog_.scenes())
-      list.push_back({{"id", s.id}, {"name", s.name}, {"thumbnail", "/api/scenes/" + s.id + "/thumbnail"}});
-    send_json(res, {{"scenes", list}});
-  }));
+               nlohmann::json list = nlohmann::json::array();
+               for (const auto& s : catalog_.scenes())
+                 list.push_back({{"id", s.id}, {"name", s.name}, {"thumbnail", "/api/scenes/" + s.id + "/thumbnail"}});
+               send_json(res, {{"scenes", list}});
+             }));
   http_->Get(R"(/api/scenes/([^/]+)/thumbnail)", guarded([this](const httplib::Request& req, httplib::Response& res) {
-    const auto* scene = catalog_.find(req.matches[1]);
-    if (!scene) throw HttpError(404, "unknown scene id \"" + std::string(req.matches[1]).substr(0, 64) + "\"");
-    auto jpeg = catalog_.thumbnail(*scene);
-    res.set_content(bytes_of(jpeg), "image/jpeg");
-  }));
+               const auto* scene = catalog_.find(req.matches[1]);
+               if (!scene)
+                 throw HttpError(404, "unknown scene id \"" + std::string(req.matches[1]).substr(0, 64) + "\"");
+               auto jpeg = catalog_.thumbnail(*scene);
+               res.set_content(bytes_of(jpeg), "image/jpeg");
+             }));
 }
 
 std::shared_ptr<Session> ViewerServer::session_of(const std::string& id) {
@@ -179,18 +190,18 @@ std::shared_ptr<Session> ViewerServer::session_of(const std::string& id) {
 nlohmann::json ViewerServer::describe(const Session& s) const {
   const auto& e = s.scene;
   auto k = e.fxfycxcy;
-  nlohmann::json j = {
-      {"session", s.id},
-      {"name", s.name},
-      {"width", e.width},
-      {"height", e.height},
-      {"fxfycxcy", {k[0].item<double>() / e.width, k[1].item<double>() / e.height, k[2].item<double>() / e.width,
-                    k[3].item<double>() / e.height}},
-      {"has_mapper", model_.has_mapper()},
-      {"key_latent", pose_rows(e.key_latent)},
-      {"key_real", e.key_real.defined() ? pose_rows(e.key_real) : nlohmann::json()},
-      {"key_real_estimated", e.key_real_estimated},
-      {"inputs", {"/api/sessions/" + s.id + "/inputs/0", "/api/sessions/" + s.id + "/inputs/1"}}};
+  nlohmann::json j = {{"session", s.id},
+                      {"name", s.name},
+                      {"width", e.width},
+                      {"height", e.height},
+                      {"fxfycxcy",
+                       {k[0].item<double>() / e.width, k[1].item<double>() / e.height, k[2].item<double>() / e.width,
+                        k[3].item<double>() / e.height}},
+                      {"has_mapper", model_.has_mapper()},
+                      {"key_latent", pose_rows(e.key_latent)},
+                      {"key_real", e.key_real.defined() ? pose_rows(e.key_real) : nlohmann::json()},
+                      {"key_real_estimated", e.key_real_estimated},
+                      {"inputs", {"/api/sessions/" + s.id + "/inputs/0", "/api/sessions/" + s.id + "/inputs/1"}}};
   return j;
 }
 
@@ -209,45 +220,47 @@ std::string ViewerServer::open_session(std::shared_ptr<Session> session, const d
 
 void ViewerServer::session_routes() {
   http_->Post("/api/sessions", guarded([this](const httplib::Request& req, httplib::Response& res) {
-    auto body = parse_json_body(req.body);
-    if (!body.contains("scene") || !body["scene"].is_string())
-      throw HttpError(400, "scene: expected a scene id (a string from /api/scenes)");
-    const auto* scene = catalog_.find(body["scene"].get<std::string>());
-    if (!scene) throw HttpError(404, "unknown scene id \"" + body["scene"].get<std::string>().substr(0, 64) + "\"");
-    bool posed = false;
-    auto views = catalog_.load(*scene, &posed);
-    auto session = std::make_shared<Session>();
-    session->name = scene->name;
-    open_session(session, views, posed);
-    send_json(res, describe(*session));
-  }));
+                auto body = parse_json_body(req.body);
+                if (!body.contains("scene") || !body["scene"].is_string())
+                  throw HttpError(400, "scene: expected a scene id (a string from /api/scenes)");
+                const auto* scene = catalog_.find(body["scene"].get<std::string>());
+                if (!scene)
+                  throw HttpError(404, "unknown scene id \"" + body["scene"].get<std::string>().substr(0, 64) + "\"");
+                bool posed = false;
+                auto views = catalog_.load(*scene, &posed);
+                auto session = std::make_shared<Session>();
+                session->name = scene->name;
+                open_session(session, views, posed);
+                send_json(res, describe(*session));
+              }));
   http_->Post("/api/upload", guarded([this](const httplib::Request& req, httplib::Response& res) {
-    if (!req.is_multipart_form_data())
-      throw HttpError(400, "upload: expected multipart/form-data with the fields image0, image1 (and fov)");
-    double fov = 60;
-    if (req.has_file("fov")) fov = parse_number(req.get_file_value("fov").content, "fov", 1, 179);
-    const auto prep = model_.preprocess_options();
-    std::vector<torch::Tensor> images, intrinsics;
-    for (const char* field : {"image0", "image1"}) {
-      if (!req.has_file(field)) throw HttpError(400, std::string("upload: missing the photo field ") + field);
-      auto photo = decode_upload(req.get_file_value(field).content, options_.uploads, field);
-      auto views = data::preprocess_photo(photo, fov, prep, field);
-      images.push_back(views.images);
-      intrinsics.push_back(views.fxfycxcy);
-    }
-    data::SceneViews views{torch::cat(images), torch::cat(intrinsics), torch::Tensor(), {0, 1}};
-    auto session = std::make_shared<Session>();
-    session->name = "upload";
-    open_session(session, views, false);
-    send_json(res, describe(*session));
-  }));
+                if (!req.is_multipart_form_data())
+                  throw HttpError(400, "upload: expected multipart/form-data with the fields image0, image1 (and fov)");
+                double fov = 60;
+                if (req.has_file("fov")) fov = parse_number(req.get_file_value("fov").content, "fov", 1, 179);
+                const auto prep = model_.preprocess_options();
+                std::vector<torch::Tensor> images, intrinsics;
+                for (const char* field : {"image0", "image1"}) {
+                  if (!req.has_file(field))
+                    throw HttpError(400, std::string("upload: missing the photo field ") + field);
+                  auto photo = decode_upload(req.get_file_value(field).content, options_.uploads, field);
+                  auto views = data::preprocess_photo(photo, fov, prep, field);
+                  images.push_back(views.images);
+                  intrinsics.push_back(views.fxfycxcy);
+                }
+                data::SceneViews views{torch::cat(images), torch::cat(intrinsics), torch::Tensor(), {0, 1}};
+                auto session = std::make_shared<Session>();
+                session->name = "upload";
+                open_session(session, views, false);
+                send_json(res, describe(*session));
+              }));
   http_->Get(R"(/api/sessions/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {
-    send_json(res, describe(*session_of(req.matches[1])));
-  }));
+               send_json(res, describe(*session_of(req.matches[1])));
+             }));
   http_->Delete(R"(/api/sessions/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {
-    if (!sessions_.remove(req.matches[1])) throw HttpError(404, "unknown or expired session");
-    send_json(res, {{"deleted", true}});
-  }));
+                  if (!sessions_.remove(req.matches[1])) throw HttpError(404, "unknown or expired session");
+                  send_json(res, {{"deleted", true}});
+                }));
   http_->Get(R"(/api/sessions/([^/]+)/inputs/([01]))",
              guarded([this](const httplib::Request& req, httplib::Response& res) {
                auto s = session_of(req.matches[1]);

@@ -52,9 +52,9 @@ class ViewerServer {
   ViewerServer(ViewerModel& model, SceneCatalog& catalog, ServerOptions options);
   ~ViewerServer();
 
-  int bind();    // binds host:port; returns the port (throws when it cannot bind)
-  void run();    // serves until stop(); returns after the in-flight requests finished
-  void stop();   // safe from any thread
+  int bind();   // binds host:port; returns the port (throws when it cannot bind)
+  void run();   // serves until stop(); returns after the in-flight requests finished
+  void stop();  // safe from any thread
   bool loopback() const;
 
   struct Stats {

@@ -53,10 +53,9 @@ torch::Tensor heat_colours(const torch::Tensor& values) {
 namespace {
 
 torch::Tensor upscale(const torch::Tensor& chw, int64_t height, int64_t width) {
-  return torch::nn::functional::interpolate(
-             chw.unsqueeze(0), torch::nn::functional::InterpolateFuncOptions()
-                                   .size(std::vector<int64_t>{height, width})
-                                   .mode(torch::kNearest))[0];
+  return torch::nn::functional::interpolate(chw.unsqueeze(0), torch::nn::functional::InterpolateFuncOptions()
+                                                                  .size(std::vector<int64_t>{height, width})
+                                                                  .mode(torch::kNearest))[0];
 }
 
 // The view under a heat map of `values`, stretched to their own range (the figure shows where, not how much), HWC.

@@ -18,8 +18,8 @@ struct CrossViewAttention {
 
 // images [2, 3, H, W] in [0, 1] and intrinsics [2, 4] (pixels) of the two input views; (row, col) a patch of view
 // 1. UP-LVSM only (the encoder is what builds the scene latents); throws with the valid range otherwise.
-CrossViewAttention cross_view_attention(model::UPLVSM& net, const torch::Tensor& images,
-                                        const torch::Tensor& fxfycxcy, int64_t row, int64_t col);
+CrossViewAttention cross_view_attention(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
+                                        int64_t row, int64_t col);
 
 // uint8 [H', W', 3]: view 1 with the query patch boxed | view 2 under the attention heat map | view 2 under the
 // similarity heat map (each map stretched to its own min..max), panels scaled up to >= `panel` pixels wide.

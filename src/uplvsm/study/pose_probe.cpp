@@ -52,8 +52,8 @@ double median_of(const torch::Tensor& x) { return x.numel() == 0 ? 0.0 : x.media
 
 }  // namespace
 
-PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& dataset,
-                             const data::PreprocessOptions& prep, const PosePairOptions& opt) {
+PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                             const PosePairOptions& opt) {
   TORCH_CHECK(opt.gap >= 1, "pose pairs: gap must be >= 1");
   torch::NoGradGuard no_grad;
   model::EvalModeGuard mode(*net);
@@ -96,8 +96,9 @@ PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& datas
 }
 
 void write_pose_pairs_csv(const std::string& path, const PosePairs& p) {
-  std::string text = "scene,frame,latent_tx,latent_ty,latent_tz,latent_qx,latent_qy,latent_qz,latent_qw,real_tx,"
-                     "real_ty,real_tz,real_qx,real_qy,real_qz,real_qw\n";
+  std::string text =
+      "scene,frame,latent_tx,latent_ty,latent_tz,latent_qx,latent_qy,latent_qz,latent_qw,real_tx,"
+      "real_ty,real_tz,real_qx,real_qy,real_qz,real_qw\n";
   auto l = p.latent.contiguous(), r = p.real.contiguous();
   for (size_t i = 0; i < p.scenes.size(); ++i) {
     text += fmt::format("{},{}", p.scenes[i], p.frames[i]);
@@ -133,8 +134,10 @@ PoseAccuracy pose_accuracy(const torch::Tensor& predicted, const torch::Tensor& 
   auto r_err = 2.0 * torch::acos(dot) * (180.0 / M_PI);
   PoseAccuracy a;
   a.views = p.size(0);
-  for (double t : a.translation_thresholds) a.translation_accuracy.push_back((t_err < t).to(torch::kFloat64).mean().item<double>());
-  for (double d : a.rotation_thresholds_deg) a.rotation_accuracy.push_back((r_err < d).to(torch::kFloat64).mean().item<double>());
+  for (double t : a.translation_thresholds)
+    a.translation_accuracy.push_back((t_err < t).to(torch::kFloat64).mean().item<double>());
+  for (double d : a.rotation_thresholds_deg)
+    a.rotation_accuracy.push_back((r_err < d).to(torch::kFloat64).mean().item<double>());
   a.median_translation_error = median_of(t_err);
   a.median_rotation_error_deg = median_of(r_err);
   return a;

@@ -37,8 +37,8 @@ struct PosePairOptions {
 };
 
 // Runs the estimator (eval mode, no gradients) on every frame in [0, gap] of each scene. UP-LVSM variant only.
-PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& dataset,
-                             const data::PreprocessOptions& prep, const PosePairOptions& options);
+PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                             const PosePairOptions& options);
 
 // scene,frame,latent_tx..latent_qw,real_tx..real_qw (one row per view).
 void write_pose_pairs_csv(const std::string& path, const PosePairs& pairs);

@@ -24,8 +24,8 @@ void measure_scene(model::UPLVSM& net, const data::SceneViews& views, const std:
   auto latents = net->encode(inputs);
   auto poses = net->target_latent_poses(inputs, targets, latents, opt.source).to(latents.device());
   auto own = net->render_views(latents, poses, k, H, W).to(torch::kFloat32);
-  auto at_first = net->render_views(latents, poses.narrow(1, 0, 1).expand_as(poses).contiguous(), k, H, W)
-                      .to(torch::kFloat32);
+  auto at_first =
+      net->render_views(latents, poses.narrow(1, 0, 1).expand_as(poses).contiguous(), k, H, W).to(torch::kFloat32);
   auto psnr = eval::psnr(own, images)[0].cpu();
   auto edges = eval::gradient_energy_ratio(own, images)[0].cpu();
   auto render_change = (own - at_first).abs().mean({-3, -2, -1})[0].to(torch::kCPU, torch::kFloat64);
@@ -58,9 +58,12 @@ Means means_of(const SensitivityReport& r, Keep keep) {
 
 nlohmann::json to_json(const Means& m) {
   const double sensitivity = m.truth_change > 0 ? m.render_change / m.truth_change : 0.0;
-  return {{"views", m.views},           {"psnr", m.psnr},
-          {"grad_ratio", m.grad_ratio}, {"render_change", m.render_change},
-          {"truth_change", m.truth_change}, {"sensitivity", sensitivity}};
+  return {{"views", m.views},
+          {"psnr", m.psnr},
+          {"grad_ratio", m.grad_ratio},
+          {"render_change", m.render_change},
+          {"truth_change", m.truth_change},
+          {"sensitivity", sensitivity}};
 }
 
 }  // namespace

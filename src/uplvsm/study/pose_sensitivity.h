@@ -30,11 +30,11 @@ struct SensitivityOptions {
 struct SensitivityView {
   std::string scene;
   int64_t frame = 0;
-  bool input = false;         // one of the two context views
-  double psnr = 0;            // of the render at its own pose
-  double grad_ratio = 0;      // eval::gradient_energy_ratio of that render
-  double render_change = 0;   // mean |R(p_j) - R(p_0)| over pixels and channels
-  double truth_change = 0;    // mean |I_j - I_0|
+  bool input = false;        // one of the two context views
+  double psnr = 0;           // of the render at its own pose
+  double grad_ratio = 0;     // eval::gradient_energy_ratio of that render
+  double render_change = 0;  // mean |R(p_j) - R(p_0)| over pixels and channels
+  double truth_change = 0;   // mean |I_j - I_0|
 };
 
 struct SensitivityReport {

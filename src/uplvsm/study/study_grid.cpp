@@ -76,7 +76,9 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
       lpips.push_back(c->lpips);
     }
     if (with_gain) {
-      auto gain = [](double v, int digits) { return std::isnan(v) ? std::string("-") : fmt::format("{:.{}f}", v, digits); };
+      auto gain = [](double v, int digits) {
+        return std::isnan(v) ? std::string("-") : fmt::format("{:.{}f}", v, digits);
+      };
       out += fmt::format(" {} / {} / {} |", gain(average_gain(psnr, true), 2), gain(average_gain(ssim, true), 3),
                          gain(average_gain(lpips, false), 3));
     }

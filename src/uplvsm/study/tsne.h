@@ -21,7 +21,7 @@ struct TsneOptions {
 };
 
 struct TsneResult {
-  torch::Tensor embedding;  // [N, 2] float64
+  torch::Tensor embedding;   // [N, 2] float64
   double kl_divergence = 0;  // KL(P || Q) at the end
 };
 

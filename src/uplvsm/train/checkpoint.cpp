@@ -16,9 +16,13 @@ namespace uplvsm::train {
 namespace fs = std::filesystem;
 
 nlohmann::json TrainState::to_json() const {
-  return {{"step", step}, {"scheduler_step", scheduler_step}, {"param_update_step", param_update_step},
-          {"skipped_nonfinite", skipped_nonfinite}, {"skipped_gradnorm", skipped_gradnorm},
-          {"train_seconds", train_seconds}, {"best_eval_psnr", best_eval_psnr}};
+  return {{"step", step},
+          {"scheduler_step", scheduler_step},
+          {"param_update_step", param_update_step},
+          {"skipped_nonfinite", skipped_nonfinite},
+          {"skipped_gradnorm", skipped_gradnorm},
+          {"train_seconds", train_seconds},
+          {"best_eval_psnr", best_eval_psnr}};
 }
 
 TrainState TrainState::from_json(const nlohmann::json& j) {
@@ -84,8 +88,8 @@ void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& 
     auto m = state.find("exp_avg/" + name), v = state.find("exp_avg_sq/" + name), s = state.find("step/" + name);
     if (m == state.end() || v == state.end() || s == state.end()) continue;
     if (m->second.sizes() != p.sizes() || v->second.sizes() != p.sizes())
-      throw std::runtime_error(fmt::format("{}: optimiser state of '{}' has shape [{}] but the parameter is [{}]", source,
-                                           name, fmt::join(m->second.sizes(), ","), fmt::join(p.sizes(), ",")));
+      throw std::runtime_error(fmt::format("{}: optimiser state of '{}' has shape [{}] but the parameter is [{}]",
+                                           source, name, fmt::join(m->second.sizes(), ","), fmt::join(p.sizes(), ",")));
     auto ps = std::make_unique<torch::optim::AdamWParamState>();
     ps->step(s->second.item<int64_t>());
     ps->exp_avg(m->second.to(p.options()).clone());
@@ -133,9 +137,10 @@ std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::str
     }
   }
   if (all.empty()) return std::nullopt;
-  throw std::runtime_error(fmt::format("--resume auto: none of the {} checkpoints in {} reads (pass --resume none to "
-                                       "start over):{}",
-                                       all.size(), dir, reasons));
+  throw std::runtime_error(
+      fmt::format("--resume auto: none of the {} checkpoints in {} reads (pass --resume none to "
+                  "start over):{}",
+                  all.size(), dir, reasons));
 }
 
 std::string save_best_checkpoint(const std::string& dir, const Config& config, const TrainState& state,

@@ -19,8 +19,8 @@ struct TrainState {
   int64_t scheduler_step = 0;     // drives the learning rate; not advanced on a non-finite loss
   int64_t param_update_step = 0;  // optimiser steps taken
   int64_t skipped_nonfinite = 0, skipped_gradnorm = 0;
-  double train_seconds = 0;       // wall time spent training, over all resumes
-  double best_eval_psnr = -1;     // best held-out PSNR of the periodic evaluations (< 0: none yet)
+  double train_seconds = 0;    // wall time spent training, over all resumes
+  double best_eval_psnr = -1;  // best held-out PSNR of the periodic evaluations (< 0: none yet)
   nlohmann::json to_json() const;
   static TrainState from_json(const nlohmann::json& j);
 };

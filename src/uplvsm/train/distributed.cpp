@@ -33,7 +33,8 @@ int env_int(const char* name, int fallback, int lo, int hi) {
   char* end = nullptr;
   const long x = std::strtol(v, &end, 10);
   if (*end != '\0' || x < lo || x > hi)
-    throw std::runtime_error(fmt::format("environment variable {}={}: expected an integer in [{}, {}]", name, v, lo, hi));
+    throw std::runtime_error(
+        fmt::format("environment variable {}={}: expected an integer in [{}, {}]", name, v, lo, hi));
   return static_cast<int>(x);
 }
 
@@ -85,8 +86,12 @@ namespace {
 
 template <class Group>
 void bind_group(Communicator::Impl& impl, c10::intrusive_ptr<Group> group) {
-  impl.allreduce = [group](std::vector<at::Tensor>& t, const c10d::AllreduceOptions& o) { return group->allreduce(t, o); };
-  impl.broadcast = [group](std::vector<at::Tensor>& t, const c10d::BroadcastOptions& o) { return group->broadcast(t, o); };
+  impl.allreduce = [group](std::vector<at::Tensor>& t, const c10d::AllreduceOptions& o) {
+    return group->allreduce(t, o);
+  };
+  impl.broadcast = [group](std::vector<at::Tensor>& t, const c10d::BroadcastOptions& o) {
+    return group->broadcast(t, o);
+  };
   impl.barrier = [group] { return group->barrier(); };
 }
 
@@ -123,8 +128,9 @@ Communicator::Communicator(const DistributedEnv& env, torch::Device device, std:
     bind_group(*impl_, c10::make_intrusive<c10d::ProcessGroupNCCL>(impl_->store, env.rank, env.world_size, opts));
     backend_ = "nccl";
 #else
-    throw std::runtime_error("multi-process training on CUDA needs a LibTorch built with NCCL (USE_C10D_NCCL) and "
-                             "nccl.h on the include path; this uplvsm was built without them");
+    throw std::runtime_error(
+        "multi-process training on CUDA needs a LibTorch built with NCCL (USE_C10D_NCCL) and "
+        "nccl.h on the include path; this uplvsm was built without them");
 #endif
   } else {
 #ifdef UPLVSM_HAVE_GLOO
@@ -133,8 +139,9 @@ Communicator::Communicator(const DistributedEnv& env, torch::Device device, std:
     bind_group(*impl_, c10::make_intrusive<c10d::ProcessGroupGloo>(impl_->store, env.rank, env.world_size, opts));
     backend_ = "gloo";
 #else
-    throw std::runtime_error("multi-process training on the CPU needs Gloo's headers (Debian: libgloo-dev); this "
-                             "uplvsm was built against a LibTorch without them");
+    throw std::runtime_error(
+        "multi-process training on the CPU needs Gloo's headers (Debian: libgloo-dev); this "
+        "uplvsm was built against a LibTorch without them");
 #endif
   }
   spdlog::info("rank {}/{} joined {}:{} ({}, local rank {})", env.rank, env.world_size, env.master_addr,
@@ -234,9 +241,10 @@ void check_parameters_in_sync(Communicator& comm, const std::vector<torch::Tenso
   comm.allreduce_max(all);
   auto a = all.accessor<double, 1>();
   if (a[0] != -a[1] || a[2] != -a[3])
-    throw std::runtime_error(fmt::format("rank {}: parameters differ across ranks (sum in [{}, {}], sum of squares in "
-                                         "[{}, {}])",
-                                         comm.rank(), -a[1], a[0], -a[3], a[2]));
+    throw std::runtime_error(
+        fmt::format("rank {}: parameters differ across ranks (sum in [{}, {}], sum of squares in "
+                    "[{}, {}])",
+                    comm.rank(), -a[1], a[0], -a[3], a[2]));
 }
 
 }  // namespace uplvsm::train

@@ -32,7 +32,8 @@ torch::Device rank_device(torch::Device requested, const DistributedEnv& env);
 class Communicator {
  public:
   // Joins the process group (blocks until every rank has joined or the timeout passes).
-  Communicator(const DistributedEnv& env, torch::Device device, std::chrono::seconds timeout = std::chrono::seconds(600));
+  Communicator(const DistributedEnv& env, torch::Device device,
+               std::chrono::seconds timeout = std::chrono::seconds(600));
   ~Communicator();
 
   int rank() const { return env_.rank; }

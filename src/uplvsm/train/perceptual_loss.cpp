@@ -1,5 +1,7 @@
 #include "uplvsm/train/perceptual_loss.h"
 
+#include <spdlog/spdlog.h>
+
 namespace uplvsm::train {
 
 const std::vector<int64_t>& perceptual_slice_ends() {
@@ -58,6 +60,24 @@ PerceptualLoss load_perceptual_loss(const std::string& path) {
   PerceptualLoss loss;
   model::load_backbone(*loss->vgg, path);
   loss->eval();
+  return loss;
+}
+
+PerceptualLoss perceptual_loss_for(double weight, const std::string& weights_path, torch::Device device) {
+  if (weight <= 0) {
+    if (!weights_path.empty()) spdlog::warn("{} not used: training.perceptual_loss_weight is 0", weights_path);
+    return nullptr;
+  }
+  if (weights_path.empty()) {
+    spdlog::warn(
+        "training.perceptual_loss_weight is {} but no VGG19 weights were given (--vgg19 FILE): training "
+        "with MSE only",
+        weight);
+    return nullptr;
+  }
+  auto loss = load_perceptual_loss(weights_path);
+  loss->to(device);
+  spdlog::info("perceptual loss: VGG19 from {}, weight {}", weights_path, weight);
   return loss;
 }
 

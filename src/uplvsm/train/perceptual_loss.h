@@ -37,5 +37,8 @@ const std::vector<double>& perceptual_term_divisors();
 
 // A frozen, eval-mode perceptual loss with VGG19 weights from `path` (errors name the file and key).
 PerceptualLoss load_perceptual_loss(const std::string& path);
+// What a run with training.perceptual_loss_weight = `weight` uses: the loss on `device` from `weights_path`, or null
+// (MSE only) when the weight is 0 or no weights were given, with a warning naming what is unused or missing.
+PerceptualLoss perceptual_loss_for(double weight, const std::string& weights_path, torch::Device device);
 
 }  // namespace uplvsm::train

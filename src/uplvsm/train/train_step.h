@@ -32,7 +32,7 @@ struct StepContext {
   model::TargetPoses target_poses = model::TargetPoses::Estimator;
   PerceptualLoss perceptual{nullptr};  // null: MSE only
   bool bf16 = false;
-  Communicator* comm = nullptr;        // null: one process
+  Communicator* comm = nullptr;  // null: one process
 };
 
 struct StepResult {

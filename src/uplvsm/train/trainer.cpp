@@ -13,12 +13,12 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/core/psnr.h"
+#include "uplvsm/core/runtime.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/io/atomic_file.h"
-#include "uplvsm/core/runtime.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/eval_mode.h"
 #include "uplvsm/model/memory_estimate.h"
@@ -98,9 +98,10 @@ void truncate_metrics(const std::string& path, int64_t step) {
 void check_same_model(const Config& a, const Config& b, const std::string& source) {
   auto ja = config_to_json(a)["model"], jb = config_to_json(b)["model"];
   if (ja != jb)
-    throw std::runtime_error(fmt::format("resume from {}: its model config differs from the given one\n  checkpoint: {}\n  "
-                                         "given:      {}",
-                                         source, jb.dump(), ja.dump()));
+    throw std::runtime_error(
+        fmt::format("resume from {}: its model config differs from the given one\n  checkpoint: {}\n  "
+                    "given:      {}",
+                    source, jb.dump(), ja.dump()));
 }
 
 // A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
@@ -143,25 +144,6 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
                rms);
 }
 
-// The perceptual loss the config asks for, when its VGG19 weights were given (null otherwise, with a warning).
-PerceptualLoss make_perceptual_loss(const TrainingConfig& tc, const TrainOptions& opt) {
-  if (tc.perceptual_loss_weight <= 0) {
-    if (!opt.perceptual_weights.empty())
-      spdlog::warn("{} not used: training.perceptual_loss_weight is 0", opt.perceptual_weights);
-    return nullptr;
-  }
-  if (opt.perceptual_weights.empty()) {
-    spdlog::warn("training.perceptual_loss_weight is {} but no VGG19 weights were given (--vgg19 FILE): training "
-                 "with MSE only",
-                 tc.perceptual_loss_weight);
-    return nullptr;
-  }
-  auto loss = load_perceptual_loss(opt.perceptual_weights);
-  loss->to(opt.device);
-  spdlog::info("perceptual loss: VGG19 from {}, weight {}", opt.perceptual_weights, tc.perceptual_loss_weight);
-  return loss;
-}
-
 // Held-out evaluation on rank 0; a new best PSNR is recorded in the state and its weights kept as best.safetensors.
 void run_periodic_eval(const TrainOptions& opt, const Config& config, model::NovelViewModel& net, TrainState& state,
                        bool lead, std::ofstream& metrics, const std::string& ckpt_dir) {
@@ -171,7 +153,8 @@ void run_periodic_eval(const TrainOptions& opt, const Config& config, model::Nov
       model::EvalModeGuard mode(*net);
       result = opt.periodic_eval(net, state.step);
     }
-    if (result.contains("psnr") && result.at("psnr").is_number() && result.at("psnr").get<double>() > state.best_eval_psnr) {
+    if (result.contains("psnr") && result.at("psnr").is_number() &&
+        result.at("psnr").get<double>() > state.best_eval_psnr) {
       state.best_eval_psnr = result.at("psnr").get<double>();
       result["best"] = save_best_checkpoint(ckpt_dir, config, state, *net);
     }
@@ -246,9 +229,10 @@ void prepare_training_data(data::ChunkDataset& dataset, const Config& config, co
   const bool reads_cameras = model::resolve_target_poses(tc.target_poses, net) != model::TargetPoses::Estimator;
   for (int64_t i = 0; reads_cameras && i < dataset.size(); ++i)
     if (!dataset.poses_known(i))
-      throw std::runtime_error(fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
-                                           "(imported without poses, listed in train/unposed.json)",
-                                           to_string(config.model.variant), dataset.key(i), opt.data_root));
+      throw std::runtime_error(
+          fmt::format("{} training reads ground-truth cameras, but scene {} of {} has none "
+                      "(imported without poses, listed in train/unposed.json)",
+                      to_string(config.model.variant), dataset.key(i), opt.data_root));
   if (tc.max_train_scenes > dataset.size())
     throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
                                          tc.max_train_scenes, opt.data_root, dataset.size()));
@@ -267,7 +251,7 @@ StepContext make_step_context(model::NovelViewModelImpl& net, torch::optim::Opti
   ctx.params = trainable_parameters(net);
   ctx.training = tc;
   ctx.target_poses = model::resolve_target_poses(tc.target_poses, net);
-  ctx.perceptual = make_perceptual_loss(tc, opt);
+  ctx.perceptual = perceptual_loss_for(tc.perceptual_loss_weight, opt.perceptual_weights, opt.device);
   ctx.bf16 = tc.amp == Amp::Bf16;
   ctx.comm = opt.comm.get();
   if (ctx.bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
@@ -305,11 +289,16 @@ struct RunningMeans {
 
 void log_step(std::ofstream& metrics, const TrainState& state, const StepResult& r, double step_seconds,
               const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
-  metrics << json{{"step", state.step},           {"loss", r.loss},
-                  {"mse", r.mse},                 {"psnr", psnr_from_mse(r.mse)},
-                  {"lr", r.lr},                   {"grad_norm", r.grad_norm},
-                  {"skipped", r.skipped},         {"step_seconds", step_seconds},
-                  {"data_wait_seconds", loader.wait_seconds()}, {"chunk_reads", dataset.chunk_reads()},
+  metrics << json{{"step", state.step},
+                  {"loss", r.loss},
+                  {"mse", r.mse},
+                  {"psnr", psnr_from_mse(r.mse)},
+                  {"lr", r.lr},
+                  {"grad_norm", r.grad_norm},
+                  {"skipped", r.skipped},
+                  {"step_seconds", step_seconds},
+                  {"data_wait_seconds", loader.wait_seconds()},
+                  {"chunk_reads", dataset.chunk_reads()},
                   {"train_seconds", state.train_seconds}}
                  .dump()
           << "\n";
@@ -319,7 +308,8 @@ void log_step(std::ofstream& metrics, const TrainState& state, const StepResult&
 // End of run: the loader's share, data-parallel consistency, and skipped updates.
 void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator* comm, model::NovelViewModelImpl& net,
                 const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
-  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(), dataset.chunk_reads());
+  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(),
+               dataset.chunk_reads());
   if (comm) {
     check_parameters_in_sync(*comm, net.parameters());
     comm->barrier();  // rank 0's last checkpoint is on disk before any rank returns
@@ -379,6 +369,12 @@ void update_progress(ProgressBar& bar, int64_t step, const RunningMeans& means, 
                     {"lr", fmt::format("{:.2e}", r.lr)}});
 }
 
+bool already_finished(const std::string& run_dir, int64_t step, int64_t train_steps) {
+  if (step < train_steps) return false;
+  spdlog::info("run {} already finished ({} of {} steps)", run_dir, step, train_steps);
+  return true;
+}
+
 }  // namespace
 
 TrainResult train(const Config& config, const TrainOptions& opt) {
@@ -394,10 +390,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   join_ranks(comm, *net, tc);
   TrainResult result;
   result.step = state.step;
-  if (state.step >= tc.train_steps) {
-    spdlog::info("run {} already finished ({} of {} steps)", opt.run_dir, state.step, tc.train_steps);
-    return result;
-  }
+  if (already_finished(opt.run_dir, state.step, tc.train_steps)) return result;
 
   data::ChunkDataset dataset(opt.data_root, "train");
   prepare_training_data(dataset, config, opt, *net);

@@ -18,16 +18,16 @@
 namespace uplvsm::train {
 
 struct TrainOptions {
-  std::string data_root;           // pixelSplat-format root with a train/ split
-  std::string run_dir;             // config.json, metrics.jsonl, checkpoints/
-  std::string resume = "auto";     // "auto" (newest readable checkpoint in run_dir, if any), "none", or a path
+  std::string data_root;        // pixelSplat-format root with a train/ split
+  std::string run_dir;          // config.json, metrics.jsonl, checkpoints/
+  std::string resume = "auto";  // "auto" (newest readable checkpoint in run_dir, if any), "none", or a path
   // Weights for a new run (ignored when resuming): UP-LVSM loaded strictly, or DINOv2 into the image tokenizer.
   std::string init_weights;
   // VGG19 weights (torchvision `features.N.*`) for the perceptual loss; without them a config asking for the
   // perceptual loss trains with MSE only, with a warning.
   std::string perceptual_weights;
   torch::Device device = torch::kCPU;
-  int64_t stop_after_steps = -1;   // stop (with a checkpoint) after this many steps of this invocation
+  int64_t stop_after_steps = -1;  // stop (with a checkpoint) after this many steps of this invocation
   bool progress = true;
   // Data-parallel group (train/distributed.h); null: one process. Rank 0 writes the logs and checkpoints.
   std::shared_ptr<Communicator> comm;
@@ -38,9 +38,9 @@ struct TrainOptions {
 };
 
 struct TrainResult {
-  int64_t step = 0;          // steps completed in total
+  int64_t step = 0;  // steps completed in total
   double last_loss = 0, last_psnr = 0;
-  double seconds = 0;        // this invocation
+  double seconds = 0;  // this invocation
   std::string last_checkpoint;
   bool interrupted = false;  // stopped by a signal
 };

@@ -174,7 +174,8 @@ void write_generated_dataset(const std::string& root, int num_train, int num_tes
       for (int j = 0; j < in_chunk; ++j) {
         const auto& r = renders[j];
         if (!all_keys.insert(r.scene.key).second)
-          throw std::runtime_error(fmt::format("make-dataset ({}): duplicate scene key {}", generator.name, r.scene.key));
+          throw std::runtime_error(
+              fmt::format("make-dataset ({}): duplicate scene key {}", generator.name, r.scene.key));
         index[r.scene.key] = file;
         if (split == 1)
           if (auto e = generator.eval_entry(r, builtin_scene_seed(dataset_seed, split, first + j)))

@@ -18,11 +18,11 @@ namespace uplvsm::data {
 
 // A rendered scene with what the JPEG bytes lose: the exact pixels and the ray-cast depth.
 struct SceneRender {
-  RawScene scene;           // what goes into the chunk (JPEG bytes, 18-float cameras)
-  torch::Tensor images;     // uint8 [N,H,W,3], before JPEG compression
-  torch::Tensor depth;      // float32 [N,H,W], camera z of the surface seen through each pixel centre (inf: none)
-  torch::Tensor fxfycxcy;   // float32 [N,4], pixels
-  torch::Tensor c2w;        // float32 [N,4,4], the rendering cameras (float64 ones cast)
+  RawScene scene;          // what goes into the chunk (JPEG bytes, 18-float cameras)
+  torch::Tensor images;    // uint8 [N,H,W,3], before JPEG compression
+  torch::Tensor depth;     // float32 [N,H,W], camera z of the surface seen through each pixel centre (inf: none)
+  torch::Tensor fxfycxcy;  // float32 [N,4], pixels
+  torch::Tensor c2w;       // float32 [N,4,4], the rendering cameras (float64 ones cast)
 };
 
 // Colour (0..1) of pixel (u, v) of a camera; writes the camera z-depth of the surface hit (inf for none).

@@ -130,10 +130,11 @@ void check_options(const ObjectSceneOptions& opt) {
       opt.jpeg_quality > 100 || !(opt.fov_degrees > 0 && opt.fov_degrees < 180) ||
       !(opt.min_elevation_degrees <= opt.max_elevation_degrees) || std::abs(opt.min_elevation_degrees) >= 90 ||
       std::abs(opt.max_elevation_degrees) >= 90)
-    throw std::runtime_error(fmt::format("object scenes: bad options (height {}, width {}, views {}, texture_scale {}, "
-                                         "jpeg_quality {}, fov {}, elevation [{}, {}])",
-                                         opt.height, opt.width, opt.views, opt.texture_scale, opt.jpeg_quality,
-                                         opt.fov_degrees, opt.min_elevation_degrees, opt.max_elevation_degrees));
+    throw std::runtime_error(
+        fmt::format("object scenes: bad options (height {}, width {}, views {}, texture_scale {}, "
+                    "jpeg_quality {}, fov {}, elevation [{}, {}])",
+                    opt.height, opt.width, opt.views, opt.texture_scale, opt.jpeg_quality, opt.fov_degrees,
+                    opt.min_elevation_degrees, opt.max_elevation_degrees));
 }
 
 }  // namespace

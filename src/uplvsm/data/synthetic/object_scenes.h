@@ -15,7 +15,7 @@ struct ObjectSceneOptions {
   int views = 24;              // the paper's Objaverse renders: 24 random views per object
   double texture_scale = 1.0;  // scales every surface pattern's size
   int jpeg_quality = 90;
-  double fov_degrees = 45;     // field of view across the shorter image side
+  double fov_degrees = 45;  // field of view across the shorter image side
   // Camera elevation above the object's equator, uniform in [min, max] degrees; azimuth uniform in [0, 360).
   double min_elevation_degrees = -10, max_elevation_degrees = 50;
 };

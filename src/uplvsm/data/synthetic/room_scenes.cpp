@@ -83,7 +83,8 @@ std::vector<Camera> sample_path(Rng& rng, const Room& room, int frames, double s
       p = p + Vec3{std::sin(h), 0, std::cos(h)} * speed;
     }
     double x0 = 1e9, x1 = -1e9, z0 = 1e9, z1 = -1e9;
-    for (const auto& q : pos) x0 = std::min(x0, q.x), x1 = std::max(x1, q.x), z0 = std::min(z0, q.z), z1 = std::max(z1, q.z);
+    for (const auto& q : pos)
+      x0 = std::min(x0, q.x), x1 = std::max(x1, q.x), z0 = std::min(z0, q.z), z1 = std::max(z1, q.z);
     double free_x = 2 * (room.x_half - margin) - (x1 - x0), free_z = 2 * (room.z_half - margin) - (z1 - z0);
     if ((free_x < 0 || free_z < 0) && attempt < 200) continue;
     // Put the path's bounding box at a random spot where it stays `margin` away from the walls (a path too long
@@ -136,8 +137,8 @@ void place_objects(Rng& rng, Room& room, double base_hue, double texture_scale) 
       bool clash = false;
       for (const auto& [c, r] : placed) clash = clash || std::hypot(c.x - x, c.z - z) < r + reach + 0.1;
       if (clash) continue;
-      Texture tex = random_texture(rng, base_hue + rng.uniform(0.2, 0.8), size * 0.6 * texture_scale,
-                                   size * 1.4 * texture_scale);
+      Texture tex =
+          random_texture(rng, base_hue + rng.uniform(0.2, 0.8), size * 0.6 * texture_scale, size * 1.4 * texture_scale);
       if (sphere) {
         room.spheres.push_back({{x, room.floor_y - size, z}, size, tex});
       } else {
@@ -218,7 +219,8 @@ Vec3 trace(const Room& room, const Camera& cam, double cx, double cy, int u, int
   Vec3 d = cam.axes[0] * dc.x + cam.axes[1] * dc.y + cam.axes[2] * dc.z;
   Hit hit;
   hit_room(room, cam.position, d, hit);
-  for (size_t k = 0; k < room.spheres.size(); ++k) hit_sphere(room.spheres[k], static_cast<int>(k), cam.position, d, hit);
+  for (size_t k = 0; k < room.spheres.size(); ++k)
+    hit_sphere(room.spheres[k], static_cast<int>(k), cam.position, d, hit);
   for (size_t k = 0; k < room.boxes.size(); ++k) hit_box(room.boxes[k], static_cast<int>(k), cam.position, d, hit);
   // Pixel footprint on the surface: angular pixel size (1/fx rad) times distance, stretched at grazing incidence.
   double dist = hit.t * std::sqrt(dot(d, d));
@@ -238,7 +240,8 @@ std::optional<EvalEntry> eval_entry(const RoomRender& r, uint64_t seed, const Ro
   int64_t f = rng.integer(0, frames - 1 - gap);
   std::vector<int64_t> interior;
   for (int64_t i = f + 1; i < f + gap; ++i) interior.push_back(i);
-  for (int j = 0; j < 3; ++j) std::swap(interior[j], interior[rng.integer(j, static_cast<int64_t>(interior.size()) - 1)]);
+  for (int j = 0; j < 3; ++j)
+    std::swap(interior[j], interior[rng.integer(j, static_cast<int64_t>(interior.size()) - 1)]);
   std::vector<int64_t> targets(interior.begin(), interior.begin() + 3);
   std::sort(targets.begin(), targets.end());
   EvalEntry e;
@@ -252,10 +255,10 @@ std::optional<EvalEntry> eval_entry(const RoomRender& r, uint64_t seed, const Ro
 void check_options(const RoomSceneOptions& opt) {
   if (opt.height < 2 || opt.width < 2 || opt.frames < 1 || !(opt.frame_spacing > 0) || !(opt.texture_scale > 0) ||
       opt.jpeg_quality < 1 || opt.jpeg_quality > 100)
-    throw std::runtime_error(fmt::format("room scenes: bad options (height {}, width {}, frames {}, frame_spacing "
-                                         "{}, texture_scale {}, jpeg_quality {})",
-                                         opt.height, opt.width, opt.frames, opt.frame_spacing, opt.texture_scale,
-                                         opt.jpeg_quality));
+    throw std::runtime_error(
+        fmt::format("room scenes: bad options (height {}, width {}, frames {}, frame_spacing "
+                    "{}, texture_scale {}, jpeg_quality {})",
+                    opt.height, opt.width, opt.frames, opt.frame_spacing, opt.texture_scale, opt.jpeg_quality));
 }
 
 }  // namespace

@@ -19,7 +19,7 @@ struct RoomSceneOptions {
   double frame_spacing = 1.0;  // scales the camera motion (translation and rotation) per frame
   double texture_scale = 1.0;  // scales every surface pattern's size (periods, planks); colours are unchanged
   int jpeg_quality = 90;
-  int eval_gap = 0;            // frames between the two evaluation context views; 0: frames / 2
+  int eval_gap = 0;  // frames between the two evaluation context views; 0: frames / 2
 };
 
 using RoomRender = SceneRender;

@@ -89,8 +89,8 @@ struct Hit {
   int kind = -1;   // 0 a generator's own surfaces (room walls), 1 sphere, 2 box
   int index = -1;  // surface or object index
   Vec3 normal;
-  Vec3 local;      // box: hit point in the box frame
-  int axis = 0;    // box: axis of the face hit
+  Vec3 local;    // box: hit point in the box frame
+  int axis = 0;  // box: axis of the face hit
 };
 
 // Ray o + t d: updates `hit` when the primitive is hit nearer than hit.t (and at t > 0).
