@@ -62,6 +62,22 @@ TEST(Cli, BadArgumentsAndFilesGiveClearErrors) {
 
   auto unknown = run("fly");
   EXPECT_NE(unknown.status, 0);
+
+  // The enum choices are checked where they are given, naming the value and the choices.
+  const std::string tiny = std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny.json";
+  auto amp = run("eval --checkpoint /nonexistent/run --data /tmp --out /tmp/e --amp fp16");
+  EXPECT_NE(amp.status, 0);
+  EXPECT_NE(amp.output.find("--amp: fp16 not in {none,bf16}"), std::string::npos) << amp.output;
+  auto poses = run("train --config " + tiny + " --data /tmp --run /tmp/x --set training.target_poses=sfm");
+  EXPECT_NE(poses.status, 0);
+  EXPECT_NE(poses.output.find("training.target_poses must be 'auto', 'estimator', 'mapper' or 'dataset', got 'sfm'"),
+            std::string::npos)
+      << poses.output;
+  // The tokenizer stage starts from scratch; --init belongs to the stage that reads its output.
+  auto stage = run("train --stage tokenizer --config " + tiny + " --data /tmp --run /tmp/x --init " + tiny);
+  EXPECT_NE(stage.status, 0);
+  EXPECT_NE(stage.output.find("--stage tokenizer starts the tokenizer from scratch"), std::string::npos)
+      << stage.output;
 }
 
 TEST(Cli, ConvertOfficialCheckpointAndVerify) {

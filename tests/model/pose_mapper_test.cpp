@@ -1,20 +1,9 @@
 #include <gtest/gtest.h>
 
 #include "test_util.h"
-#include "uplvsm/geometry/camera.h"
 #include "uplvsm/model/pose_mapper.h"
 
 using namespace uplvsm;
-
-namespace {
-// Random rigid cameras [b, v, 4, 4].
-torch::Tensor random_cameras(int64_t b, int64_t v) {
-  auto q = torch::randn({b, v, 4}, torch::kFloat64);
-  q = q / q.norm(2, -1, true);
-  auto t = torch::randn({b, v, 3}, torch::kFloat64) * 2;
-  return geometry::pose_encoding_to_c2w(torch::cat({t, q}, -1));
-}
-}  // namespace
 
 TEST(PoseMapper, StartsAsTheIdentityAndNormalisesTheQuaternion) {
   model::PoseMapper mapper;

@@ -11,6 +11,7 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/train/tokenizer_pretraining.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {
@@ -90,8 +91,10 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
                   "pose mapper (model.pose_mapper), fitted by least squares to the --init model's estimator, and "
                   "trains the whole model with target poses from dataset cameras through the mapper "
                   "(training.target_poses = mapper); use a mapper config for the paper's lr 1e-4 / 8K steps "
-                  "(configs/*_mapper.json)")
-      ->check(CLI::IsMember({"main", "mapper"}))
+                  "(configs/*_mapper.json); tokenizer: self-supervised pretraining of the image tokenizer alone by "
+                  "masked image modelling on the train split's images (no cameras), written to "
+                  "<run>/tokenizer.safetensors in DINOv2 format for a later run's --init")
+      ->check(CLI::IsMember({"main", "mapper", "tokenizer"}))
       ->capture_default_str();
   cmd->add_option("--set", a.set,
                   "override a config field, section.field=value (repeatable), e.g. --set training.warmup=500 --set "
@@ -136,9 +139,25 @@ train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
   return opt;
 }
 
+// --stage tokenizer: the masked-image pretraining of the tokenizer, on the config's model and training settings.
+void run_tokenizer_stage(const TrainArgs& a, const Config& config) {
+  if (!a.init.empty())
+    throw std::runtime_error(
+        "train --stage tokenizer starts the tokenizer from scratch: --init is for the main stage "
+        "that reads its output");
+  train::TokenizerPretrainOptions opt;
+  opt.data_root = a.data;
+  opt.run_dir = a.run;
+  opt.device = parse_device(a.common.device);
+  const auto r = train::pretrain_tokenizer(config, opt);
+  std::cout << fmt::format("tokenizer pretrained for {} steps: masked-patch loss {:.4f} -> {:.4f}; weights {}\n",
+                           r.steps, r.first_loss, r.last_loss, r.weights);
+}
+
 void run_train(const TrainArgs& a) {
   apply_common_options(a.common);
   const auto config = train_config(a);
+  if (a.stage == "tokenizer") return run_tokenizer_stage(a, config);
   auto r = train::train(config, train_options(a, config));
   std::cout << fmt::format("trained to step {} in {:.1f} s: loss {:.5f}, PSNR {:.2f} dB; checkpoint {}\n", r.step,
                            r.seconds, r.last_loss, r.last_psnr, r.last_checkpoint.empty() ? "-" : r.last_checkpoint);

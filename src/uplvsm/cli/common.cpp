@@ -1,4 +1,4 @@
-#include <map>
+#include <vector>
 
 #include <spdlog/spdlog.h>
 
@@ -42,17 +42,22 @@ void add_model_options(CLI::App* cmd, ModelSource& src) {
 }
 
 CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help) {
-  const std::map<std::string, Amp> names{{to_string(Amp::None), Amp::None}, {to_string(Amp::Bf16), Amp::Bf16}};
-  return cmd->add_option("--amp", amp, help)->transform(CLI::CheckedTransformer(names))->default_str(to_string(amp));
+  return cmd
+      ->add_option_function<std::string>(
+          "--amp", [&amp](const std::string& name) { amp = parse_amp(name); }, help)
+      ->check(CLI::IsMember({to_string(Amp::None), to_string(Amp::Bf16)}))
+      ->default_str(to_string(amp));
 }
 
 CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help) {
-  std::map<std::string, TargetPoseChoice> names;
+  std::vector<std::string> names;
   for (auto c :
        {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper, TargetPoseChoice::Dataset})
-    names.emplace(to_string(c), c);
-  return cmd->add_option("--target-poses", choice, help)
-      ->transform(CLI::CheckedTransformer(names))
+    names.push_back(to_string(c));
+  return cmd
+      ->add_option_function<std::string>(
+          "--target-poses", [&choice](const std::string& name) { choice = parse_target_pose_choice(name); }, help)
+      ->check(CLI::IsMember(names))
       ->default_str(to_string(choice));
 }
 

@@ -113,11 +113,18 @@ torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width
   return torch::cat({cls_pe, patches}, 1).to(pos_embed.scalar_type());
 }
 
-DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x) {
+DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x, const torch::Tensor& mask,
+                                          const torch::Tensor& mask_token) {
   const int64_t N = x.size(0), H = x.size(2), W = x.size(3);
   TORCH_CHECK(H % patch_size == 0 && W % patch_size == 0, "DINOv2: image ", H, "x", W,
               " is not a multiple of the patch size ", patch_size);
   auto t = patch_embed_proj(x).flatten(2).transpose(1, 2);  // [N, h*w, D]
+  if (mask.defined()) {
+    TORCH_CHECK(mask.dim() == 2 && mask.size(0) == N && mask.size(1) == t.size(1) && mask_token.numel() == t.size(2),
+                "DINOv2: mask must be [N, ", t.size(1), "] with a [", t.size(2), "] mask token, got ", mask.sizes(),
+                " and ", mask_token.sizes());
+    t = torch::where(mask.unsqueeze(-1), mask_token.reshape({1, 1, -1}).to(t.dtype()), t);
+  }
   t = torch::cat({cls_token.expand({N, -1, -1}), t}, 1) + interpolate_pos_encoding(H, W);
   const int64_t R = config.num_register_tokens;
   if (R > 0)
@@ -135,12 +142,23 @@ DinoTokenizerImpl::DinoTokenizerImpl(const Dinov2Config& c, int64_t patch_size)
   dino_vit = register_module("dino_vit", Dinov2(c, patch_size));
 }
 
-torch::Tensor DinoTokenizerImpl::forward(const torch::Tensor& images01) {
-  if (!imagenet_normalize) return dino_vit(images01);
+namespace {
+torch::Tensor imagenet_normalized(const torch::Tensor& images01) {
   auto opts = images01.options();
   auto mean = torch::tensor({0.485, 0.456, 0.406}, opts).view({1, 3, 1, 1});
   auto std = torch::tensor({0.229, 0.224, 0.225}, opts).view({1, 3, 1, 1});
-  return dino_vit((images01 - mean) / std);
+  return (images01 - mean) / std;
+}
+}  // namespace
+
+torch::Tensor DinoTokenizerImpl::forward(const torch::Tensor& images01) {
+  return dino_vit(imagenet_normalize ? imagenet_normalized(images01) : images01);
+}
+
+torch::Tensor DinoTokenizerImpl::forward_masked(const torch::Tensor& images01, const torch::Tensor& mask,
+                                                const torch::Tensor& mask_token) {
+  const auto x = imagenet_normalize ? imagenet_normalized(images01) : images01;
+  return dino_vit->forward_features(x, mask, mask_token).patch_tokens;
 }
 
 }  // namespace uplvsm::model

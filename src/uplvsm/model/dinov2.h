@@ -55,8 +55,11 @@ torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim);
 
 struct Dinov2Impl : torch::nn::Module {
   Dinov2Impl(const Dinov2Config& c, int64_t patch_size);
-  // x: [N, 3, H, W] (already normalised as the caller wants). H, W multiples of the patch size.
-  DinoFeatures forward_features(const torch::Tensor& x);
+  // x: [N, 3, H, W] (already normalised as the caller wants). H, W multiples of the patch size. With `mask`
+  // (bool [N, h*w], true: hidden) the patch embeddings it marks are replaced by `mask_token` [D] before the position
+  // embedding, as DINOv2's prepare_tokens_with_masks does for its masked-image objective.
+  DinoFeatures forward_features(const torch::Tensor& x, const torch::Tensor& mask = {},
+                                const torch::Tensor& mask_token = {});
   torch::Tensor forward(const torch::Tensor& x) { return forward_features(x).patch_tokens; }
   // pos_embed resized to an (H/p) x (W/p) grid exactly as the official interpolate_pos_encoding: [1, 1 + h*w, D].
   torch::Tensor interpolate_pos_encoding(int64_t height, int64_t width);
@@ -76,6 +79,9 @@ TORCH_MODULE(Dinov2);
 struct DinoTokenizerImpl : torch::nn::Module {
   DinoTokenizerImpl(const Dinov2Config& c, int64_t patch_size);
   torch::Tensor forward(const torch::Tensor& images01);
+  // The same with masked patches (Dinov2Impl::forward_features): the masked-image pretraining stage.
+  torch::Tensor forward_masked(const torch::Tensor& images01, const torch::Tensor& mask,
+                               const torch::Tensor& mask_token);
   Dinov2 dino_vit{nullptr};
   bool imagenet_normalize;
 };

@@ -35,25 +35,6 @@ namespace uplvsm::train {
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-namespace {
-
-std::atomic<int> g_signal{0};
-extern "C" void on_signal(int sig) { g_signal = sig; }
-
-struct SignalScope {
-  SignalScope() {
-    g_signal = 0;
-    old_int = std::signal(SIGINT, on_signal);
-    old_term = std::signal(SIGTERM, on_signal);
-  }
-  ~SignalScope() {
-    std::signal(SIGINT, old_int);
-    std::signal(SIGTERM, old_term);
-  }
-  void (*old_int)(int);
-  void (*old_term)(int);
-};
-
 data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& dataset, const Communicator* comm) {
   const auto& t = c.training;
   data::LoaderOptions o;
@@ -77,6 +58,25 @@ data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& da
   }
   return o;
 }
+
+namespace {
+
+std::atomic<int> g_signal{0};
+extern "C" void on_signal(int sig) { g_signal = sig; }
+
+struct SignalScope {
+  SignalScope() {
+    g_signal = 0;
+    old_int = std::signal(SIGINT, on_signal);
+    old_term = std::signal(SIGTERM, on_signal);
+  }
+  ~SignalScope() {
+    std::signal(SIGINT, old_int);
+    std::signal(SIGTERM, old_term);
+  }
+  void (*old_int)(int);
+  void (*old_term)(int);
+};
 
 // Keeps metrics.jsonl consistent with the checkpoint we resume from: lines past its step are dropped.
 void truncate_metrics(const std::string& path, int64_t step) {

@@ -12,6 +12,8 @@
 #include <nlohmann/json.hpp>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/loader.h"
 #include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/train/distributed.h"
 
@@ -46,5 +48,8 @@ struct TrainResult {
 };
 
 TrainResult train(const Config& config, const TrainOptions& options);
+
+// The loader settings a run of `config` reads its batches with (this rank's shard when `comm` is given).
+data::LoaderOptions loader_options(const Config& config, const data::ChunkDataset& dataset, const Communicator* comm);
 
 }  // namespace uplvsm::train
