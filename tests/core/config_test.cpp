@@ -127,6 +127,16 @@ TEST(Config, TokenizerAndDatasetKnobsAreValidated) {
   EXPECT_NO_THROW(config_from_json({{"model", {{"dinov2", {{"pos_embed_init", "sincos"}}}}}}, "ok.json"));
 }
 
+TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  EXPECT_NO_THROW(config_from_json({{"training", {{"rotation_equivariance_weight", 0.1}}}}, "ok"));
+  EXPECT_NE(message({{"model", {{"variant", "lvsm"}}}, {"training", {{"rotation_equivariance_weight", 0.1}}}})
+                .find("only a UP-LVSM whose target poses come from its estimator"),
+            std::string::npos);
+  EXPECT_NE(message({{"training", {{"rotation_equivariance_degrees", 60}}}}).find("rotation_equivariance_degrees in"),
+            std::string::npos);
+}
+
 TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   auto msg = message({{"model", {{"encoder_cameras", true}}}});  // target poses left at 'auto' (the estimator)

@@ -77,6 +77,28 @@ TEST(Trainer, ResumeReproducesTheUninterruptedRunExactly) {
   for (const auto& [k, v] : a.optimizer) EXPECT_TRUE(torch::equal(v, b.optimizer.at(k))) << k;
 }
 
+// The rotation-equivariance term adds to the loss, and its random turns are keyed to the step: a resumed run logs
+// the same losses as an uninterrupted one.
+TEST(Trainer, RotationEquivarianceAddsToTheLossAndResumesExactly) {
+  auto config = test::micro_config();
+  config.training.train_steps = 8;
+  config.training.rotation_equivariance_weight = 0.5;
+  auto straight = test::temp_dir("train_equivariance").string();
+  train::train(config, options(straight));
+  const auto losses = logged_losses(straight), mses = logged(straight, "mse");
+  ASSERT_EQ(losses.size(), 8u);
+  for (size_t i = 0; i < losses.size(); ++i) {
+    EXPECT_TRUE(std::isfinite(losses[i]));
+    EXPECT_GT(losses[i], mses[i]) << i;  // MSE plus a positive term
+  }
+  auto resumed = test::temp_dir("train_equivariance_resumed").string();
+  auto first = options(resumed);
+  first.stop_after_steps = 3;
+  train::train(config, first);
+  train::train(config, options(resumed));
+  EXPECT_EQ(logged_losses(resumed), losses);
+}
+
 TEST(Trainer, ResumeRejectsADifferentModel) {
   auto config = test::micro_config();
   config.training.train_steps = 2;

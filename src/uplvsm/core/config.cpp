@@ -155,6 +155,8 @@ void training_fields(C& c, F&& f) {
   f("subset", c.subset);
   f("pose_noise_variance", c.pose_noise_variance);
   f("view_sampler", c.view_sampler);
+  f("rotation_equivariance_weight", c.rotation_equivariance_weight);
+  f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
 }
 
 template <typename C, typename F>
@@ -318,6 +320,14 @@ void validate_config(const Config& c, const std::string& s) {
   require(!m.encoder_cameras || (m.variant == Variant::UPLVSM && tp == TargetPoseChoice::Dataset), s,
           "model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
           "training.target_poses 'dataset'");
+  require(tr.rotation_equivariance_weight >= 0 && tr.rotation_equivariance_degrees > 0 &&
+              tr.rotation_equivariance_degrees <= 30,
+          s, "training.rotation_equivariance_weight must be >= 0 and rotation_equivariance_degrees in (0, 30]");
+  require(tr.rotation_equivariance_weight == 0 ||
+              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
+          s,
+          "training.rotation_equivariance_weight: only a UP-LVSM whose target poses come from its estimator has "
+          "latent poses to make equivariant");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
   require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
           "training.pose_noise_variance must be a finite number >= 0");

@@ -111,6 +111,12 @@ struct TrainingConfig {
   // frame_dist apart, targets between them; video datasets), "unordered" (any distinct frames; object renders
   // whose frames have no order), or "auto" (the dataset's dataset.json view_order; ordered without one).
   std::string view_sampler = "auto";
+  // Self-supervised rotation signal for UP-LVSM's estimator (geometry/camera_rotation_warp.h): every target is also
+  // warped as its camera turned by a random yaw within ±rotation_equivariance_degrees, and the latent pose of the
+  // warped image must equal the unwarped one's turned by that angle (both seen through the same fixed central band).
+  // Its weight in the loss; 0: off (the official recipe).
+  double rotation_equivariance_weight = 0;
+  double rotation_equivariance_degrees = 10;
 };
 
 struct DatasetConfig {

@@ -56,8 +56,9 @@ enum class TargetPoses {
 std::string to_string(TargetPoses source);
 
 struct Rendered {
-  torch::Tensor render;    // [b, v_t, 3, H, W] in [0, 1]
-  torch::Tensor pose_enc;  // [b, v_t, 7] the latent poses rendered (t, q_xyzw); undefined for the posed models
+  torch::Tensor render;         // [b, v_t, 3, H, W] in [0, 1]
+  torch::Tensor pose_enc;       // [b, v_t, 7] the latent poses rendered (t, q_xyzw); undefined for the posed models
+  torch::Tensor scene_latents;  // UP-LVSM: what the targets were rendered from (undefined for the posed models)
 };
 
 // Renders one scene at real cameras: poses [b, n, 7] in camera-control units (model/pose_mapper.h), intrinsics

@@ -66,7 +66,7 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
 Rendered PosedLVSMImpl::render(const Views& inputs, const Views& targets, TargetPoses source, ForwardTrace* trace) {
   TORCH_CHECK(source == TargetPoses::Dataset, name(), " renders from dataset cameras only; target poses '",
               to_string(source), "' do not apply");
-  return {render_posed(inputs, targets, trace), {}};
+  return {render_posed(inputs, targets, trace), {}, {}};
 }
 
 CameraRenderer PosedLVSMImpl::camera_control(const Views& inputs) {

@@ -131,7 +131,7 @@ Rendered UPLVSMImpl::render(const Views& inputs, const Views& targets, TargetPos
   auto latents = encode(inputs, trace);
   auto poses = target_latent_poses(inputs, targets, latents, source, trace).to(latents.device());
   auto render = render_views(latents, poses, targets.fxfycxcy, targets.images.size(3), targets.images.size(4), trace);
-  return {render, poses};
+  return {render, poses, latents};
 }
 
 Rendered UPLVSMImpl::forward(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,

@@ -3,6 +3,9 @@
 #include <cmath>
 
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/geometry/camera_rotation_warp.h"
+#include "uplvsm/geometry/quaternion.h"
+#include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/optimizer.h"
 
 namespace uplvsm::train {
@@ -13,8 +16,36 @@ struct Losses {
   double loss = 0, mse = 0;
 };
 
+// training.rotation_equivariance_weight's term: each target seen through a fixed central band, as it is and as its
+// camera turned by a random yaw (drawn from the seed and the step, so a resumed run draws the same); the latent
+// pose of the turned one must be the plain one's turned by that angle (rotation in Frobenius norm, the camera
+// centre unchanged). The plain estimate is the reference (no gradient through it).
+torch::Tensor rotation_equivariance_loss(model::UPLVSMImpl& net, const model::Views& targets,
+                                         const torch::Tensor& scene_latents, const TrainingConfig& tc, int64_t step) {
+  const auto& images = targets.images;
+  const int64_t b = images.size(0), v = images.size(1), H = images.size(3), W = images.size(4);
+  auto flat = images.flatten(0, 1);
+  auto k = targets.fxfycxcy.flatten(0, 1);
+  const double max_radians = tc.rotation_equivariance_degrees * M_PI / 180.0;
+  auto generator =
+      at::detail::createCPUGenerator(static_cast<uint64_t>(tc.seed) * 1000003u + static_cast<uint64_t>(step));
+  auto angles = ((torch::rand({b * v}, generator, torch::kFloat32) * 2 - 1) * max_radians).to(images.device());
+  auto turn = geometry::yaw_rotation(angles);
+  auto band = geometry::yaw_safe_region(k, H, W, max_radians);
+  auto plain = net.estimate_poses((flat * band).view_as(images), scene_latents).flatten(0, 1).to(torch::kFloat32);
+  auto warped = geometry::warp_to_rotated_camera(flat, k, turn) * band;
+  auto turned = net.estimate_poses(warped.view_as(images), scene_latents).flatten(0, 1).to(torch::kFloat32);
+  using torch::indexing::Slice;
+  auto expected = torch::matmul(geometry::quat_to_rotation(plain.index({Slice(), Slice(3, 7)})).detach(), turn);
+  auto rotation_error =
+      (geometry::quat_to_rotation(turned.index({Slice(), Slice(3, 7)})) - expected).pow(2).sum({1, 2});
+  auto centre_error =
+      (turned.index({Slice(), Slice(0, 3)}) - plain.index({Slice(), Slice(0, 3)}).detach()).pow(2).sum(1);
+  return (rotation_error + centre_error).mean();
+}
+
 // Forward and losses under autocast, as the official step; the MSE on fp32 (autocast's policy for losses).
-Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum) {
+Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum, int64_t step) {
   const auto& tc = ctx.training;
   const auto& target = batch.targets.images;
   torch::Tensor mse, loss;
@@ -24,6 +55,10 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum)
     mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
     loss = tc.l2_loss_weight * mse;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
+    if (tc.rotation_equivariance_weight > 0)
+      loss = loss + tc.rotation_equivariance_weight * rotation_equivariance_loss(*model::as_uplvsm(*ctx.net),
+                                                                                 batch.targets, out.scene_latents, tc,
+                                                                                 step);
   }
   (loss / accum).backward();
   return {loss.item<double>() / accum, mse.item<double>() / accum};
@@ -80,7 +115,7 @@ StepResult train_step(StepContext& ctx, TrainState& state, const std::vector<Mic
   ctx.optimizer->zero_grad();
   const auto accum = static_cast<double>(micro_batches.size());
   for (const auto& batch : micro_batches) {
-    const auto losses = forward_backward(ctx, batch, accum);
+    const auto losses = forward_backward(ctx, batch, accum, state.step);
     r.loss += losses.loss;
     r.mse += losses.mse;
   }
