@@ -278,8 +278,9 @@ Config load_config(const std::string& path) {
   return config_from_json(j, path);
 }
 
-void validate_config(const Config& c, const std::string& s) {
-  const auto& m = c.model;
+namespace {
+
+void validate_model(const ModelConfig& m, const std::string& s) {
   const auto& t = m.transformer;
   require(!m.pose_mapper || m.variant == Variant::UPLVSM, s,
           "model.pose_mapper: only the uplvsm variant has latent poses to map to");
@@ -303,14 +304,10 @@ void validate_config(const Config& c, const std::string& s) {
           "model.dinov2.pos_embed_init must be 'normal' or 'sincos', got '" + m.dinov2.pos_embed_init + "'");
   require(m.dinov2.pos_embed_init != "sincos" || m.dinov2.embed_dim % 4 == 0, s,
           "model.dinov2.pos_embed_init 'sincos' needs embed_dim divisible by 4");
-  const auto& tr = c.training;
-  require(tr.num_input_views >= 1 && tr.num_target_views >= 1, s, "training: need >= 1 input and target view");
-  require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s,
-          "training.num_views must be >= num_input_views and >= 2");
-  require(tr.batch_size >= 1 && tr.grad_accum_steps >= 1, s, "training.batch_size and grad_accum_steps must be >= 1");
-  require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
-  require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
-          "training: need 1 <= min_frame_dist <= max_frame_dist");
+}
+
+// Where the target cameras come from, against what the model can do with them.
+void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const std::string& s) {
   const auto tp = tr.target_poses;
   require(m.variant == Variant::UPLVSM || tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Dataset, s,
           "training.target_poses: the " + to_string(m.variant) +
@@ -328,6 +325,17 @@ void validate_config(const Config& c, const std::string& s) {
           s,
           "training.rotation_equivariance_weight: only a UP-LVSM whose target poses come from its estimator has "
           "latent poses to make equivariant");
+}
+
+void validate_training(const Config& c, const std::string& s) {
+  const auto& tr = c.training;
+  require(tr.num_input_views >= 1 && tr.num_target_views >= 1, s, "training: need >= 1 input and target view");
+  require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s,
+          "training.num_views must be >= num_input_views and >= 2");
+  require(tr.batch_size >= 1 && tr.grad_accum_steps >= 1, s, "training.batch_size and grad_accum_steps must be >= 1");
+  require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
+  require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
+          "training: need 1 <= min_frame_dist <= max_frame_dist");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
   require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
           "training.pose_noise_variance must be a finite number >= 0");
@@ -338,6 +346,14 @@ void validate_config(const Config& c, const std::string& s) {
           "training.view_sampler must be 'auto', 'ordered' or 'unordered', got '" + tr.view_sampler + "'");
   require(c.dataset.kind == "rooms" || c.dataset.kind == "objects", s,
           "dataset.kind must be 'rooms' or 'objects', got '" + c.dataset.kind + "'");
+}
+
+}  // namespace
+
+void validate_config(const Config& c, const std::string& s) {
+  validate_model(c.model, s);
+  validate_training(c, s);
+  validate_target_poses(c.model, c.training, s);
 }
 
 json config_to_json(const Config& c) {
