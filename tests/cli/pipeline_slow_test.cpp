@@ -13,32 +13,55 @@ namespace fs = std::filesystem;
 
 namespace {
 using uplvsm::test::run_cli;
+
+// A micro built-in dataset and a 12-step run of it (stopped at step 7, then resumed), made once per test process
+// (ctest runs each test alone) for the tests below.
+struct TrainedPipeline {
+  fs::path dir;
+  std::string cfg, data, run;
+  int dataset_status = -1, first_status = -1, resume_status = -1;
+  std::string resume_output;
+};
+
+const TrainedPipeline& trained_pipeline() {
+  static TrainedPipeline p = [] {
+    TrainedPipeline t;
+    t.dir = uplvsm::test::temp_dir("pipeline");
+    auto config = uplvsm::test::micro_config();
+    config.training.train_steps = 12;
+    config.training.checkpoint_every = 5;
+    config.dataset.num_train_scenes = 4;
+    config.dataset.num_test_scenes = 3;
+    config.dataset.render_height = 36;
+    config.dataset.render_width = 64;
+    config.dataset.frames_per_scene = 12;
+    config.dataset.eval_gap = 6;
+    std::ofstream(t.dir / "micro.json") << uplvsm::config_to_json(config).dump(2);
+    t.cfg = (t.dir / "micro.json").string();
+    t.data = (t.dir / "data").string();
+    t.run = (t.dir / "run").string();
+    t.dataset_status = run_cli("make-dataset --config " + t.cfg + " --out " + t.data);
+    t.first_status = run_cli("train --config " + t.cfg + " --data " + t.data + " --run " + t.run + " --stop-after 7");
+    t.resume_status = run_cli("train --config " + t.cfg + " --data " + t.data + " --run " + t.run, &t.resume_output);
+    return t;
+  }();
+  return p;
+}
 }  // namespace
 
 TEST(Pipeline, DatasetTrainEvalRenderReport) {
-  auto dir = uplvsm::test::temp_dir("pipeline");
-  auto config = uplvsm::test::micro_config();
-  config.training.train_steps = 12;
-  config.training.checkpoint_every = 5;
-  config.dataset.num_train_scenes = 4;
-  config.dataset.num_test_scenes = 3;
-  config.dataset.render_height = 36;
-  config.dataset.render_width = 64;
-  config.dataset.frames_per_scene = 12;
-  config.dataset.eval_gap = 6;
-  std::ofstream(dir / "micro.json") << uplvsm::config_to_json(config).dump(2);
-  auto cfg = (dir / "micro.json").string(), data = (dir / "data").string(), run = (dir / "run").string();
-
-  ASSERT_EQ(run_cli("make-dataset --config " + cfg + " --out " + data), 0);
+  const auto& p = trained_pipeline();
+  const fs::path& dir = p.dir;
+  const std::string &data = p.data, &run = p.run;
+  ASSERT_EQ(p.dataset_status, 0);
   EXPECT_TRUE(fs::exists(dir / "data/train/index.json"));
   EXPECT_TRUE(fs::exists(dir / "data/evaluation_index.json"));
+  ASSERT_EQ(p.first_status, 0);
+  ASSERT_EQ(p.resume_status, 0) << p.resume_output;
+  EXPECT_NE(p.resume_output.find("resumed"), std::string::npos) << p.resume_output;
+  EXPECT_NE(p.resume_output.find("trained to step 12"), std::string::npos) << p.resume_output;
 
-  ASSERT_EQ(run_cli("train --config " + cfg + " --data " + data + " --run " + run + " --stop-after 7"), 0);
   std::string out;
-  ASSERT_EQ(run_cli("train --config " + cfg + " --data " + data + " --run " + run, &out), 0);
-  EXPECT_NE(out.find("resumed"), std::string::npos) << out;
-  EXPECT_NE(out.find("trained to step 12"), std::string::npos) << out;
-
   ASSERT_EQ(run_cli("eval --checkpoint " + run + " --data " + data + " --out " + (dir / "eval").string(), &out), 0);
   EXPECT_NE(out.find("copy nearest"), std::string::npos) << out;
   EXPECT_TRUE(fs::exists(dir / "eval/metrics.json"));
@@ -56,8 +79,22 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
   EXPECT_TRUE(fs::exists(dir / "report/training_curve.png"));
   EXPECT_NE(out.find("held-out PSNR"), std::string::npos) << out;
 
-  // Camera control: the mapper stage from the trained run, evaluation from dataset cameras through the mapper, and
-  // an orbit video through it.
+  // Bring-your-own photos: two frames written as PNG files.
+  ASSERT_EQ(run_cli("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() +
+                        "/missing.png x.png --out " + (dir / "byo").string(),
+                    &out) != 0,
+            true);
+  EXPECT_NE(out.find("missing.png"), std::string::npos) << out;
+}
+
+// Camera control: the mapper stage from the trained run, evaluation from dataset cameras through the mapper, and
+// an orbit video through it.
+TEST(Pipeline, CameraControlStage) {
+  const auto& p = trained_pipeline();
+  const fs::path& dir = p.dir;
+  const std::string &cfg = p.cfg, &data = p.data, &run = p.run;
+  ASSERT_EQ(p.resume_status, 0) << p.resume_output;
+  std::string out;
   auto mapper_run = (dir / "mapper_run").string();
   ASSERT_EQ(run_cli("train --stage mapper --init " + run + " --config " + cfg + " --data " + data + " --run " +
                         mapper_run + " --steps 4",
@@ -81,8 +118,15 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
                     &out),
             0);
   EXPECT_NE(out.find("--stage mapper"), std::string::npos) << out;
+}
 
-  // The pose studies on the trained run (tiny budgets).
+// The pose studies on the trained run (tiny budgets).
+TEST(Pipeline, PoseStudies) {
+  const auto& p = trained_pipeline();
+  const fs::path& dir = p.dir;
+  const std::string &cfg = p.cfg, &data = p.data, &run = p.run;
+  ASSERT_EQ(p.resume_status, 0) << p.resume_output;
+  std::string out;
   ASSERT_EQ(run_cli("study pose-probe --checkpoint " + run + " --data " + data + " --gap 5 --iterations 50 --out " +
                         (dir / "probe").string(),
                     &out),
@@ -109,11 +153,25 @@ TEST(Pipeline, DatasetTrainEvalRenderReport) {
                     &out),
             0);
   EXPECT_NE(out.find("outside view 1's 4x4 patch grid"), std::string::npos) << out;
+}
 
-  // Bring-your-own photos: two frames written as PNG files.
-  ASSERT_EQ(run_cli("render --checkpoint " + run + " --images " + (dir / "eval/scenes").string() +
-                        "/missing.png x.png --out " + (dir / "byo").string(),
-                    &out) != 0,
-            true);
-  EXPECT_NE(out.find("missing.png"), std::string::npos) << out;
+// The tokenizer's self-supervised stage through the binary, then a main-stage run that starts from its file.
+TEST(Pipeline, TokenizerStageThenInit) {
+  const auto& p = trained_pipeline();
+  const fs::path& dir = p.dir;
+  const std::string &cfg = p.cfg, &data = p.data;
+  ASSERT_EQ(p.dataset_status, 0);
+  std::string out;
+  const auto tokenizer = (dir / "tokenizer").string();
+  ASSERT_EQ(
+      run_cli("train --stage tokenizer --config " + cfg + " --data " + data + " --run " + tokenizer + " --steps 6",
+              &out),
+      0);
+  EXPECT_NE(out.find("tokenizer pretrained for 6 steps"), std::string::npos) << out;
+  ASSERT_TRUE(fs::exists(dir / "tokenizer/tokenizer.safetensors"));
+  ASSERT_EQ(run_cli("train --config " + cfg + " --data " + data + " --run " + (dir / "from_tokenizer").string() +
+                        " --init " + tokenizer + "/tokenizer.safetensors --steps 2",
+                    &out),
+            0);
+  EXPECT_NE(out.find("initialised from DINOv2 (Meta names) weights"), std::string::npos) << out;
 }

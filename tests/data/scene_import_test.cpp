@@ -269,6 +269,21 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   opt.skip_unmatched = false;
   fs::remove(project / "images/extra.jpg");
 
+  // An undecodable photo.
+  write_text(dir / "bad/x.jpg", "this is not a JPEG");
+  opt = SceneImportOptions{};
+  opt.images_dir = (dir / "bad").string();
+  msg = test::error_of([&] { import_scene(opt); });
+  EXPECT_NE(msg.find("x.jpg"), std::string::npos) << msg;
+}
+
+TEST(SceneImport, ColmapErrorsNameTheLineAndField) {
+  const auto dir = test::temp_dir("import_colmap_errors");
+  const auto project = make_colmap_project(dir);
+  SceneImportOptions opt;
+  opt.images_dir = (project / "images").string();
+  opt.colmap_dir = (project / "sparse/0").string();
+  std::string msg;
   // Malformed cameras.txt line; unknown model; wrong parameter count; NaN parameter.
   const auto cameras = project / "sparse/0/cameras.txt";
   write_text(cameras, "# c\n1 PINHOLE 64 48 50 52 31 23\n2 PINHOLE 64\n");
@@ -301,7 +316,12 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
   msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find(images.string() + ":2"), std::string::npos) << msg;
   EXPECT_NE(msg.find("field TX"), std::string::npos) << msg;
+}
 
+TEST(SceneImport, TransformsErrorsNameTheField) {
+  const auto dir = test::temp_dir("import_transforms_errors");
+  SceneImportOptions opt;
+  std::string msg;
   // NaN (as Python's json.dump writes it) in a transform_matrix; a wrong last row; a missing image file.
   write_bytes(dir / "t/images/a.jpg", jpeg_bytes(48, 64));
   const auto tj = dir / "t/transforms.json";
@@ -332,13 +352,6 @@ TEST(SceneImport, ErrorsNameTheFileLineAndField) {
       "transform_matrix": [[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]}]})");
   msg = test::error_of([&] { import_scene(opt); });
   EXPECT_NE(msg.find("gone.jpg"), std::string::npos) << msg;
-
-  // An undecodable photo.
-  write_text(dir / "bad/x.jpg", "this is not a JPEG");
-  opt = SceneImportOptions{};
-  opt.images_dir = (dir / "bad").string();
-  msg = test::error_of([&] { import_scene(opt); });
-  EXPECT_NE(msg.find("x.jpg"), std::string::npos) << msg;
 }
 
 TEST(SceneImport, CliImportsPosedAndUnposedScenesIntoChunksAndIndices) {

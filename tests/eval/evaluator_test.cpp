@@ -54,6 +54,40 @@ size_t count_lines(const fs::path& path) {
   return n;
 }
 
+// The baselines of `r`, recomputed from the views directly (targets 4, 8, 11 copy context frames 1, 13, 13).
+void expect_baselines_recomputed(const data::ChunkDataset& dataset, const EvalSummary& s, const SceneResult& r) {
+  auto views = dataset.load_views(dataset.find(kKey), {1, 13, 4, 8, 11}, tiny_prep());
+  auto gt = views.images.narrow(0, 2, 3);
+  auto copy = views.images.index_select(0, torch::tensor({0, 1, 1}, torch::kInt64));
+  auto psnr_copy = psnr(copy, gt), ssim_mean = ssim(mean_colour(gt), gt);
+  auto edges_copy = gradient_energy_ratio(copy, gt);
+  for (int t = 0; t < 3; ++t) {
+    EXPECT_NEAR(r.views[t].psnr_copy, psnr_copy[t].item<double>(), 1e-9);
+    EXPECT_NEAR(r.views[t].ssim_mean, ssim_mean[t].item<double>(), 1e-9);
+    EXPECT_NEAR(r.views[t].grad_ratio_copy, edges_copy[t].item<double>(), 1e-12);
+    EXPECT_EQ(r.views[t].grad_ratio_mean, 0.0);  // a constant colour has no edges
+    EXPECT_TRUE(r.views[t].grad_ratio > 0 && std::isfinite(r.views[t].grad_ratio)) << r.views[t].grad_ratio;
+  }
+  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("grad_ratio"), r.grad_ratio_copy);
+}
+
+// metrics.json, the CSVs and the grid the evaluation wrote.
+void expect_result_files(const fs::path& out, const EvalSummary& s, const SceneResult& r) {
+  EXPECT_TRUE(fs::is_regular_file(out / "metrics.json"));
+  EXPECT_EQ(count_lines(out / "per_scene.csv"), 2u);
+  EXPECT_EQ(count_lines(out / "per_view.csv"), 4u);
+  EXPECT_TRUE(fs::is_regular_file(out / "scenes" / (std::string(kKey) + ".png")));
+  ASSERT_EQ(s.scene_grids.size(), 1u);
+  std::ifstream f(out / "metrics.json");
+  auto j = nlohmann::json::parse(f);
+  EXPECT_EQ(j["scenes"], 1);
+  EXPECT_EQ(j["views"], 3);
+  EXPECT_EQ(j["skipped"]["null_entries"], 1);
+  EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.psnr, 1e-12);
+  EXPECT_NEAR(j["table"]["model"]["grad_ratio"].get<double>(), r.grad_ratio, 1e-12);
+  EXPECT_TRUE(j["buckets"].contains("large"));
+}
+
 TEST(Evaluator, TinyModelOnFixtureDataset) {
   UPLVSM_NEEDS_FIXTURES();
   torch::manual_seed(0);
@@ -90,35 +124,8 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   EXPECT_EQ(s.span_scenes.at("interpolation"), 1);
   EXPECT_EQ(s.spans.count("extrapolation"), 0u);
 
-  // The baselines, recomputed from the views directly (targets 4, 8, 11 copy context frames 1, 13, 13).
-  auto views = dataset.load_views(dataset.find(kKey), {1, 13, 4, 8, 11}, tiny_prep());
-  auto gt = views.images.narrow(0, 2, 3);
-  auto copy = views.images.index_select(0, torch::tensor({0, 1, 1}, torch::kInt64));
-  auto psnr_copy = psnr(copy, gt), ssim_mean = ssim(mean_colour(gt), gt);
-  auto edges_copy = gradient_energy_ratio(copy, gt);
-  for (int t = 0; t < 3; ++t) {
-    EXPECT_NEAR(r.views[t].psnr_copy, psnr_copy[t].item<double>(), 1e-9);
-    EXPECT_NEAR(r.views[t].ssim_mean, ssim_mean[t].item<double>(), 1e-9);
-    EXPECT_NEAR(r.views[t].grad_ratio_copy, edges_copy[t].item<double>(), 1e-12);
-    EXPECT_EQ(r.views[t].grad_ratio_mean, 0.0);  // a constant colour has no edges
-    EXPECT_TRUE(r.views[t].grad_ratio > 0 && std::isfinite(r.views[t].grad_ratio)) << r.views[t].grad_ratio;
-  }
-  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("grad_ratio"), r.grad_ratio_copy);
-
-  // Files.
-  EXPECT_TRUE(fs::is_regular_file(out / "metrics.json"));
-  EXPECT_EQ(count_lines(out / "per_scene.csv"), 2u);
-  EXPECT_EQ(count_lines(out / "per_view.csv"), 4u);
-  EXPECT_TRUE(fs::is_regular_file(out / "scenes" / (std::string(kKey) + ".png")));
-  ASSERT_EQ(s.scene_grids.size(), 1u);
-  std::ifstream f(out / "metrics.json");
-  auto j = nlohmann::json::parse(f);
-  EXPECT_EQ(j["scenes"], 1);
-  EXPECT_EQ(j["views"], 3);
-  EXPECT_EQ(j["skipped"]["null_entries"], 1);
-  EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.psnr, 1e-12);
-  EXPECT_NEAR(j["table"]["model"]["grad_ratio"].get<double>(), r.grad_ratio, 1e-12);
-  EXPECT_TRUE(j["buckets"].contains("large"));
+  expect_baselines_recomputed(dataset, s, r);
+  expect_result_files(out, s, r);
   if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) fs::remove_all(out);
 }
 
