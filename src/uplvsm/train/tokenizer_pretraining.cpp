@@ -84,7 +84,7 @@ TokenizerPretrainResult pretrain_tokenizer(const Config& config, const Tokenizer
       metrics << nlohmann::json{{"step", step + 1}, {"loss", loss}, {"lr", lr}}.dump() << "\n" << std::flush;
     if (opt.progress) bar.update(step + 1, {{"loss", fmt::format("{:.4f}", loss)}});
   }
-  bar.finish();
+  if (opt.progress) bar.finish();
   write_tokenizer(*mim, result.weights);
   spdlog::info("tokenizer pretraining: loss {:.4f} -> {:.4f}; weights {} (use with --init)", result.first_loss,
                result.last_loss, result.weights);
