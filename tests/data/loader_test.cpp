@@ -100,6 +100,24 @@ TEST(Loader, MaxScenesTrainsOnTheFirstScenesOnly) {
   EXPECT_EQ(seen, (std::set<std::string>{dataset.key(0), dataset.key(1)}));
 }
 
+// The curriculum narrows the context gap early on (min_frame_dist only at step 0) and leaves later batches as
+// they are without it.
+TEST(Loader, FrameDistanceCurriculumStartsWithTheSmallestGap) {
+  data::ChunkDataset dataset(test::micro_dataset(), "train");
+  auto opt = micro_options();
+  opt.frame_dist_curriculum_steps = 100;
+  for (int64_t step = 0; step < 3; ++step)
+    for (const auto& frames : data::make_training_batch(dataset, opt, step).frames)
+      EXPECT_EQ(frames[1] - frames[0], opt.min_frame_dist);
+  std::set<int64_t> gaps;
+  for (int64_t step = 100; step < 120; ++step) {
+    auto with = data::make_training_batch(dataset, opt, step);
+    EXPECT_EQ(with.frames, data::make_training_batch(dataset, micro_options(), step).frames);
+    for (const auto& frames : with.frames) gaps.insert(frames[1] - frames[0]);
+  }
+  EXPECT_GT(*gaps.rbegin(), opt.min_frame_dist);
+}
+
 TEST(Loader, PoseNoisePerturbsOnlyTheCameras) {
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   auto clean = data::make_training_batch(dataset, micro_options(), 3);

@@ -32,6 +32,23 @@ TEST(ViewSampler, RespectsGapAndBounds) {
   EXPECT_EQ(*gaps.rbegin(), 192);
 }
 
+TEST(ViewSampler, CurriculumGrowsTheLargestGapLinearly) {
+  EXPECT_EQ(max_gap_at_step(4, 16, 0, 0), 16);  // off: the full range from the start
+  EXPECT_EQ(max_gap_at_step(4, 16, 1200, 0), 4);
+  EXPECT_EQ(max_gap_at_step(4, 16, 1200, 100), 5);  // 4 + 12 * 100 / 1200
+  EXPECT_EQ(max_gap_at_step(4, 16, 1200, 599), 9);  // 4 + floor(5.99)
+  EXPECT_EQ(max_gap_at_step(4, 16, 1200, 1199), 15);
+  EXPECT_EQ(max_gap_at_step(4, 16, 1200, 1200), 16);
+  EXPECT_EQ(max_gap_at_step(4, 16, 1200, 50000), 16);
+  EXPECT_EQ(max_gap_at_step(7, 7, 1200, 3), 7);
+  int previous = 0;
+  for (int64_t step = 0; step <= 1300; ++step) {
+    const int gap = max_gap_at_step(4, 16, 1200, step);
+    EXPECT_GE(gap, previous);
+    previous = gap;
+  }
+}
+
 TEST(ViewSampler, GapCappedByScene) {
   std::mt19937_64 rng(5);
   for (int rep = 0; rep < 200; ++rep) {

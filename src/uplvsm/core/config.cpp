@@ -141,6 +141,7 @@ void training_fields(C& c, F&& f) {
   f("num_target_views", c.num_target_views);
   f("min_frame_dist", c.min_frame_dist);
   f("max_frame_dist", c.max_frame_dist);
+  f("frame_dist_curriculum_steps", c.frame_dist_curriculum_steps);
   f("l2_loss_weight", c.l2_loss_weight);
   f("perceptual_loss_weight", c.perceptual_loss_weight);
   f("checkpoint_every", c.checkpoint_every);
@@ -336,6 +337,7 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
           "training: need 1 <= min_frame_dist <= max_frame_dist");
+  require(tr.frame_dist_curriculum_steps >= 0, s, "training.frame_dist_curriculum_steps must be >= 0");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
   require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
           "training.pose_noise_variance must be a finite number >= 0");

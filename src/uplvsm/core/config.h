@@ -87,6 +87,9 @@ struct TrainingConfig {
   int64_t num_target_views = 6;
   int64_t min_frame_dist = 25;
   int64_t max_frame_dist = 192;
+  // A baseline curriculum (not in the paper): the largest context gap grows from min_frame_dist to max_frame_dist
+  // over the first frame_dist_curriculum_steps steps (ordered views only); 0: max_frame_dist from the start.
+  int64_t frame_dist_curriculum_steps = 0;
   double l2_loss_weight = 1.0;
   double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (TrainOptions::perceptual_weights)
   int64_t checkpoint_every = 4000;

@@ -68,8 +68,8 @@ torch::Tensor perturb_cameras(const torch::Tensor& c2w, double variance, uint64_
   return geometry::pose_encoding_to_c2w(enc).to(c2w.dtype());
 }
 
-// The training views of a scene of `frames` frames; throws when it has too few.
-std::vector<int64_t> sample_views(int64_t frames, const LoaderOptions& opt, std::mt19937_64& rng) {
+// The training views of a scene of `frames` frames at training step `step`; throws when it has too few.
+std::vector<int64_t> sample_views(int64_t frames, const LoaderOptions& opt, int64_t step, std::mt19937_64& rng) {
   if (!opt.ordered_views) {
     if (frames < opt.num_views)
       throw std::runtime_error(fmt::format("{} frames: too few for {} views", frames, opt.num_views));
@@ -78,7 +78,8 @@ std::vector<int64_t> sample_views(int64_t frames, const LoaderOptions& opt, std:
   if (!can_sample(frames, opt.num_views, opt.min_frame_dist))
     throw std::runtime_error(
         fmt::format("{} frames: too few for {} views {}+ frames apart", frames, opt.num_views, opt.min_frame_dist));
-  return sample_training_views(frames, opt.num_views, opt.min_frame_dist, opt.max_frame_dist, rng);
+  const int max_gap = max_gap_at_step(opt.min_frame_dist, opt.max_frame_dist, opt.frame_dist_curriculum_steps, step);
+  return sample_training_views(frames, opt.num_views, opt.min_frame_dist, max_gap, rng);
 }
 
 }  // namespace
@@ -108,7 +109,7 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
       const int64_t scene = perm[slot % n];
       try {
         const int64_t frames = dataset.num_frames(scene);
-        auto chosen = sample_views(frames, opt, rng);
+        auto chosen = sample_views(frames, opt, step, rng);
         auto views = dataset.load_views(scene, chosen, opt.preprocess);
         images.push_back(views.images);
         intrinsics.push_back(views.fxfycxcy);

@@ -27,6 +27,8 @@ struct LoaderOptions {
   int num_input_views = 2;
   int num_target_views = 6;
   int min_frame_dist = 25, max_frame_dist = 192;
+  int64_t frame_dist_curriculum_steps =
+      0;                      // max_frame_dist reached after this many steps (max_gap_at_step); 0: at once
   bool ordered_views = true;  // false: any distinct frames (unordered views); min/max_frame_dist unused
   PreprocessOptions preprocess;
   uint64_t seed = 777;

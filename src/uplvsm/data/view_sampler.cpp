@@ -2,6 +2,7 @@
 #include "uplvsm/data/view_sampler.h"
 
 #include <algorithm>
+#include <cmath>
 #include <limits>
 #include <stdexcept>
 
@@ -57,6 +58,13 @@ std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, in
     for (int64_t j = 0; j < need; ++j) views.push_back(uniform_int(rng, a, b));
   }
   return views;
+}
+
+int max_gap_at_step(int min_gap, int max_gap, int64_t steps, int64_t step) {
+  if (steps <= 0 || step >= steps || max_gap <= min_gap) return max_gap;
+  const double grown = static_cast<double>(max_gap - min_gap) * static_cast<double>(std::max<int64_t>(step, 0)) /
+                       static_cast<double>(steps);
+  return min_gap + static_cast<int>(std::floor(grown));
 }
 
 std::vector<int64_t> sample_unordered_views(int64_t num_frames, int num_views, std::mt19937_64& rng) {

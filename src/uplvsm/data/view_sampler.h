@@ -23,6 +23,10 @@ int64_t uniform_int(std::mt19937_64& rng, int64_t lo, int64_t hi);
 std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, int min_gap, int max_gap,
                                            std::mt19937_64& rng);
 
+// The baseline curriculum (small camera motion first; not in the official recipe): the largest context gap at
+// `step` grows linearly from min_gap to max_gap over the first `steps` steps; steps <= 0 is max_gap throughout.
+int max_gap_at_step(int min_gap, int max_gap, int64_t steps, int64_t step);
+
 // Whether the official selector can use the scene without lowering its gap: num_frames >= num_views and
 // num_frames - 1 >= min_gap (the official code raises, and replaces the scene, otherwise).
 bool can_sample(int64_t num_frames, int num_views, int min_gap);

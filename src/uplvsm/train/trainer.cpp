@@ -45,6 +45,7 @@ data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& da
   o.num_target_views = static_cast<int>(t.num_target_views);
   o.min_frame_dist = static_cast<int>(t.min_frame_dist);
   o.max_frame_dist = static_cast<int>(t.max_frame_dist);
+  o.frame_dist_curriculum_steps = t.frame_dist_curriculum_steps;
   o.preprocess.image_size = static_cast<int>(c.model.image_size);
   o.preprocess.patch_size = static_cast<int>(c.model.patch_size);
   o.preprocess.square_crop = c.dataset.square_crop;
