@@ -93,6 +93,7 @@ void transformer_fields(C& c, F&& f) {
   f("qk_norm_eps", c.qk_norm_eps);
   f("special_init", c.special_init);
   f("depth_init", c.depth_init);
+  f("identity_rotation_init", c.identity_rotation_init);
 }
 
 template <typename C, typename F>

@@ -34,6 +34,9 @@ struct TransformerConfig {
   double qk_norm_eps = 1e-3;  // official UP-LVSM; LVSM uses 1e-5
   bool special_init = true;
   bool depth_init = true;
+  // Not in the paper: start the estimator's quaternion head at the identity rotation (its output bias (0, 0, 0, 1),
+  // scalar-last) instead of the official zero bias, whose tiny random outputs normalise to arbitrary rotations.
+  bool identity_rotation_init = false;
 };
 
 struct Dinov2Config {

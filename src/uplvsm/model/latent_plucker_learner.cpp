@@ -14,6 +14,10 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
   quaR_head = register_module("quaR_head", DinoMlp(c.d, c.d / 2, 4));
   init_linear_weights(*absT_head, 0.02);
   init_linear_weights(*quaR_head, 0.02);
+  if (c.identity_rotation_init) {
+    torch::NoGradGuard no_grad;
+    quaR_head->fc2->bias.copy_(torch::tensor({0.0f, 0.0f, 0.0f, 1.0f}));  // q_xyzw = identity
+  }
 }
 
 torch::Tensor LatentPluckerLearnerImpl::pooled(const torch::Tensor& image_tokens, const torch::Tensor& scene_latents) {
