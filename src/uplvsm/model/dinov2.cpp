@@ -1,6 +1,7 @@
 #include "uplvsm/model/dinov2.h"
 
 #include "uplvsm/model/gradient_checkpoint.h"
+#include "uplvsm/model/qk_norm.h"
 
 #include <cmath>
 
@@ -9,8 +10,8 @@ namespace uplvsm::model {
 using torch::indexing::Slice;
 
 DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, double eps) : heads(heads_) {
-  qkv = register_module("qkv", torch::nn::Linear(torch::nn::LinearOptions(dim, 3 * dim).bias(true)));
-  proj = register_module("proj", torch::nn::Linear(torch::nn::LinearOptions(dim, dim).bias(true)));
+  qkv = register_module("qkv", CastOnceLinear(torch::nn::LinearOptions(dim, 3 * dim).bias(true)));
+  proj = register_module("proj", CastOnceLinear(torch::nn::LinearOptions(dim, dim).bias(true)));
   if (qk_norm) {
     q_norm = register_module("q_norm", RMSNorm(dim / heads, eps));
     k_norm = register_module("k_norm", RMSNorm(dim / heads, eps));
@@ -22,16 +23,17 @@ torch::Tensor DinoAttentionImpl::forward(const torch::Tensor& x) {
   auto qkv_ = qkv(x).view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4});
   auto q = qkv_[0], k = qkv_[1], v = qkv_[2];
   if (q_norm) {
-    q = q_norm(q);
-    k = k_norm(k);
+    const auto dtype = qk_norm_output_dtype(q, C / heads);
+    q = qk_norm(q, q_norm->weight, q_norm->eps, dtype);
+    k = qk_norm(k, k_norm->weight, k_norm->eps, dtype);
   }
   auto o = attention(q, k, v);
   return proj(o.transpose(1, 2).reshape({B, N, C}));
 }
 
 DinoMlpImpl::DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out) {
-  fc1 = register_module("fc1", torch::nn::Linear(dim, hidden));
-  fc2 = register_module("fc2", torch::nn::Linear(hidden, out));
+  fc1 = register_module("fc1", CastOnceLinear(dim, hidden));
+  fc2 = register_module("fc2", CastOnceLinear(hidden, out));
 }
 
 LayerScaleImpl::LayerScaleImpl(int64_t dim, double init) {

@@ -13,7 +13,7 @@ namespace uplvsm::model {
 struct DinoAttentionImpl : torch::nn::Module {
   DinoAttentionImpl(int64_t dim, int64_t heads, bool qk_norm, double qk_norm_eps);
   torch::Tensor forward(const torch::Tensor& x);
-  torch::nn::Linear qkv{nullptr}, proj{nullptr};
+  CastOnceLinear qkv{nullptr}, proj{nullptr};
   RMSNorm q_norm{nullptr}, k_norm{nullptr};  // only with qk_norm
   int64_t heads;
 };
@@ -22,7 +22,7 @@ TORCH_MODULE(DinoAttention);
 struct DinoMlpImpl : torch::nn::Module {
   DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out);
   torch::Tensor forward(const torch::Tensor& x) { return fc2(torch::gelu(fc1(x))); }
-  torch::nn::Linear fc1{nullptr}, fc2{nullptr};
+  CastOnceLinear fc1{nullptr}, fc2{nullptr};
 };
 TORCH_MODULE(DinoMlp);
 

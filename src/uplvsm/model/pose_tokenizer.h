@@ -3,6 +3,8 @@
 #pragma once
 #include <torch/torch.h>
 
+#include "uplvsm/model/cast_once_linear.h"
+
 namespace uplvsm::model {
 
 // [N, C, H, W] -> [N, (H/p)(W/p), p*p*C]
@@ -16,7 +18,7 @@ struct PoseTokenizerImpl : torch::nn::Module {
   PoseTokenizerImpl(int64_t patch_size, int64_t d, int64_t channels = 6);
   // plucker [N, 6, H, W] -> tokens [N, n, d]
   torch::Tensor forward(const torch::Tensor& plucker);
-  torch::nn::Linear linear{nullptr};
+  CastOnceLinear linear{nullptr};
   int64_t patch_size;
 };
 TORCH_MODULE(PoseTokenizer);

@@ -3,6 +3,7 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/flash_attention.h"
 #include "uplvsm/model/gradient_checkpoint.h"
+#include "uplvsm/model/qk_norm.h"
 
 #include <cmath>
 
@@ -20,9 +21,15 @@ RMSNormImpl::RMSNormImpl(int64_t dim, double eps_) : eps(eps_) {
 }
 
 torch::Tensor RMSNormImpl::forward(const torch::Tensor& x) {
-  auto x32 = x.to(torch::kFloat32);
-  auto y = x32 * torch::rsqrt(x32.pow(2).mean(-1, true) + eps);
-  return y.to(x.scalar_type()) * weight;
+  return qk_norm(x, weight, eps, torch::promote_types(x.scalar_type(), weight.scalar_type()));
+}
+
+torch::ScalarType qk_norm_output_dtype(const torch::Tensor& projected, int64_t d_head) {
+  // The dtype `attention` casts to under autocast (bf16 for the fused kernel) saves that pass; otherwise RMSNorm's
+  // own result dtype (that of x times an fp32 weight).
+  const auto device = projected.device();
+  if (autocast_active(device) && fused_attention_applies(device, torch::kBFloat16, d_head)) return torch::kBFloat16;
+  return torch::promote_types(projected.scalar_type(), torch::kFloat32);
 }
 
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
@@ -40,8 +47,8 @@ torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const to
 }
 
 QKNormAttentionImpl::QKNormAttentionImpl(int64_t d, int64_t d_head_, double eps) : heads(d / d_head_), d_head(d_head_) {
-  to_qkv = register_module("to_qkv", torch::nn::Linear(torch::nn::LinearOptions(d, 3 * d).bias(false)));
-  fc = register_module("fc", torch::nn::Linear(torch::nn::LinearOptions(d, d).bias(false)));
+  to_qkv = register_module("to_qkv", CastOnceLinear(torch::nn::LinearOptions(d, 3 * d).bias(false)));
+  fc = register_module("fc", CastOnceLinear(torch::nn::LinearOptions(d, d).bias(false)));
   q_norm = register_module("q_norm", RMSNorm(d_head, eps));
   k_norm = register_module("k_norm", RMSNorm(d_head, eps));
 }
@@ -50,8 +57,9 @@ std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::pro
   const int64_t B = x.size(0), L = x.size(1);
   auto qkv = to_qkv(x).chunk(3, -1);  // q | k | v, each head-major (heads, d_head)
   auto split = [&](const torch::Tensor& t) { return t.view({B, L, heads, d_head}); };
-  auto q = q_norm(split(qkv[0])).transpose(1, 2);
-  auto k = k_norm(split(qkv[1])).transpose(1, 2);
+  const auto dtype = qk_norm_output_dtype(qkv[0], d_head);
+  auto q = qk_norm(split(qkv[0]), q_norm->weight, q_norm->eps, dtype).transpose(1, 2);
+  auto k = qk_norm(split(qkv[1]), k_norm->weight, k_norm->eps, dtype).transpose(1, 2);
   auto v = split(qkv[2]).transpose(1, 2);
   return {q, k, v};
 }
@@ -70,9 +78,9 @@ torch::Tensor QKNormAttentionImpl::attention_map(const torch::Tensor& x) {
 
 MLPImpl::MLPImpl(int64_t d, int64_t hidden) {
   mlp = register_module(
-      "mlp", torch::nn::Sequential(torch::nn::Linear(torch::nn::LinearOptions(d, hidden).bias(false)),
+      "mlp", torch::nn::Sequential(CastOnceLinear(torch::nn::LinearOptions(d, hidden).bias(false)),
                                    torch::nn::Functional([](const torch::Tensor& t) { return torch::gelu(t); }),
-                                   torch::nn::Linear(torch::nn::LinearOptions(hidden, d).bias(false))));
+                                   CastOnceLinear(torch::nn::LinearOptions(hidden, d).bias(false))));
 }
 
 TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps) {

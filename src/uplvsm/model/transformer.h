@@ -5,6 +5,8 @@
 #pragma once
 #include <torch/torch.h>
 
+#include "uplvsm/model/cast_once_linear.h"
+
 namespace uplvsm::model {
 
 // LayerNorm with an optional bias (torch >= 2.1's LayerNorm(bias=False) keeps only `weight`).
@@ -26,6 +28,9 @@ struct RMSNormImpl : torch::nn::Module {
 };
 TORCH_MODULE(RMSNorm);
 
+// The dtype in which QK-Norm hands q and k to `attention` for a projection `projected` (qk_norm.h).
+torch::ScalarType qk_norm_output_dtype(const torch::Tensor& projected, int64_t d_head);
+
 // softmax(q k^T * scale) v for q, k, v [B, heads, L, d_head]. One seam for the attention kernel.
 torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
 
@@ -34,7 +39,7 @@ struct QKNormAttentionImpl : torch::nn::Module {
   torch::Tensor forward(const torch::Tensor& x);
   // The attention probabilities (head-mean, [B, L, L]) for analysis tools; not used by forward.
   torch::Tensor attention_map(const torch::Tensor& x);
-  torch::nn::Linear to_qkv{nullptr}, fc{nullptr};
+  CastOnceLinear to_qkv{nullptr}, fc{nullptr};
   RMSNorm q_norm{nullptr}, k_norm{nullptr};
   int64_t heads, d_head;
 

@@ -1,0 +1,54 @@
+#include "uplvsm/model/cast_once_linear.h"
+
+#include <cstdlib>
+#include <cstring>
+
+#include "uplvsm/core/autocast.h"
+
+namespace uplvsm::model {
+
+namespace {
+
+bool same_storage(const c10::Storage& held, const torch::Tensor& t) {
+  return t.defined() ? held.unsafeGetStorageImpl() == t.storage().unsafeGetStorageImpl() : !held;
+}
+
+int64_t version_of(const torch::Tensor& t) { return t.defined() ? static_cast<int64_t>(t._version()) : -1; }
+
+// UPLVSM_LINEAR_CAST=per-call restores autocast's cast on every call (before/after comparisons in benchmarks).
+bool cast_once_enabled() {
+  static const bool enabled = [] {
+    const char* env = std::getenv("UPLVSM_LINEAR_CAST");
+    return !(env && std::strcmp(env, "per-call") == 0);
+  }();
+  return enabled;
+}
+
+}  // namespace
+
+std::pair<torch::Tensor, torch::Tensor> CastOnceLinearImpl::bf16_weights() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  const bool current = weight_bf16_.defined() && same_storage(weight_storage_, weight) &&
+                       same_storage(bias_storage_, bias) && weight_version_ == version_of(weight) &&
+                       bias_version_ == version_of(bias);
+  if (!current) {
+    torch::NoGradGuard no_grad;
+    weight_bf16_ = weight.to(torch::kBFloat16);
+    bias_bf16_ = bias.defined() ? bias.to(torch::kBFloat16) : torch::Tensor();
+    weight_storage_ = weight.storage();
+    bias_storage_ = bias.defined() ? bias.storage() : c10::Storage();
+    weight_version_ = version_of(weight);
+    bias_version_ = version_of(bias);
+  }
+  return {weight_bf16_, bias_bf16_};
+}
+
+torch::Tensor CastOnceLinearImpl::forward(const torch::Tensor& input) {
+  const bool cast_once = cast_once_enabled() && !torch::GradMode::is_enabled() &&
+                         weight.scalar_type() == torch::kFloat32 && autocast_active(weight.device());
+  if (!cast_once) return torch::nn::LinearImpl::forward(input);
+  auto [w, b] = bf16_weights();
+  return torch::linear(input, w, b);  // autocast casts the input; the weights are bf16 already
+}
+
+}  // namespace uplvsm::model

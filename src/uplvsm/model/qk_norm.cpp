@@ -1,0 +1,279 @@
+#include "uplvsm/model/qk_norm.h"
+
+#include <ATen/Parallel.h>
+#include <ATen/record_function.h>
+#include <c10/util/BFloat16.h>
+#include <immintrin.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <vector>
+
+namespace uplvsm::model {
+namespace {
+
+using torch::autograd::AutogradContext;
+using torch::autograd::variable_list;
+
+// Rows of the weight gradient's partial sums: fixed blocks summed in order, so the result does not depend on the
+// number of threads (training runs are deterministic).
+constexpr int64_t kRowsPerBlock = 256;
+
+bool forced_unfused() {
+  static const bool unfused = [] {
+    const char* env = std::getenv("UPLVSM_QK_NORM");
+    return env && std::strcmp(env, "unfused") == 0;
+  }();
+  return unfused;
+}
+
+// Element offset of each row of x viewed as [rows, D] (x's last dimension contiguous, any outer strides), walked
+// as an odometer: a division per row and dimension would cost as much as the row's arithmetic.
+std::vector<int64_t> row_offsets(const torch::Tensor& x) {
+  const int64_t outer = x.dim() - 1;
+  std::vector<int64_t> offsets(static_cast<size_t>(x.numel() / x.size(-1)));
+  std::vector<int64_t> index(static_cast<size_t>(outer), 0);
+  int64_t offset = 0;
+  for (auto& o : offsets) {
+    o = offset;
+    for (int64_t d = outer - 1; d >= 0; --d) {
+      offset += x.stride(d);
+      if (++index[d] < x.size(d)) break;
+      offset -= index[d] * x.stride(d);
+      index[d] = 0;
+    }
+  }
+  return offsets;
+}
+
+template <typename T>
+T round_to(float v) {
+  return static_cast<T>(v);
+}
+
+// out = ((x * r) rounded to T) * w rounded to TOut, r = 1 / sqrt(mean(x^2) + eps), per row; r kept for backward.
+template <typename T, typename TOut>
+void forward_rows(const T* x, const int64_t* offsets, const float* w, float eps, int64_t D, int64_t begin, int64_t end,
+                  TOut* out, float* r) {
+  for (int64_t row = begin; row < end; ++row) {
+    const T* xr = x + offsets[row];
+    float sum_sq = 0.0f;
+    for (int64_t j = 0; j < D; ++j) sum_sq += static_cast<float>(xr[j]) * static_cast<float>(xr[j]);
+    const float rr = 1.0f / std::sqrt(sum_sq / static_cast<float>(D) + eps);
+    r[row] = rr;
+    TOut* o = out + row * D;
+    for (int64_t j = 0; j < D; ++j)
+      o[j] = round_to<TOut>(static_cast<float>(round_to<T>(static_cast<float>(xr[j]) * rr)) * w[j]);
+  }
+}
+
+// The autograd chain of the unfused forward, per row: g_y = (g_out * w) rounded to T; g_x = g_y r + x (2 / D)
+// (-0.5 g_r r^3) with g_r = sum(g_y x), rounded to T; the weight gradient adds g_out * y (y rounded to T).
+template <typename T, typename TOut>
+void backward_rows(const T* x, const int64_t* offsets, const float* w, const float* r, const TOut* gout, int64_t D,
+                   int64_t begin, int64_t end, T* gx, float* gw) {
+  for (int64_t row = begin; row < end; ++row) {
+    const T* xr = x + offsets[row];
+    const TOut* g = gout + row * D;
+    const float rr = r[row];
+    float g_r = 0.0f;
+    for (int64_t j = 0; j < D; ++j) {
+      const float gy = static_cast<float>(round_to<T>(static_cast<float>(g[j]) * w[j]));
+      g_r += gy * static_cast<float>(xr[j]);
+      if (gw) gw[j] += static_cast<float>(g[j]) * static_cast<float>(round_to<T>(static_cast<float>(xr[j]) * rr));
+    }
+    const float g_sq = -0.5f * g_r * (rr * rr * rr) / static_cast<float>(D);
+    T* o = gx + row * D;
+    for (int64_t j = 0; j < D; ++j) {
+      const float gy = static_cast<float>(round_to<T>(static_cast<float>(g[j]) * w[j]));
+      o[j] = round_to<T>(gy * rr + g_sq * (2.0f * static_cast<float>(xr[j])));
+    }
+  }
+}
+
+// ---- AVX-512 rows (D a multiple of 16): the same arithmetic, 16 features at a time ----
+
+#define UPLVSM_QK_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
+
+bool cpu_has_avx512() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+           __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
+  }();
+  return has;
+}
+
+template <typename T>
+UPLVSM_QK_AVX512 inline __m512 load16(const T* p) {
+  if constexpr (std::is_same_v<T, float>) {
+    return _mm512_loadu_ps(p);
+  } else {
+    const __m512i wide = _mm512_cvtepu16_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)));
+    return _mm512_castsi512_ps(_mm512_slli_epi32(wide, 16));
+  }
+}
+
+// fp32 -> bf16 bits as c10::BFloat16 rounds: to nearest even, NaN to 0x7FC0 (denormals kept, unlike vcvtneps2bf16).
+UPLVSM_QK_AVX512 inline __m256i to_bf16_bits(__m512 v) {
+  const __m512i bits = _mm512_castps_si512(v);
+  const __m512i lsb = _mm512_and_si512(_mm512_srli_epi32(bits, 16), _mm512_set1_epi32(1));
+  __m512i rounded = _mm512_srli_epi32(_mm512_add_epi32(bits, _mm512_add_epi32(lsb, _mm512_set1_epi32(0x7FFF))), 16);
+  const __mmask16 nan = _mm512_cmp_ps_mask(v, v, _CMP_UNORD_Q);
+  rounded = _mm512_mask_mov_epi32(rounded, nan, _mm512_set1_epi32(0x7FC0));
+  return _mm512_cvtepi32_epi16(rounded);
+}
+
+// v rounded to T and back to fp32.
+template <typename T>
+UPLVSM_QK_AVX512 inline __m512 round16(__m512 v) {
+  if constexpr (std::is_same_v<T, float>) {
+    return v;
+  } else {
+    return _mm512_castsi512_ps(_mm512_slli_epi32(_mm512_cvtepu16_epi32(to_bf16_bits(v)), 16));
+  }
+}
+
+template <typename T>
+UPLVSM_QK_AVX512 inline void store16(T* p, __m512 v) {
+  if constexpr (std::is_same_v<T, float>) {
+    _mm512_storeu_ps(p, v);
+  } else {
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), to_bf16_bits(v));
+  }
+}
+
+template <typename T, typename TOut>
+UPLVSM_QK_AVX512 void forward_rows_avx512(const T* x, const int64_t* offsets, const float* w, float eps, int64_t D,
+                                          int64_t begin, int64_t end, TOut* out, float* r) {
+  for (int64_t row = begin; row < end; ++row) {
+    const T* xr = x + offsets[row];
+    __m512 acc = _mm512_setzero_ps();
+    for (int64_t j = 0; j < D; j += 16) {
+      const __m512 xv = load16(xr + j);
+      acc = _mm512_fmadd_ps(xv, xv, acc);
+    }
+    const float rr = 1.0f / std::sqrt(_mm512_reduce_add_ps(acc) / static_cast<float>(D) + eps);
+    r[row] = rr;
+    const __m512 rv = _mm512_set1_ps(rr);
+    for (int64_t j = 0; j < D; j += 16)
+      store16(out + row * D + j, _mm512_mul_ps(round16<T>(_mm512_mul_ps(load16(xr + j), rv)), _mm512_loadu_ps(w + j)));
+  }
+}
+
+template <typename T, typename TOut>
+UPLVSM_QK_AVX512 void backward_rows_avx512(const T* x, const int64_t* offsets, const float* w, const float* r,
+                                           const TOut* gout, int64_t D, int64_t begin, int64_t end, T* gx, float* gw) {
+  for (int64_t row = begin; row < end; ++row) {
+    const T* xr = x + offsets[row];
+    const TOut* g = gout + row * D;
+    const __m512 rv = _mm512_set1_ps(r[row]);
+    __m512 acc = _mm512_setzero_ps();
+    for (int64_t j = 0; j < D; j += 16) {
+      const __m512 xv = load16(xr + j), gv = load16(g + j);
+      acc = _mm512_fmadd_ps(round16<T>(_mm512_mul_ps(gv, _mm512_loadu_ps(w + j))), xv, acc);
+      if (gw) {
+        const __m512 y = round16<T>(_mm512_mul_ps(xv, rv));
+        _mm512_storeu_ps(gw + j, _mm512_fmadd_ps(gv, y, _mm512_loadu_ps(gw + j)));
+      }
+    }
+    const float rr = r[row];
+    const __m512 g_sq2 =
+        _mm512_set1_ps(2.0f * (-0.5f * _mm512_reduce_add_ps(acc) * (rr * rr * rr) / static_cast<float>(D)));
+    for (int64_t j = 0; j < D; j += 16) {
+      const __m512 gy = round16<T>(_mm512_mul_ps(load16(g + j), _mm512_loadu_ps(w + j)));
+      store16(gx + row * D + j, _mm512_fmadd_ps(g_sq2, load16(xr + j), _mm512_mul_ps(gy, rv)));
+    }
+  }
+}
+
+// Calls f with (T*)-typed null pointers selecting x's and the output's element types.
+template <typename F>
+void dispatch_types(torch::ScalarType in, torch::ScalarType out, F&& f) {
+  using BF = c10::BFloat16;
+  if (in == torch::kFloat32 && out == torch::kFloat32)
+    return f(static_cast<float*>(nullptr), static_cast<float*>(nullptr));
+  if (in == torch::kFloat32) return f(static_cast<float*>(nullptr), static_cast<BF*>(nullptr));
+  if (out == torch::kFloat32) return f(static_cast<BF*>(nullptr), static_cast<float*>(nullptr));
+  return f(static_cast<BF*>(nullptr), static_cast<BF*>(nullptr));
+}
+
+struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
+  static torch::Tensor forward(AutogradContext* ctx, torch::Tensor x, torch::Tensor weight, double eps,
+                               int64_t out_dtype) {
+    RECORD_FUNCTION("uplvsm::qk_norm", std::vector<c10::IValue>());
+    const int64_t D = x.size(-1), rows = x.numel() / D;
+    const auto out_type = static_cast<torch::ScalarType>(out_dtype);
+    auto out = torch::empty(x.sizes(), x.options().dtype(out_type));
+    auto r = torch::empty({rows}, x.options().dtype(torch::kFloat32));
+    const auto offsets = row_offsets(x);
+    dispatch_types(x.scalar_type(), out_type, [&](auto* in_tag, auto* out_tag) {
+      using T = std::remove_pointer_t<decltype(in_tag)>;
+      using TOut = std::remove_pointer_t<decltype(out_tag)>;
+      at::parallel_for(0, rows, 64, [&](int64_t begin, int64_t end) {
+        const auto rows_kernel = D % 16 == 0 && cpu_has_avx512() ? forward_rows_avx512<T, TOut> : forward_rows<T, TOut>;
+        rows_kernel(x.data_ptr<T>(), offsets.data(), weight.data_ptr<float>(), static_cast<float>(eps), D, begin, end,
+                    out.data_ptr<TOut>(), r.data_ptr<float>());
+      });
+    });
+    ctx->save_for_backward({x, weight, r});
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grad_outputs) {
+    RECORD_FUNCTION("uplvsm::qk_norm_backward", std::vector<c10::IValue>());
+    auto saved = ctx->get_saved_variables();
+    const auto &x = saved[0], &weight = saved[1], &r = saved[2];
+    const auto gout = grad_outputs[0].contiguous();
+    const int64_t D = x.size(-1), rows = x.numel() / D, blocks = (rows + kRowsPerBlock - 1) / kRowsPerBlock;
+    const bool weight_grad = ctx->needs_input_grad(1);
+    auto gx = torch::empty(x.sizes(), x.options().memory_format(torch::MemoryFormat::Contiguous));
+    auto partial = torch::zeros({weight_grad ? blocks : 0, D}, weight.options());
+    const auto offsets = row_offsets(x);
+    dispatch_types(x.scalar_type(), gout.scalar_type(), [&](auto* in_tag, auto* out_tag) {
+      using T = std::remove_pointer_t<decltype(in_tag)>;
+      using TOut = std::remove_pointer_t<decltype(out_tag)>;
+      const auto rows_kernel = D % 16 == 0 && cpu_has_avx512() ? backward_rows_avx512<T, TOut> : backward_rows<T, TOut>;
+      at::parallel_for(0, blocks, 1, [&](int64_t block_begin, int64_t block_end) {
+        for (int64_t b = block_begin; b < block_end; ++b)
+          rows_kernel(x.data_ptr<T>(), offsets.data(), weight.data_ptr<float>(), r.data_ptr<float>(),
+                      gout.data_ptr<TOut>(), D, b * kRowsPerBlock, std::min(rows, (b + 1) * kRowsPerBlock),
+                      gx.data_ptr<T>(), weight_grad ? partial.data_ptr<float>() + b * D : nullptr);
+      });
+    });
+    torch::Tensor gw;
+    if (weight_grad) {
+      gw = torch::zeros({D}, weight.options());
+      const float* p = partial.data_ptr<float>();
+      float* sum = gw.data_ptr<float>();
+      for (int64_t b = 0; b < blocks; ++b)
+        for (int64_t j = 0; j < D; ++j) sum[j] += p[b * D + j];
+    }
+    return {gx, gw, torch::Tensor(), torch::Tensor()};
+  }
+};
+
+}  // namespace
+
+bool qk_norm_fuses(const torch::Tensor& x, const torch::Tensor& weight) {
+  const auto t = x.scalar_type();
+  return !forced_unfused() && x.device().is_cpu() && (t == torch::kFloat32 || t == torch::kBFloat16) && x.dim() >= 1 &&
+         x.size(-1) > 0 && x.stride(-1) == 1 && weight.scalar_type() == torch::kFloat32 && weight.is_contiguous() &&
+         weight.dim() == 1 && weight.size(0) == x.size(-1) && weight.device().is_cpu();
+}
+
+torch::Tensor qk_norm_unfused(const torch::Tensor& x, const torch::Tensor& weight, double eps,
+                              torch::ScalarType out_dtype) {
+  auto x32 = x.to(torch::kFloat32);
+  auto y = x32 * torch::rsqrt(x32.pow(2).mean(-1, true) + eps);
+  return (y.to(x.scalar_type()) * weight).to(out_dtype);
+}
+
+torch::Tensor qk_norm(const torch::Tensor& x, const torch::Tensor& weight, double eps, torch::ScalarType out_dtype) {
+  const bool out_supported = out_dtype == torch::kFloat32 || out_dtype == torch::kBFloat16;
+  if (!out_supported || !qk_norm_fuses(x, weight)) return qk_norm_unfused(x, weight, eps, out_dtype);
+  return QKNormFunction::apply(x, weight, eps, static_cast<int64_t>(out_dtype));
+}
+
+}  // namespace uplvsm::model
