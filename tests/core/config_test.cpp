@@ -137,6 +137,20 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
             std::string::npos);
 }
 
+TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {
+  auto c = config_from_json({{"training", {{"frame_dist_curriculum_steps", 2000}}},
+                             {"model", {{"transformer", {{"identity_rotation_init", true}}}}}},
+                            "ok.json");
+  EXPECT_EQ(c.training.frame_dist_curriculum_steps, 2000);
+  EXPECT_TRUE(c.model.transformer.identity_rotation_init);
+  EXPECT_FALSE(Config().model.transformer.identity_rotation_init);  // the official init by default
+  const auto msg = test::error_of([] {
+    config_from_json({{"training", {{"frame_dist_curriculum_steps", -1}}}}, "bad.json");
+  });
+  EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("training.frame_dist_curriculum_steps must be >= 0"), std::string::npos) << msg;
+}
+
 TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   auto msg = message({{"model", {{"encoder_cameras", true}}}});  // target poses left at 'auto' (the estimator)
