@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include "test_util.h"
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/transformer.h"
@@ -31,6 +32,68 @@ TEST(Transformer, DepthScaledInit) {
   auto w3 = stack[3]->as<model::TransformerBlockImpl>()->attn->to_qkv->weight;
   EXPECT_NEAR(w0.std().item<double>(), 0.02 / std::sqrt(2.0), 1e-3);
   EXPECT_NEAR(w3.std().item<double>(), 0.02 / std::sqrt(8.0), 1e-3);
+}
+
+namespace {
+// A stack's output and the gradients of x and of every weight for the loss sum(out * probe).
+struct StackRun {
+  torch::Tensor out, x_grad;
+  std::vector<torch::Tensor> weight_grads;
+};
+
+StackRun run_and_differentiate(const torch::nn::ModuleList& stack, const torch::Tensor& x0, int64_t checkpoint_every,
+                               model::OutputRows rows, const torch::Tensor& probe) {
+  for (auto& p : stack->parameters()) p.mutable_grad() = torch::Tensor();
+  auto x = x0.clone().requires_grad_(true);
+  StackRun run;
+  run.out = model::run_stack(stack, x, checkpoint_every, "test", rows);
+  (run.out.to(torch::kFloat32) * probe).sum().backward();
+  run.x_grad = x.grad();
+  for (auto& p : stack->parameters()) run.weight_grads.push_back(p.grad().clone());
+  return run;
+}
+}  // namespace
+
+TEST(Transformer, OutputRowsEqualTheRowsOfTheFullStack) {
+  // The last block computes only the rows a caller reads; everything else is unchanged, so the kept rows, the input
+  // gradient and every weight gradient equal the full stack's sliced to those rows (fp32, checkpointed or not, a
+  // span at the start, the end and the middle).
+  torch::manual_seed(0);
+  auto stack = model::make_transformer_stack(3, 64, 32, 1e-3, true);
+  auto x = torch::randn({2, 40, 64});
+  for (const auto rows : {model::OutputRows{0, 16}, model::OutputRows{24, 16}, model::OutputRows{5, 1}}) {
+    for (const int64_t checkpoint_every : {0, 2}) {
+      auto probe = torch::randn({2, rows.count, 64});
+      auto full_probe = torch::zeros({2, 40, 64});
+      full_probe.narrow(1, rows.start, rows.count).copy_(probe);
+      const auto full = run_and_differentiate(stack, x, checkpoint_every, {}, full_probe);
+      const auto kept = run_and_differentiate(stack, x, checkpoint_every, rows, probe);
+      ASSERT_EQ(kept.out.sizes(), probe.sizes());
+      EXPECT_LE(test::max_abs_diff(kept.out, full.out.narrow(1, rows.start, rows.count)), 1e-5);
+      EXPECT_LE(test::max_abs_diff(kept.x_grad, full.x_grad), 1e-5);
+      for (size_t i = 0; i < full.weight_grads.size(); ++i)
+        EXPECT_LE(test::max_abs_diff(kept.weight_grads[i], full.weight_grads[i]), 1e-4) << "weight " << i;
+    }
+  }
+  EXPECT_THROW(model::run_stack(stack, x, 0, "test", {30, 16}), c10::Error);  // past the end: named, not read
+}
+
+TEST(Transformer, OutputRowsUnderBf16AutocastMatchTheFullStack) {
+  // Under autocast the kept rows take the same kernels (fused attention with fewer queries than keys).
+  torch::manual_seed(1);
+  auto stack = model::make_transformer_stack(2, 64, 32, 1e-3, true);
+  auto x = torch::randn({2, 48, 64});
+  AutocastGuard autocast(x.device(), true);
+  const model::OutputRows rows{0, 20};
+  auto probe = torch::randn({2, 20, 64});
+  auto full_probe = torch::zeros({2, 48, 64});
+  full_probe.narrow(1, 0, 20).copy_(probe);
+  const auto full = run_and_differentiate(stack, x, 0, {}, full_probe);
+  const auto kept = run_and_differentiate(stack, x, 0, rows, probe);
+  const double scale = full.out.abs().max().item<double>();
+  EXPECT_LE(test::max_abs_diff(kept.out.to(torch::kFloat32), full.out.narrow(1, 0, 20).to(torch::kFloat32)),
+            0.02 * scale);
+  EXPECT_LE(test::max_abs_diff(kept.x_grad, full.x_grad), 0.02 * full.x_grad.abs().max().item<double>());
 }
 
 TEST(StateDict, StrictLoadNamesMissingUnexpectedAndMisshapedKeys) {

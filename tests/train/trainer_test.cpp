@@ -99,6 +99,34 @@ TEST(Trainer, RotationEquivarianceAddsToTheLossAndResumesExactly) {
   EXPECT_EQ(logged_losses(resumed), losses);
 }
 
+// training.latent_translation_warmup_steps: at step 0 the translation is scaled by 0, so its head gets no gradient
+// (Adam's first moment stays exactly 0) while the rotation head learns; after the step the model is the plain one.
+TEST(Trainer, LatentTranslationWarmupStartsWithoutTranslation) {
+  auto config = test::micro_config();
+  config.training.train_steps = 1;
+  config.training.latent_translation_warmup_steps = 1;
+  auto run = test::temp_dir("train_translation_warmup").string();
+  train::train(config, options(run));
+  const auto ckpt = model::read_checkpoint(run);
+  int64_t translation = 0, rotation = 0;
+  for (const auto& [name, moment] : ckpt.optimizer) {
+    if (name.rfind("exp_avg/estimator.absT_head.", 0) == 0) {
+      EXPECT_EQ(moment.abs().max().item<float>(), 0.0f) << name;
+      ++translation;
+    }
+    if (name.rfind("exp_avg/estimator.quaR_head.", 0) == 0 && moment.abs().max().item<float>() > 0) ++rotation;
+  }
+  EXPECT_EQ(translation, 4);  // fc1/fc2 weight and bias
+  EXPECT_GT(rotation, 0);
+  auto net = model::load_model(run, torch::kCPU);
+  EXPECT_EQ(model::require_uplvsm(net, "test")->estimator->translation_scale, 1.0);
+
+  config.model.variant = Variant::PTLVSM;  // a posed variant has no latent translation: refused by name
+  EXPECT_NE(
+      test::error_of([&] { validate_config(config, "cfg.json"); }).find("training.latent_translation_warmup_steps"),
+      std::string::npos);
+}
+
 TEST(Trainer, ResumeRejectsADifferentModel) {
   auto config = test::micro_config();
   config.training.train_steps = 2;

@@ -159,6 +159,7 @@ void training_fields(C& c, F&& f) {
   f("view_sampler", c.view_sampler);
   f("rotation_equivariance_weight", c.rotation_equivariance_weight);
   f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
+  f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
 }
 
 template <typename C, typename F>
@@ -327,6 +328,12 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
           s,
           "training.rotation_equivariance_weight: only a UP-LVSM whose target poses come from its estimator has "
           "latent poses to make equivariant");
+  require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
+  require(tr.latent_translation_warmup_steps == 0 ||
+              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
+          s,
+          "training.latent_translation_warmup_steps: only a UP-LVSM whose target poses come from its estimator has "
+          "a latent translation to warm up");
 }
 
 void validate_training(const Config& c, const std::string& s) {

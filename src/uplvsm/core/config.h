@@ -123,6 +123,10 @@ struct TrainingConfig {
   // Its weight in the loss; 0: off (the official recipe).
   double rotation_equivariance_weight = 0;
   double rotation_equivariance_degrees = 10;
+  // Not in the paper: UP-LVSM's latent camera starts as a pure rotation. The estimator's translation is multiplied
+  // by step / latent_translation_warmup_steps (0 at the start, 1 from then on), so early camera changes can only be
+  // explained by turning the camera. 0: off (the official recipe).
+  int64_t latent_translation_warmup_steps = 0;
 };
 
 struct DatasetConfig {

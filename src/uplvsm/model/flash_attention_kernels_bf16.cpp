@@ -125,20 +125,42 @@ UPLVSM_AVX512_BF16 void tile_to_bf16(const float* src, int64_t ld_src, int64_t r
     }
 }
 
-// B operand with pairs along rows from an fp32 [rows x cols] tile: word (i2, j) = (T[2 i2][j], T[2 i2 + 1][j]);
-// a missing odd row is zero. cols is padded to 16 with zeros.
-UPLVSM_AVX512_BF16 void tile_to_row_pairs(const float* src, int64_t ld_src, int64_t rows, int64_t cols, uint32_t* dst,
-                                          int64_t ld_dst) {
-  for (int64_t i2 = 0; i2 < (rows + 1) / 2; ++i2)
+// Two rows' bf16 values as pair words: word n = (lo[n], hi[n]).
+UPLVSM_AVX512_BF16 inline __m512i bf16_pair_words(__m512 lo, __m512 hi) {
+  const __m512i wlo = _mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(lo));
+  return _mm512_or_si512(wlo, _mm512_slli_epi32(_mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(hi)), 16));
+}
+
+// Row r, columns [j, j + 16) of the softmax backward: P = exp(scale S - lse), dS = P (dP - delta), zero off `mask`.
+UPLVSM_AVX512_BF16 inline void softmax_gradient(const float* S, const float* dP, int64_t offset, __mmask16 mask,
+                                                __m512 vscale, float lse, float delta, __m512& P, __m512& dS) {
+  const __m512 s = _mm512_maskz_loadu_ps(mask, S + offset);
+  P = _mm512_maskz_mov_ps(mask, exp_ps(_mm512_fmsub_ps(s, vscale, _mm512_set1_ps(lse))));
+  dS = _mm512_maskz_mul_ps(mask, P, _mm512_sub_ps(_mm512_maskz_loadu_ps(mask, dP + offset), _mm512_set1_ps(delta)));
+}
+
+// The backward's element-wise middle of one tile in a single pass over row pairs: P and dS in fp32, written
+// straight into the bf16 operands the three following matmuls read (P and dS in row pairs, dS row-major), all with
+// leading dimension `ld`; `cols` (a multiple of 16) columns, zero at and beyond `keys` and in a missing odd row.
+// S and dP are only read, so no fp32 tile is stored and read again.
+UPLVSM_AVX512_BF16 void softmax_backward_to_bf16(int64_t rows, int64_t keys, int64_t cols, float scale, const float* S,
+                                                 const float* dP, int64_t ld, const float* lse, const float* delta,
+                                                 uint32_t* Ppairs, uint32_t* dSpairs, uint16_t* dSrows) {
+  const __m512 vscale = _mm512_set1_ps(scale);
+  for (int64_t r = 0; r < rows; r += 2) {
+    const bool pair_complete = r + 1 < rows;
     for (int64_t j = 0; j < cols; j += 16) {
-      const __mmask16 mask = tail_mask(cols - j);
-      const __m512 lo = _mm512_maskz_loadu_ps(mask, src + 2 * i2 * ld_src + j);
-      const __m512 hi =
-          2 * i2 + 1 < rows ? _mm512_maskz_loadu_ps(mask, src + (2 * i2 + 1) * ld_src + j) : _mm512_setzero_ps();
-      const __m512i wlo = _mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(lo));
-      const __m512i whi = _mm512_slli_epi32(_mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(hi)), 16);
-      _mm512_storeu_si512(dst + i2 * ld_dst + j, _mm512_or_si512(wlo, whi));
+      const __mmask16 mask = keys > j ? tail_mask(keys - j) : __mmask16(0);
+      __m512 P0, dS0, P1 = _mm512_setzero_ps(), dS1 = _mm512_setzero_ps();
+      softmax_gradient(S, dP, r * ld + j, mask, vscale, lse[r], delta[r], P0, dS0);
+      if (pair_complete) softmax_gradient(S, dP, (r + 1) * ld + j, mask, vscale, lse[r + 1], delta[r + 1], P1, dS1);
+      _mm512_storeu_si512(Ppairs + r / 2 * ld + j, bf16_pair_words(P0, P1));
+      _mm512_storeu_si512(dSpairs + r / 2 * ld + j, bf16_pair_words(dS0, dS1));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(dSrows + r * ld + j), (__m256i)_mm512_cvtneps_pbh(dS0));
+      if (pair_complete)
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(dSrows + (r + 1) * ld + j), (__m256i)_mm512_cvtneps_pbh(dS1));
     }
+  }
 }
 
 // Stores rows [j0, j0 + keys) of a gradient kept transposed ([D x ld] fp32), times `mul`.
@@ -236,10 +258,8 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
       const int64_t rows = std::min(kTq, Lq - i0), row_pairs = (rows + 1) / 2;
       gemm_bf16(rows, key_pad, D / 2, words(Qrows + i0 * D), D / 2, Kp + j0, ld_k, S, kTk, false);     // q k^T
       gemm_bf16(rows, key_pad, D / 2, words(dOrows + i0 * D), D / 2, Vtp + j0, ld_k, dP, kTk, false);  // dO v^T
-      softmax_backward_tile(rows, keys, kTk, p.scale, S, dP, lse_h + i0, delta_h + i0);
-      tile_to_row_pairs(S, kTk, rows, key_pad, Ppairs, kTk);
-      tile_to_row_pairs(dP, kTk, rows, key_pad, dSpairs, kTk);
-      tile_to_bf16(dP, kTk, rows, keys, dSrows, kTk);
+      softmax_backward_to_bf16(rows, keys, key_pad, p.scale, S, dP, kTk, lse_h + i0, delta_h + i0, Ppairs, dSpairs,
+                               dSrows);
       gemm_bf16(D, key_pad, row_pairs, dOtp + i0 / 2, Lq2, Ppairs, kTk, dVt, kTk, true);  // dV^T += dO^T P
       gemm_bf16(D, key_pad, row_pairs, Qtp + i0 / 2, Lq2, dSpairs, kTk, dKt, kTk, true);  // dK^T += q^T dS
       gemm_bf16(rows, D, round_up(keys, 2) / 2, words(dSrows), kTk / 2, Krp + j0 / 2 * D, D, dQ + i0 * D, D,

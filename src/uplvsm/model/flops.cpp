@@ -10,6 +10,14 @@ double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden) {
   return projections + mlp + attention;
 }
 
+double transformer_stack_flops(int64_t n_layer, int64_t seq, int64_t kept, int64_t d, int64_t mlp_hidden) {
+  if (n_layer <= 0) return 0.0;
+  const double s = static_cast<double>(seq), k = static_cast<double>(kept), dd = static_cast<double>(d);
+  const double last = 2.0 * s * 3.0 * dd * dd + 2.0 * k * dd * dd +
+                      2.0 * k * 2.0 * dd * static_cast<double>(mlp_hidden) + 2.0 * 2.0 * k * s * dd;
+  return static_cast<double>(n_layer - 1) * transformer_block_flops(seq, d, mlp_hidden) + last;
+}
+
 namespace {
 
 // The parts every model of the family has, per image: DINOv2, the Plücker ray tokens, the RGB head.
@@ -37,11 +45,11 @@ FlopCount uplvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t inpu
   const double b = static_cast<double>(batch), vi = static_cast<double>(input_views),
                vt = static_cast<double>(target_views);
   FlopCount f;
-  f.dinov2 = b * (vi + vt) * s.dino_image;  // the estimator reads the target images too
-  f.encoder = b * t.encoder_n_layer * transformer_block_flops(L + input_views * n, t.d, 4 * t.d);
+  f.dinov2 = b * (vi + vt) * s.dino_image;                                // the estimator reads the target images too
   const int64_t scene = L + (c.keep_image_tokens ? input_views * n : 0);  // what estimator and decoder attend to
-  f.estimator = b * vt * t.estimator_n_layer * transformer_block_flops(n + scene, t.d, 4 * t.d);
-  f.decoder = b * vt * t.decoder_n_layer * transformer_block_flops(n + scene, t.d, 4 * t.d);
+  f.encoder = b * transformer_stack_flops(t.encoder_n_layer, L + input_views * n, scene, t.d, 4 * t.d);
+  f.estimator = b * vt * transformer_stack_flops(t.estimator_n_layer, n + scene, n, t.d, 4 * t.d);
+  f.decoder = b * vt * transformer_stack_flops(t.decoder_n_layer, n + scene, n, t.d, 4 * t.d);
   const double pose_heads = vt * 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5);
   f.other = b * (s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head) + pose_heads);  // marker on view 0
   return f;
@@ -55,7 +63,7 @@ FlopCount posed_lvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t 
   FlopCount f;
   f.dinov2 = b * static_cast<double>(input_views) * s.dino_image;
   // Decoder-only: every target attends to all input tokens and its own pose tokens.
-  f.decoder = b * vt * t.n_layer * transformer_block_flops(input_views * s.n + s.n, t.d, 4 * t.d);
+  f.decoder = b * vt * transformer_stack_flops(t.n_layer, input_views * s.n + s.n, s.n, t.d, 4 * t.d);
   f.other = b * (static_cast<double>(posed_input_views) * s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head));
   return f;
 }

@@ -15,6 +15,9 @@ struct FlopCount {
 
 // One pre-norm transformer block over one sequence: QKV + output projections, the MLP, and attention.
 double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden);
+// A stack of n_layer blocks whose caller reads `kept` of the last block's `seq` rows (transformer.h: OutputRows):
+// that block projects q, k, v for every row but the rest (out projection, MLP, attention queries) for `kept` only.
+double transformer_stack_flops(int64_t n_layer, int64_t seq, int64_t kept, int64_t d, int64_t mlp_hidden);
 
 // One forward of each model for `batch` scenes with the given view counts at config.image_size
 // (model_factory.h: forward_flops picks the one of a config).

@@ -4,8 +4,6 @@
 
 namespace uplvsm::model {
 
-using torch::indexing::Slice;
-
 LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
   // The official init uses std 0.02 for the whole estimator (no depth scaling).
   transformer_estimator = register_module(
@@ -22,13 +20,13 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
 
 torch::Tensor LatentPluckerLearnerImpl::pooled(const torch::Tensor& image_tokens, const torch::Tensor& scene_latents) {
   const int64_t n = image_tokens.size(1);
-  auto x = run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1), grad_checkpoint_every,
-                     "uplvsm::estimator");
-  return x.index({Slice(), Slice(0, n)}).mean(1);
+  return run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1), grad_checkpoint_every,
+                   "uplvsm::estimator", OutputRows{0, n})
+      .mean(1);
 }
 
 torch::Tensor LatentPluckerLearnerImpl::heads(const torch::Tensor& pooled) {
-  auto t = absT_head(pooled);
+  auto t = translation_scale == 1.0 ? absT_head(pooled) : absT_head(pooled) * translation_scale;
   auto q = geometry::normalize_quat(quaR_head(pooled), 1e-3);
   return torch::cat({t, q}, -1);
 }

@@ -56,7 +56,7 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
   auto tg_rays = geometry::plucker_rays(tg_c2w, targets.fxfycxcy, H, W);
   auto q = target_pose_tokenizer(tg_rays.flatten(0, 1));
   auto x = transformer_input_layernorm(torch::cat({context, q}, 1));
-  auto y = run_stack(transformer_blocks, x, grad_checkpoint_every, "uplvsm::decoder").narrow(1, vi * n, q.size(1));
+  auto y = run_stack(transformer_blocks, x, grad_checkpoint_every, "uplvsm::decoder", OutputRows{vi * n, q.size(1)});
   keep(trace, {{&ForwardTrace::input_dino_tokens, tokens},
                {&ForwardTrace::canonical_plucker, in_rays},
                {&ForwardTrace::target_plucker, tg_rays}});

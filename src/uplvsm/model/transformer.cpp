@@ -53,25 +53,27 @@ QKNormAttentionImpl::QKNormAttentionImpl(int64_t d, int64_t d_head_, double eps)
   k_norm = register_module("k_norm", RMSNorm(d_head, eps));
 }
 
-std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::project(const torch::Tensor& x) {
+std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::project(const torch::Tensor& x,
+                                                                                     OutputRows rows) {
   const int64_t B = x.size(0), L = x.size(1);
   auto qkv = to_qkv(x).chunk(3, -1);  // q | k | v, each head-major (heads, d_head)
   auto split = [&](const torch::Tensor& t) { return t.view({B, L, heads, d_head}); };
   const auto dtype = qk_norm_output_dtype(qkv[0], d_head);
-  auto q = qk_norm(split(qkv[0]), q_norm->weight, q_norm->eps, dtype).transpose(1, 2);
+  auto queries = rows.all(L) ? split(qkv[0]) : split(qkv[0]).narrow(1, rows.start, rows.count);
+  auto q = qk_norm(queries, q_norm->weight, q_norm->eps, dtype).transpose(1, 2);
   auto k = qk_norm(split(qkv[1]), k_norm->weight, k_norm->eps, dtype).transpose(1, 2);
   auto v = split(qkv[2]).transpose(1, 2);
   return {q, k, v};
 }
 
-torch::Tensor QKNormAttentionImpl::forward(const torch::Tensor& x) {
-  auto [q, k, v] = project(x);
-  auto o = attention(q, k, v);  // [B, heads, L, d_head]
-  return fc(o.transpose(1, 2).reshape({x.size(0), x.size(1), heads * d_head}));
+torch::Tensor QKNormAttentionImpl::forward(const torch::Tensor& x, OutputRows rows) {
+  auto [q, k, v] = project(x, rows);
+  auto o = attention(q, k, v);  // [B, heads, rows, d_head]
+  return fc(o.transpose(1, 2).reshape({x.size(0), q.size(2), heads * d_head}));
 }
 
 torch::Tensor QKNormAttentionImpl::attention_map(const torch::Tensor& x) {
-  auto [q, k, v] = project(x);
+  auto [q, k, v] = project(x, {});
   auto scores = torch::matmul(q, k.transpose(-2, -1)) / std::sqrt(static_cast<double>(d_head));
   return torch::softmax(scores.to(torch::kFloat32), -1).mean(1);
 }
@@ -90,8 +92,9 @@ TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps
   mlp = register_module("mlp", MLP(d, 4 * d));
 }
 
-torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x) {
-  auto h = x + attn(norm1(x));
+torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x, OutputRows rows) {
+  const auto kept = rows.all(x.size(1)) ? x : x.narrow(1, rows.start, rows.count);
+  auto h = kept + attn->forward(norm1(x), rows);
   return h + mlp(norm2(h));
 }
 
@@ -115,12 +118,18 @@ torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t
   return stack;
 }
 
-torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every,
-                        const char* span) {
+torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every, const char* span,
+                        OutputRows rows) {
   RECORD_FUNCTION(span, std::vector<c10::IValue>());
-  return run_checkpointed_stack(stack, std::move(x), checkpoint_every, [stack](size_t i, const torch::Tensor& t) {
-    return stack->ptr<TransformerBlockImpl>(i)->forward(t);
-  });
+  TORCH_CHECK(rows.all(x.size(1)) || (rows.start >= 0 && rows.count > 0 && rows.start + rows.count <= x.size(1)),
+              "run_stack: output rows [", rows.start, ", ", rows.start + rows.count, ") outside a sequence of ",
+              x.size(1));
+  if (stack->size() == 0) return rows.all(x.size(1)) ? x : x.narrow(1, rows.start, rows.count);
+  const size_t last = stack->size() - 1;
+  return run_checkpointed_stack(
+      stack, std::move(x), checkpoint_every, [stack, last, rows](size_t i, const torch::Tensor& t) {
+        return stack->ptr<TransformerBlockImpl>(i)->forward(t, i == last ? rows : OutputRows{});
+      });
 }
 
 }  // namespace uplvsm::model

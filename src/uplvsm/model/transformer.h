@@ -28,6 +28,15 @@ struct RMSNormImpl : torch::nn::Module {
 };
 TORCH_MODULE(RMSNorm);
 
+// The rows [start, start + count) of a token sequence that a caller reads from a stack's output (count < 0: all).
+// The last block then computes only those rows' queries, attention outputs and MLP: a stack whose caller keeps the
+// scene latents or the target tokens skips the rest of the sequence in its last block (every row still serves as
+// a key and value there).
+struct OutputRows {
+  int64_t start = 0, count = -1;
+  bool all(int64_t length) const { return count < 0 || (start == 0 && count == length); }
+};
+
 // The dtype in which QK-Norm hands q and k to `attention` for a projection `projected` (qk_norm.h).
 torch::ScalarType qk_norm_output_dtype(const torch::Tensor& projected, int64_t d_head);
 
@@ -36,7 +45,8 @@ torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const to
 
 struct QKNormAttentionImpl : torch::nn::Module {
   QKNormAttentionImpl(int64_t d, int64_t d_head, double qk_norm_eps);
-  torch::Tensor forward(const torch::Tensor& x);
+  // Attention over every row of x; the result only for `rows`.
+  torch::Tensor forward(const torch::Tensor& x, OutputRows rows = {});
   // The attention probabilities (head-mean, [B, L, L]) for analysis tools; not used by forward.
   torch::Tensor attention_map(const torch::Tensor& x);
   CastOnceLinear to_qkv{nullptr}, fc{nullptr};
@@ -44,7 +54,7 @@ struct QKNormAttentionImpl : torch::nn::Module {
   int64_t heads, d_head;
 
  private:
-  std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> project(const torch::Tensor& x);
+  std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> project(const torch::Tensor& x, OutputRows rows);
 };
 TORCH_MODULE(QKNormAttention);
 
@@ -57,7 +67,7 @@ TORCH_MODULE(MLP);
 
 struct TransformerBlockImpl : torch::nn::Module {
   TransformerBlockImpl(int64_t d, int64_t d_head, double qk_norm_eps);
-  torch::Tensor forward(const torch::Tensor& x);
+  torch::Tensor forward(const torch::Tensor& x, OutputRows rows = {});
   LayerNorm norm1{nullptr}, norm2{nullptr};
   QKNormAttention attn{nullptr};
   MLP mlp{nullptr};
@@ -70,9 +80,9 @@ torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t
                                              bool depth_init);
 // Runs the blocks in order. checkpoint_every > 0: each group of that many blocks is gradient-checkpointed (the
 // official `grad_checkpoint_every`); 0 keeps every activation. `span` names the stack in profiler traces
-// (UPLVSM_PROFILE), so the forwards that call it need no profiling code of their own.
+// (UPLVSM_PROFILE), so the forwards that call it need no profiling code of their own. Returns `rows` of the output.
 torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every = 0,
-                        const char* span = "uplvsm::transformer_stack");
+                        const char* span = "uplvsm::transformer_stack", OutputRows rows = {});
 
 // N(0, std) for every Linear weight under `module` (biases zero); norms keep their ones/zeros.
 void init_linear_weights(torch::nn::Module& module, double std);

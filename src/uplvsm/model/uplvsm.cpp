@@ -49,11 +49,14 @@ torch::Tensor UPLVSMImpl::encode_scene_with_rays(const torch::Tensor& images, co
   auto x = with_camera_tokens(tokens, rays).reshape({b, v * n, d});
   const int64_t L = n_light_field_latent.size(0);
   auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);  // [b, L + v n, d]
-  auto z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every, "uplvsm::encoder");
+  // Without the image tokens only the latents are read on; a trace keeps every row for the parity fixtures.
+  const bool all_rows = config.keep_image_tokens || trace;
+  auto z = run_stack(transformer_encoder, encoder_input, grad_checkpoint_every, "uplvsm::encoder",
+                     all_rows ? OutputRows{} : OutputRows{0, L});
   keep(trace, {{&ForwardTrace::input_dino_tokens, tokens},
                {&ForwardTrace::encoder_input, encoder_input},
                {&ForwardTrace::encoder_output, z}});
-  return config.keep_image_tokens ? z : z.index({Slice(), Slice(0, L)});
+  return all_rows && !config.keep_image_tokens ? z.index({Slice(), Slice(0, L)}) : z;
 }
 
 torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torch::Tensor& scene_latents,
@@ -86,7 +89,7 @@ torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const
   auto q = target_pose_tokenizer(rays.flatten(0, 1));                                            // [b v, n, d]
   const int64_t n = q.size(1);
   auto x = transformer_input_layernorm_decoder(torch::cat({q, repeat_per_view(scene_latents, v)}, 1));
-  auto y = run_stack(transformer_decoder, x, grad_checkpoint_every, "uplvsm::decoder").index({Slice(), Slice(0, n)});
+  auto y = run_stack(transformer_decoder, x, grad_checkpoint_every, "uplvsm::decoder", OutputRows{0, n});
   keep(trace, {{&ForwardTrace::target_plucker, rays}});
   return image_token_decoder(y, b, v, H, W);
 }

@@ -44,10 +44,31 @@ torch::Tensor rotation_equivariance_loss(model::UPLVSMImpl& net, const model::Vi
   return (rotation_error + centre_error).mean();
 }
 
+// training.latent_translation_warmup_steps for one step: the estimator's translation scaled by step / N, and 1
+// again when the step is done (evaluation and checkpoints see the plain model).
+class TranslationWarmup {
+ public:
+  TranslationWarmup(model::NovelViewModelImpl& net, const TrainingConfig& tc, int64_t step) {
+    auto* up = model::as_uplvsm(net);
+    if (tc.latent_translation_warmup_steps <= 0 || !up || step >= tc.latent_translation_warmup_steps) return;
+    estimator_ = up->estimator.get();
+    estimator_->translation_scale = static_cast<double>(step) / static_cast<double>(tc.latent_translation_warmup_steps);
+  }
+  ~TranslationWarmup() {
+    if (estimator_) estimator_->translation_scale = 1.0;
+  }
+  TranslationWarmup(const TranslationWarmup&) = delete;
+  TranslationWarmup& operator=(const TranslationWarmup&) = delete;
+
+ private:
+  model::LatentPluckerLearnerImpl* estimator_ = nullptr;
+};
+
 // Forward and losses under autocast, as the official step; the MSE on fp32 (autocast's policy for losses).
 Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum, int64_t step) {
   const auto& tc = ctx.training;
   const auto& target = batch.targets.images;
+  TranslationWarmup warmup(*ctx.net, tc, step);  // also through backward (checkpoint recomputation reads it)
   torch::Tensor mse, loss;
   {
     AutocastGuard amp(target.device(), ctx.bf16);
