@@ -45,9 +45,8 @@ void BM_MatmulPeak(benchmark::State& state) {
 }
 BENCHMARK(BM_MatmulPeak)->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
-void BM_TrainStep(benchmark::State& state, const std::string& config_name, TrainShape shape) {
-  const bool bf16 = state.range(0) != 0;
-  const int64_t checkpoint_every = state.range(1);
+void run_train_step(benchmark::State& state, const std::string& config_name, TrainShape shape, bool bf16,
+                    int64_t checkpoint_every) {
   auto config = bench_config(config_name);
   config.training.batch_size = shape.batch;
   torch::manual_seed(0);
@@ -97,6 +96,10 @@ void BM_TrainStep(benchmark::State& state, const std::string& config_name, Train
   state.counters["peak_RSS_GiB"] = peak_rss_gib();
   state.SetLabel(std::string(bf16 ? "bf16" : "fp32") + (checkpoint_every ? " checkpointed" : ""));
 }
+
+void BM_TrainStep(benchmark::State& state, const std::string& config_name, TrainShape shape) {
+  run_train_step(state, config_name, shape, state.range(0) != 0, state.range(1));
+}
 BENCHMARK_CAPTURE(BM_TrainStep, tiny, std::string("tiny"), TrainShape{})
     ->ArgNames({"bf16", "ckpt"})
     ->ArgsProduct({{0, 1}, {0, 1}})
@@ -111,6 +114,16 @@ BENCHMARK_CAPTURE(BM_TrainStep, paper_x224, std::string("paper_x224"), TrainShap
 BENCHMARK_CAPTURE(BM_TrainStep, demo, std::string("demo"), (TrainShape{8, 3}))
     ->ArgNames({"bf16", "ckpt"})
     ->ArgsProduct({{0, 1}, {0}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->MinTime(5.0);
+// The demo model at other batch sizes (issue 30: the batch that serves it best), bf16: scenes/s is the figure.
+void BM_TrainStepDemoBatch(benchmark::State& state) { run_train_step(state, "demo", {state.range(0), 3}, true, 0); }
+BENCHMARK(BM_TrainStepDemoBatch)
+    ->ArgName("batch")
+    ->Arg(2)
+    ->Arg(4)
+    ->Arg(16)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(5.0);
