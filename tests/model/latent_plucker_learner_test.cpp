@@ -44,3 +44,20 @@ TEST(LatentPluckerLearner, IdentityRotationInitStartsNearTheIdentityAndChangesOn
 }
 
 }  // namespace
+
+TEST(LatentPluckerLearner, RotationOnlyLatentCameraHasZeroTranslationAndTheSameRotation) {
+  // rotation_only_latent_camera: translation exactly 0 and no gradient into its head; the rotation is unchanged.
+  torch::manual_seed(5);
+  LatentPluckerLearner plain(estimator_config(false));
+  auto config = estimator_config(false);
+  config.rotation_only_latent_camera = true;
+  torch::manual_seed(5);
+  LatentPluckerLearner turning(config);
+  auto tokens = torch::randn({3, 16, 64}), latents = torch::randn({3, 8, 64});
+  auto poses = turning(tokens, latents);
+  EXPECT_EQ(poses.narrow(1, 0, 3).abs().max().item<float>(), 0.0f);
+  EXPECT_TRUE(torch::allclose(poses.narrow(1, 3, 4), plain(tokens, latents).narrow(1, 3, 4)));
+  poses.sum().backward();
+  EXPECT_FALSE(turning->absT_head->fc2->weight.grad().defined());
+  EXPECT_GT(turning->quaR_head->fc2->weight.grad().abs().sum().item<float>(), 0.0f);
+}

@@ -94,6 +94,7 @@ void transformer_fields(C& c, F&& f) {
   f("special_init", c.special_init);
   f("depth_init", c.depth_init);
   f("identity_rotation_init", c.identity_rotation_init);
+  f("rotation_only_latent_camera", c.rotation_only_latent_camera);
 }
 
 template <typename C, typename F>

@@ -37,6 +37,9 @@ struct TransformerConfig {
   // Not in the paper: start the estimator's quaternion head at the identity rotation (its output bias (0, 0, 0, 1),
   // scalar-last) instead of the official zero bias, whose tiny random outputs normalise to arbitrary rotations.
   bool identity_rotation_init = false;
+  // Not in the paper: a latent camera that only turns. The estimator's translation is zero in training and
+  // inference (its head stays in the checkpoint, unused), so every camera change must be explained by a rotation.
+  bool rotation_only_latent_camera = false;
 };
 
 struct Dinov2Config {

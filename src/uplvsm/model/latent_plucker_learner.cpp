@@ -12,6 +12,7 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
   quaR_head = register_module("quaR_head", DinoMlp(c.d, c.d / 2, 4));
   init_linear_weights(*absT_head, 0.02);
   init_linear_weights(*quaR_head, 0.02);
+  rotation_only = c.rotation_only_latent_camera;
   if (c.identity_rotation_init) {
     torch::NoGradGuard no_grad;
     quaR_head->fc2->bias.copy_(torch::tensor({0.0f, 0.0f, 0.0f, 1.0f}));  // q_xyzw = identity
@@ -26,7 +27,9 @@ torch::Tensor LatentPluckerLearnerImpl::pooled(const torch::Tensor& image_tokens
 }
 
 torch::Tensor LatentPluckerLearnerImpl::heads(const torch::Tensor& pooled) {
-  auto t = translation_scale == 1.0 ? absT_head(pooled) : absT_head(pooled) * translation_scale;
+  auto t = rotation_only              ? torch::zeros({pooled.size(0), 3}, pooled.options())
+           : translation_scale == 1.0 ? absT_head(pooled)
+                                      : absT_head(pooled) * translation_scale;
   auto q = geometry::normalize_quat(quaR_head(pooled), 1e-3);
   return torch::cat({t, q}, -1);
 }

@@ -22,6 +22,7 @@ struct LatentPluckerLearnerImpl : torch::nn::Module {
   torch::nn::ModuleList transformer_estimator{nullptr};
   DinoMlp absT_head{nullptr}, quaR_head{nullptr};
   int64_t grad_checkpoint_every = 0;  // see run_stack
+  bool rotation_only = false;         // model.transformer.rotation_only_latent_camera
   // Multiplies the translation head's output (training.latent_translation_warmup_steps); 1 outside training.
   double translation_scale = 1.0;
 };
