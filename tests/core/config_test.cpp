@@ -138,10 +138,10 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
 }
 
 TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {
-  auto c = config_from_json({{"training", {{"frame_dist_curriculum_steps", 2000}}},
-                             {"model", {{"transformer", {{"identity_rotation_init", true},
-                                                         {"rotation_only_latent_camera", true}}}}}},
-                            "ok.json");
+  auto c = config_from_json(
+      {{"training", {{"frame_dist_curriculum_steps", 2000}}},
+       {"model", {{"transformer", {{"identity_rotation_init", true}, {"rotation_only_latent_camera", true}}}}}},
+      "ok.json");
   EXPECT_EQ(c.training.frame_dist_curriculum_steps, 2000);
   EXPECT_TRUE(c.model.transformer.identity_rotation_init);
   EXPECT_FALSE(Config().model.transformer.identity_rotation_init);  // the official init by default

@@ -1,5 +1,6 @@
 // Tests of model/latent_plucker_learner's initialisation: the official zero-bias quaternion head gives arbitrary
-// rotations at step 0; `identity_rotation_init` starts every latent camera near the identity, nothing else changed.
+// rotations at step 0; `identity_rotation_init` starts every latent camera near the identity, nothing else changed;
+// `rotation_only_latent_camera` fixes the translation at zero.
 #include "uplvsm/model/latent_plucker_learner.h"
 
 #include <gtest/gtest.h>
