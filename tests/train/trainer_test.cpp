@@ -121,6 +121,16 @@ TEST(Trainer, LatentTranslationWarmupStartsWithoutTranslation) {
   auto net = model::load_model(run, torch::kCPU);
   EXPECT_EQ(model::require_uplvsm(net, "test")->estimator->translation_scale, 1.0);
 
+  // latent_translation_weight adds weight * mean |t|^2 of the latent translations: the loss exceeds the MSE.
+  auto weighed = test::micro_config();
+  weighed.training.train_steps = 2;
+  weighed.training.latent_translation_weight = 10.0;
+  auto weighed_run = test::temp_dir("train_translation_weight").string();
+  train::train(weighed, options(weighed_run));
+  const auto losses = logged_losses(weighed_run), mses = logged(weighed_run, "mse");
+  ASSERT_EQ(losses.size(), 2u);
+  for (size_t i = 0; i < losses.size(); ++i) EXPECT_GT(losses[i], mses[i]) << i;
+
   config.model.variant = Variant::PTLVSM;  // a posed variant has no latent translation: refused by name
   EXPECT_NE(
       test::error_of([&] { validate_config(config, "cfg.json"); }).find("training.latent_translation_warmup_steps"),

@@ -161,6 +161,7 @@ void training_fields(C& c, F&& f) {
   f("rotation_equivariance_weight", c.rotation_equivariance_weight);
   f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
   f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
+  f("latent_translation_weight", c.latent_translation_weight);
 }
 
 template <typename C, typename F>
@@ -330,11 +331,13 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
           "training.rotation_equivariance_weight: only a UP-LVSM whose target poses come from its estimator has "
           "latent poses to make equivariant");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
-  require(tr.latent_translation_warmup_steps == 0 ||
+  require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
+          "training.latent_translation_weight must be a finite number >= 0");
+  require((tr.latent_translation_warmup_steps == 0 && tr.latent_translation_weight == 0) ||
               (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
           s,
-          "training.latent_translation_warmup_steps: only a UP-LVSM whose target poses come from its estimator has "
-          "a latent translation to warm up");
+          "training.latent_translation_warmup_steps / latent_translation_weight: only a UP-LVSM whose target poses "
+          "come from its estimator has a latent translation to warm up or weigh");
 }
 
 void validate_training(const Config& c, const std::string& s) {

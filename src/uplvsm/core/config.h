@@ -130,6 +130,9 @@ struct TrainingConfig {
   // by step / latent_translation_warmup_steps (0 at the start, 1 from then on), so early camera changes can only be
   // explained by turning the camera. 0: off (the official recipe).
   int64_t latent_translation_warmup_steps = 0;
+  // Not in the paper: makes a latent move cost more than a turn. Adds weight * mean |t|^2 of the estimated target
+  // translations to the loss; 0: off (the official recipe).
+  double latent_translation_weight = 0;
 };
 
 struct DatasetConfig {

@@ -76,6 +76,9 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
     mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
     loss = tc.l2_loss_weight * mse;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
+    if (tc.latent_translation_weight > 0)
+      loss =
+          loss + tc.latent_translation_weight * out.pose_enc.narrow(-1, 0, 3).to(torch::kFloat32).pow(2).sum(-1).mean();
     if (tc.rotation_equivariance_weight > 0)
       loss = loss + tc.rotation_equivariance_weight * rotation_equivariance_loss(*model::as_uplvsm(*ctx.net),
                                                                                  batch.targets, out.scene_latents, tc,
