@@ -135,6 +135,10 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
             std::string::npos);
   EXPECT_NE(message({{"training", {{"rotation_equivariance_degrees", 60}}}}).find("rotation_equivariance_degrees in"),
             std::string::npos);
+  EXPECT_NE(message({{"training", {{"latent_translation_warmup_steps", -1}}}}).find("latent_translation_warmup_steps"),
+            std::string::npos);
+  EXPECT_NE(message({{"training", {{"latent_translation_weight", -0.5}}}}).find("latent_translation_weight must be"),
+            std::string::npos);
 }
 
 TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {
