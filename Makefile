@@ -38,7 +38,7 @@ CLANG_FORMAT ?= clang-format-14
 FORMATTED_SOURCES = $(shell git ls-files -- 'src/*.cpp' 'src/*.h' 'tests/*.cpp' 'tests/*.h' 'bench/*.cpp' 'bench/*.h' \
   'python/src/*.cpp' 'python/src/*.h' 'fuzz/*.cpp' 'examples/*.cpp' 2>/dev/null)
 
-.PHONY: all deps browser-deps build build-cli python install test test-unit test-slow bench demo demo-model fuzz sanitize clean format lint
+.PHONY: all deps browser-deps build build-cli python install test test-unit test-slow bench demo demo-model demo-ceiling-model fuzz sanitize clean format lint
 
 all: build
 
@@ -132,10 +132,12 @@ sanitize: deps
 
 # The shipped demo models (models/, trained by `uplvsm train` with configs/demo.json, then configs/demo_mapper.json for
 # camera control: see README "The shipped demo model") are evaluated and rendered on held-out scenes at their
-# resolution; the `tiny` config is trained from scratch beside them (proof that training works on this machine); one
-# report shows them side by side.
+# resolution, beside LVSM of the same width told every camera (the ceiling the unposed model is measured against); the
+# `tiny` config is trained from scratch beside them (proof that training works on this machine); one report shows them
+# side by side.
 DEMO_MODEL ?= models/demo.safetensors
 DEMO_MAPPER_MODEL ?= models/demo_mapper.safetensors
+DEMO_CEILING_MODEL ?= models/demo_lvsm.safetensors
 DEMO_MODEL_CONFIG ?= configs/demo.json
 DEMO_RENDER = --data $(DEMO)/dataset_demo --split test --scenes 3 --frames 48 --side-by-side
 demo: build-cli
@@ -145,6 +147,8 @@ demo: build-cli
 	$(UPLVSM) render --checkpoint $(DEMO_MODEL) $(DEMO_RENDER) --out $(DEMO)/shipped/interpolation
 	$(UPLVSM) eval --checkpoint $(DEMO_MAPPER_MODEL) --data $(DEMO)/dataset_demo --split test --target-poses mapper --out $(DEMO)/shipped_mapper/eval
 	$(UPLVSM) render --checkpoint $(DEMO_MAPPER_MODEL) $(DEMO_RENDER) --trajectory orbit --out $(DEMO)/shipped_mapper/orbit
+	$(UPLVSM) eval --checkpoint $(DEMO_CEILING_MODEL) --data $(DEMO)/dataset_demo --split test --out $(DEMO)/ceiling/eval
+	$(UPLVSM) render --checkpoint $(DEMO_CEILING_MODEL) $(DEMO_RENDER) --out $(DEMO)/ceiling/interpolation
 	test -f $(DEMO)/dataset/evaluation_index.json || $(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
 	$(UPLVSM) train --config $(CONFIG) --data $(DEMO)/dataset --run $(DEMO)/run --resume auto
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
@@ -152,6 +156,7 @@ demo: build-cli
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
 	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo.json then configs/demo_continue.json) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; video: interpolation between the two inputs' latent poses; held-out scenes" \
 	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
+	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm.json) told every camera in training and at test: what a perfect latent camera could approach; trained on a third of the unposed model's scenes (830 steps x 64 on one GPU); video: interpolation between the inputs' real cameras" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
 
@@ -168,6 +173,15 @@ demo-model: build-cli
 	$(UPLVSM) train --stage mapper --config configs/demo_mapper.json --init $(DEMO_MODEL_WORK)/continue --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/mapper --resume auto
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/continue --out $(DEMO_MODEL)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
+
+# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm.json): 830 steps at batch 64, trained on one
+# GPU (H200, 148 s); on a CPU it runs the same schedule (DEVICE=cpu), far slower.
+DEVICE ?= cuda
+demo-ceiling-model: build-cli
+	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
+	$(UPLVSM) train --config configs/demo_lvsm.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling --resume auto \
+	  --set training.batch_size=64 --steps 830 --device $(DEVICE)
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/ceiling --out $(DEMO_CEILING_MODEL)
 
 clean:
 	rm -rf $(BUILD) $(FUZZ_BUILD) $(SAN_BUILD)

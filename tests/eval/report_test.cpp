@@ -136,6 +136,19 @@ TEST(Report, LpipsColumnOnlyWhenAvailable) {
   EXPECT_NE(results_table_html(m).find("Extrapolation (2 scenes)"), std::string::npos);
 }
 
+TEST(Report, ModelRowIsNamedByTheEvaluatedVariant) {
+  auto m = fake_metrics();
+  EXPECT_NE(results_table_html(m).find("<td>UP-LVSM (ours)</td>"), std::string::npos);  // older files: no variant
+  m["variant"] = "lvsm";
+  const auto posed = results_table_html(m);
+  EXPECT_NE(posed.find("<td>LVSM, cameras known</td>"), std::string::npos);
+  EXPECT_EQ(posed.find("UP-LVSM"), std::string::npos);
+  m["variant"] = "ptlvsm";
+  EXPECT_NE(results_table_html(m).find("<td>PT-LVSM, target camera known</td>"), std::string::npos);
+  m["variant"] = "uplvsm";
+  EXPECT_NE(results_table_html(m).find("<td>UP-LVSM (ours)</td>"), std::string::npos);
+}
+
 TEST(Report, RejectsMalformedMetrics) {
   const auto src = test::temp_dir("report_bad");
   write(src / "metrics.json", "{\"scenes\": 1");

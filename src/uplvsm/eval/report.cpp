@@ -25,6 +25,14 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
 const std::vector<std::pair<std::string, std::string>> kRows = {
     {"model", "UP-LVSM (ours)"}, {"copy_nearest", "Copy nearest input"}, {"mean_colour", "Mean colour (oracle)"}};
+
+// The model row's name: the evaluated variant (metrics.json "variant"), so a posed baseline is not called UP-LVSM.
+std::string model_row_name(const nlohmann::json& m) {
+  const auto variant = m.contains("variant") && m["variant"].is_string() ? m["variant"].get<std::string>() : "";
+  if (variant == "lvsm") return "LVSM, cameras known";
+  if (variant == "ptlvsm") return "PT-LVSM, target camera known";
+  return "UP-LVSM (ours)";
+}
 const std::vector<std::pair<std::string, std::string>> kBuckets = {
     {"large", "Large"}, {"medium", "Medium"}, {"small", "Small"}};
 
@@ -277,7 +285,7 @@ std::string results_table_html(const nlohmann::json& m, bool full_only) {
   }
   std::string html = "<table>\n" + head1 + "</tr>\n" + head2 + "</tr>\n";
   for (const auto& [row, name] : kRows) {
-    html += "<tr><td>" + html_escape(name) + "</td>";
+    html += "<tr><td>" + html_escape(row == "model" ? model_row_name(m) : name) + "</td>";
     for (const auto& g : groups) {
       for (const auto& metric : metrics) {
         double best = -std::numeric_limits<double>::infinity();

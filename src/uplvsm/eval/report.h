@@ -49,8 +49,9 @@ std::vector<TrainPoint> read_train_log(const std::string& path);
 // Loss (log scale when all positive) above PSNR (training, and held-out when logged), vs step: uint8 [H, W, 3].
 torch::Tensor training_curve(const std::vector<TrainPoint>& points);
 
-// The headline table of a metrics.json object as an HTML <table>: rows UP-LVSM (ours), copy nearest input, mean
-// colour; columns PSNR / SSIM, grouped under Large / Medium / Small / Full when buckets exist. Best value in bold.
+// The headline table of a metrics.json object as an HTML <table>: rows the model (named by its "variant": UP-LVSM
+// (ours), LVSM or PT-LVSM), copy nearest input, mean colour; columns PSNR / SSIM, grouped under Large / Medium /
+// Small / Full when buckets exist. Best value in bold.
 // full_only: just the whole test set's columns (for narrow, side-by-side layouts).
 std::string results_table_html(const nlohmann::json& metrics, bool full_only = false);
 
