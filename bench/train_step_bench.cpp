@@ -124,6 +124,7 @@ BENCHMARK(BM_TrainStepDemoBatch)
     ->Arg(2)
     ->Arg(4)
     ->Arg(16)
+    ->Arg(32)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(5.0);

@@ -158,6 +158,19 @@ TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {
   EXPECT_NE(msg.find("training.frame_dist_curriculum_steps must be >= 0"), std::string::npos) << msg;
 }
 
+TEST(Config, LatentRotationGainReadsAndMustBePositive) {
+  EXPECT_EQ(Config().model.transformer.latent_rotation_gain, 1.0);  // the official head by default
+  auto c = config_from_json({{"model", {{"transformer", {{"latent_rotation_gain", 10.0}}}}}}, "ok.json");
+  EXPECT_EQ(c.model.transformer.latent_rotation_gain, 10.0);
+  for (double bad : {0.0, -2.0}) {
+    const auto msg = test::error_of([bad] {
+      config_from_json({{"model", {{"transformer", {{"latent_rotation_gain", bad}}}}}}, "bad.json");
+    });
+    EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("model.transformer.latent_rotation_gain must be a finite number > 0"), std::string::npos) << msg;
+  }
+}
+
 TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   auto msg = message({{"model", {{"encoder_cameras", true}}}});  // target poses left at 'auto' (the estimator)

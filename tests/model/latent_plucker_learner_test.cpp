@@ -46,6 +46,25 @@ TEST(LatentPluckerLearner, IdentityRotationInitStartsNearTheIdentityAndChangesOn
 
 }  // namespace
 
+TEST(LatentPluckerLearner, RotationGainScalesTheQuaternionsVectorPartBeforeNormalising) {
+  // latent_rotation_gain g: q = normalise(g x, g y, g z, w) of the same head output; the translation unchanged.
+  auto config = estimator_config(true);
+  torch::manual_seed(6);
+  LatentPluckerLearner plain(config);
+  config.latent_rotation_gain = 8.0;
+  torch::manual_seed(6);
+  LatentPluckerLearner gained(config);
+  auto tokens = torch::randn({5, 16, 64}), latents = torch::randn({5, 8, 64});
+  torch::NoGradGuard no_grad;
+  auto raw = plain->quaR_head(plain->pooled(tokens, latents));
+  auto expected = torch::cat({raw.narrow(1, 0, 3) * 8.0, raw.narrow(1, 3, 1)}, 1);
+  expected = expected / expected.norm(2, 1, true);
+  auto poses = gained(tokens, latents), plain_poses = plain(tokens, latents);
+  EXPECT_TRUE(torch::allclose(poses.narrow(1, 3, 4), expected, 1e-5, 1e-6));
+  EXPECT_TRUE(torch::equal(poses.narrow(1, 0, 3), plain_poses.narrow(1, 0, 3)));
+  EXPECT_GT(rotation_degrees(poses).mean().item<double>(), 4.0 * rotation_degrees(plain_poses).mean().item<double>());
+}
+
 TEST(LatentPluckerLearner, RotationOnlyLatentCameraHasZeroTranslationAndTheSameRotation) {
   // rotation_only_latent_camera: translation exactly 0 and no gradient into its head; the rotation is unchanged.
   torch::manual_seed(5);

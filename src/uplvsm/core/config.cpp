@@ -95,6 +95,7 @@ void transformer_fields(C& c, F&& f) {
   f("depth_init", c.depth_init);
   f("identity_rotation_init", c.identity_rotation_init);
   f("rotation_only_latent_camera", c.rotation_only_latent_camera);
+  f("latent_rotation_gain", c.latent_rotation_gain);
 }
 
 template <typename C, typename F>
@@ -299,6 +300,8 @@ void validate_model(const ModelConfig& m, const std::string& s) {
   require(t.encoder_n_layer >= 1 && t.estimator_n_layer >= 1 && t.decoder_n_layer >= 1 && t.n_layer >= 1, s,
           "model.transformer: every stack needs at least one layer");
   require(t.n_latent_vectors >= 1, s, "model.transformer.n_latent_vectors must be >= 1");
+  require(std::isfinite(t.latent_rotation_gain) && t.latent_rotation_gain > 0, s,
+          "model.transformer.latent_rotation_gain must be a finite number > 0");
   require(m.dinov2.embed_dim == t.d, s,
           fmt::format("model.dinov2.embed_dim ({}) must equal model.transformer.d ({}): DINOv2 tokens are used "
                       "directly as transformer tokens",

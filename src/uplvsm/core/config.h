@@ -40,6 +40,10 @@ struct TransformerConfig {
   // Not in the paper: a latent camera that only turns. The estimator's translation is zero in training and
   // inference (its head stays in the checkpoint, unused), so every camera change must be explained by a rotation.
   bool rotation_only_latent_camera = false;
+  // Not in the paper: the quaternion head's vector part (x, y, z) is multiplied by this before normalisation, so an
+  // output change turns the latent camera this many times as far (1: the official head). A lever that makes a
+  // turn as cheap to learn as a move; the translation, read by a linear layer, can grow at no cost.
+  double latent_rotation_gain = 1.0;
 };
 
 struct Dinov2Config {

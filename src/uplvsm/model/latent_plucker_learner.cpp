@@ -13,6 +13,7 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
   init_linear_weights(*absT_head, 0.02);
   init_linear_weights(*quaR_head, 0.02);
   rotation_only = c.rotation_only_latent_camera;
+  rotation_gain = c.latent_rotation_gain;
   if (c.identity_rotation_init) {
     torch::NoGradGuard no_grad;
     quaR_head->fc2->bias.copy_(torch::tensor({0.0f, 0.0f, 0.0f, 1.0f}));  // q_xyzw = identity
@@ -30,7 +31,9 @@ torch::Tensor LatentPluckerLearnerImpl::heads(const torch::Tensor& pooled) {
   auto t = rotation_only              ? torch::zeros({pooled.size(0), 3}, pooled.options())
            : translation_scale == 1.0 ? absT_head(pooled)
                                       : absT_head(pooled) * translation_scale;
-  auto q = geometry::normalize_quat(quaR_head(pooled), 1e-3);
+  auto q_raw = quaR_head(pooled);
+  if (rotation_gain != 1.0) q_raw = torch::cat({q_raw.narrow(-1, 0, 3) * rotation_gain, q_raw.narrow(-1, 3, 1)}, -1);
+  auto q = geometry::normalize_quat(q_raw, 1e-3);
   return torch::cat({t, q}, -1);
 }
 

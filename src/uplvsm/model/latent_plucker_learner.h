@@ -23,6 +23,7 @@ struct LatentPluckerLearnerImpl : torch::nn::Module {
   DinoMlp absT_head{nullptr}, quaR_head{nullptr};
   int64_t grad_checkpoint_every = 0;  // see run_stack
   bool rotation_only = false;         // model.transformer.rotation_only_latent_camera
+  double rotation_gain = 1.0;         // model.transformer.latent_rotation_gain
   // Multiplies the translation head's output (training.latent_translation_warmup_steps); 1 outside training.
   double translation_scale = 1.0;
 };

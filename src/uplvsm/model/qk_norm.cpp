@@ -2,13 +2,13 @@
 
 #include <ATen/Parallel.h>
 #include <ATen/record_function.h>
-#include <c10/util/BFloat16.h>
-#include <immintrin.h>
 
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <vector>
+
+#include "uplvsm/model/bf16_simd.h"
 
 namespace uplvsm::model {
 namespace {
@@ -94,59 +94,14 @@ void backward_rows(const T* x, const int64_t* offsets, const float* w, const flo
 
 // ---- AVX-512 rows (D a multiple of 16): the same arithmetic, 16 features at a time ----
 
-#define UPLVSM_QK_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
-
-bool cpu_has_avx512() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-           __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  }();
-  return has;
-}
-
-template <typename T>
-UPLVSM_QK_AVX512 inline __m512 load16(const T* p) {
-  if constexpr (std::is_same_v<T, float>) {
-    return _mm512_loadu_ps(p);
-  } else {
-    const __m512i wide = _mm512_cvtepu16_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(p)));
-    return _mm512_castsi512_ps(_mm512_slli_epi32(wide, 16));
-  }
-}
-
-// fp32 -> bf16 bits as c10::BFloat16 rounds: to nearest even, NaN to 0x7FC0 (denormals kept, unlike vcvtneps2bf16).
-UPLVSM_QK_AVX512 inline __m256i to_bf16_bits(__m512 v) {
-  const __m512i bits = _mm512_castps_si512(v);
-  const __m512i lsb = _mm512_and_si512(_mm512_srli_epi32(bits, 16), _mm512_set1_epi32(1));
-  __m512i rounded = _mm512_srli_epi32(_mm512_add_epi32(bits, _mm512_add_epi32(lsb, _mm512_set1_epi32(0x7FFF))), 16);
-  const __mmask16 nan = _mm512_cmp_ps_mask(v, v, _CMP_UNORD_Q);
-  rounded = _mm512_mask_mov_epi32(rounded, nan, _mm512_set1_epi32(0x7FC0));
-  return _mm512_cvtepi32_epi16(rounded);
-}
-
-// v rounded to T and back to fp32.
-template <typename T>
-UPLVSM_QK_AVX512 inline __m512 round16(__m512 v) {
-  if constexpr (std::is_same_v<T, float>) {
-    return v;
-  } else {
-    return _mm512_castsi512_ps(_mm512_slli_epi32(_mm512_cvtepu16_epi32(to_bf16_bits(v)), 16));
-  }
-}
-
-template <typename T>
-UPLVSM_QK_AVX512 inline void store16(T* p, __m512 v) {
-  if constexpr (std::is_same_v<T, float>) {
-    _mm512_storeu_ps(p, v);
-  } else {
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), to_bf16_bits(v));
-  }
-}
+using row_simd::cpu_has_avx512;
+using row_simd::load16;
+using row_simd::round16;
+using row_simd::store16;
 
 template <typename T, typename TOut>
-UPLVSM_QK_AVX512 void forward_rows_avx512(const T* x, const int64_t* offsets, const float* w, float eps, int64_t D,
-                                          int64_t begin, int64_t end, TOut* out, float* r) {
+UPLVSM_ROW_AVX512 void forward_rows_avx512(const T* x, const int64_t* offsets, const float* w, float eps, int64_t D,
+                                           int64_t begin, int64_t end, TOut* out, float* r) {
   for (int64_t row = begin; row < end; ++row) {
     const T* xr = x + offsets[row];
     __m512 acc = _mm512_setzero_ps();
@@ -163,8 +118,8 @@ UPLVSM_QK_AVX512 void forward_rows_avx512(const T* x, const int64_t* offsets, co
 }
 
 template <typename T, typename TOut>
-UPLVSM_QK_AVX512 void backward_rows_avx512(const T* x, const int64_t* offsets, const float* w, const float* r,
-                                           const TOut* gout, int64_t D, int64_t begin, int64_t end, T* gx, float* gw) {
+UPLVSM_ROW_AVX512 void backward_rows_avx512(const T* x, const int64_t* offsets, const float* w, const float* r,
+                                            const TOut* gout, int64_t D, int64_t begin, int64_t end, T* gx, float* gw) {
   for (int64_t row = begin; row < end; ++row) {
     const T* xr = x + offsets[row];
     const TOut* g = gout + row * D;

@@ -10,7 +10,7 @@ RgbHeadImpl::RgbHeadImpl(int64_t d, int64_t p) : patch_size(p) {
 }
 
 torch::Tensor RgbHeadImpl::forward(const torch::Tensor& tokens, int64_t b, int64_t v, int64_t H, int64_t W) {
-  auto rgb = torch::sigmoid(linear(norm(tokens)));
+  auto rgb = torch::sigmoid(linear(norm->forward_into_linear(tokens)));
   return unpatchify(rgb, patch_size, H, W, 3).view({b, v, 3, H, W});
 }
 

@@ -3,6 +3,7 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/flash_attention.h"
 #include "uplvsm/model/gradient_checkpoint.h"
+#include "uplvsm/model/layer_norm_to_bf16.h"
 #include "uplvsm/model/qk_norm.h"
 
 #include <cmath>
@@ -15,6 +16,12 @@ LayerNormImpl::LayerNormImpl(int64_t dim_, double eps_, bool with_bias) : dim(di
 }
 
 torch::Tensor LayerNormImpl::forward(const torch::Tensor& x) { return torch::layer_norm(x, {dim}, weight, bias, eps); }
+
+torch::Tensor LayerNormImpl::forward_into_linear(const torch::Tensor& x) {
+  if (autocast_active(x.device()) && layer_norm_to_bf16_fuses(x, weight, bias))
+    return layer_norm_to_bf16(x, weight, bias, eps);
+  return forward(x);
+}
 
 RMSNormImpl::RMSNormImpl(int64_t dim, double eps_) : eps(eps_) {
   weight = register_parameter("weight", torch::ones({dim}));
@@ -94,8 +101,8 @@ TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps
 
 torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x, OutputRows rows) {
   const auto kept = rows.all(x.size(1)) ? x : x.narrow(1, rows.start, rows.count);
-  auto h = kept + attn->forward(norm1(x), rows);
-  return h + mlp(norm2(h));
+  auto h = kept + attn->forward(norm1->forward_into_linear(x), rows);
+  return h + mlp(norm2->forward_into_linear(h));
 }
 
 void init_linear_weights(torch::nn::Module& module, double std) {

@@ -13,6 +13,9 @@ namespace uplvsm::model {
 struct LayerNormImpl : torch::nn::Module {
   LayerNormImpl(int64_t dim, double eps, bool bias);
   torch::Tensor forward(const torch::Tensor& x);
+  // For a norm whose result only feeds linear layers: under bf16 autocast it comes out in bf16, the dtype those
+  // layers cast to, from one fused pass (layer_norm_to_bf16.h); otherwise forward(x).
+  torch::Tensor forward_into_linear(const torch::Tensor& x);
   torch::Tensor weight, bias;
   int64_t dim;
   double eps;
