@@ -139,6 +139,14 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
             std::string::npos);
   EXPECT_NE(message({{"training", {{"latent_translation_weight", -0.5}}}}).find("latent_translation_weight must be"),
             std::string::npos);
+  EXPECT_NO_THROW(config_from_json({{"training", {{"turned_view_weight", 0.5}, {"turned_view_degrees", 15}}}}, "ok"));
+  EXPECT_NE(message({{"model", {{"variant", "lvsm"}}}, {"training", {{"turned_view_weight", 0.1}}}})
+                .find("training.turned_view_weight: only a UP-LVSM"),
+            std::string::npos);
+  EXPECT_NE(message({{"training", {{"turned_view_degrees", 0}}}}).find("turned_view_degrees in (0, 30]"),
+            std::string::npos);
+  EXPECT_NE(message({{"training", {{"turned_view_weight", -1}}}}).find("turned_view_weight must be"),
+            std::string::npos);
 }
 
 TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {

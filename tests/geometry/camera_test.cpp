@@ -32,6 +32,18 @@ TEST(Quaternion, RoundTripWithPositiveW) {
   EXPECT_TRUE((back.select(1, 3) >= 0).all().item<bool>());
 }
 
+// The product composes rotations in the first one's frame, for non-unit quaternions too (lengths multiply).
+TEST(Quaternion, ProductComposesTheRotationMatrices) {
+  torch::manual_seed(5);
+  auto a = torch::randn({32, 4}, torch::kFloat64), b = torch::randn({32, 4}, torch::kFloat64);
+  auto ab = geometry::quat_multiply(a, b);
+  auto expected = torch::matmul(geometry::quat_to_rotation(a), geometry::quat_to_rotation(b));
+  EXPECT_LE(test::max_abs_diff(geometry::quat_to_rotation(ab), expected), 1e-12);
+  EXPECT_LE(test::max_abs_diff(ab.norm(2, -1), a.norm(2, -1) * b.norm(2, -1)), 1e-12);
+  auto identity = torch::tensor({0.0, 0.0, 0.0, 1.0}, torch::kFloat64).expand({32, 4});
+  EXPECT_LE(test::max_abs_diff(geometry::quat_multiply(a, identity), a), 1e-15);
+}
+
 TEST(Quaternion, SlerpEndpointsAndMidpoint) {
   double s = std::sqrt(0.5);
   auto q0 = torch::tensor({0.0, 0.0, 0.0, 1.0}, torch::kFloat64);

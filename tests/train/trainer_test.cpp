@@ -88,21 +88,38 @@ TEST(Trainer, ResumeReproducesTheUninterruptedRunExactly) {
   for (const auto& [k, v] : a.optimizer) EXPECT_TRUE(torch::equal(v, b.optimizer.at(k))) << k;
 }
 
-// The rotation-equivariance term adds to the loss, and its random turns are keyed to the step: a resumed run logs
-// the same losses as an uninterrupted one.
+namespace {
+
+// A loss term `config` turns on adds to the loss, and its random draws are keyed to the step: a run stopped after
+// `stop_after` steps and resumed logs the same losses as an uninterrupted one.
+void expect_term_adds_to_the_loss_and_resumes_exactly(const Config& config, const std::string& name,
+                                                      int64_t stop_after) {
+  auto straight = test::temp_dir(name).string();
+  train::train(config, options(straight));
+  const auto losses = expect_losses_above_mse(straight, static_cast<size_t>(config.training.train_steps));
+  auto resumed = test::temp_dir(name + "_resumed").string();
+  auto first = options(resumed);
+  first.stop_after_steps = stop_after;
+  train::train(config, first);
+  train::train(config, options(resumed));
+  EXPECT_EQ(logged_losses(resumed), losses);
+}
+
+}  // namespace
+
 TEST(Trainer, RotationEquivarianceAddsToTheLossAndResumesExactly) {
   auto config = test::micro_config();
   config.training.train_steps = 8;
   config.training.rotation_equivariance_weight = 0.5;
-  auto straight = test::temp_dir("train_equivariance").string();
-  train::train(config, options(straight));
-  const auto losses = expect_losses_above_mse(straight, 8);
-  auto resumed = test::temp_dir("train_equivariance_resumed").string();
-  auto first = options(resumed);
-  first.stop_after_steps = 3;
-  train::train(config, first);
-  train::train(config, options(resumed));
-  EXPECT_EQ(logged_losses(resumed), losses);
+  expect_term_adds_to_the_loss_and_resumes_exactly(config, "train_equivariance", 3);
+}
+
+// The turned-view term (train/turned_view_loss.h).
+TEST(Trainer, TurnedViewTermAddsToTheLossAndResumesExactly) {
+  auto config = test::micro_config();
+  config.training.train_steps = 6;
+  config.training.turned_view_weight = 1.0;
+  expect_term_adds_to_the_loss_and_resumes_exactly(config, "train_turned_view", 2);
 }
 
 // training.latent_translation_warmup_steps: at step 0 the translation is scaled by 0, so its head gets no gradient

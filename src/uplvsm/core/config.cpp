@@ -161,6 +161,8 @@ void training_fields(C& c, F&& f) {
   f("view_sampler", c.view_sampler);
   f("rotation_equivariance_weight", c.rotation_equivariance_weight);
   f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
+  f("turned_view_weight", c.turned_view_weight);
+  f("turned_view_degrees", c.turned_view_degrees);
   f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
   f("latent_translation_weight", c.latent_translation_weight);
 }
@@ -333,6 +335,14 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
           s,
           "training.rotation_equivariance_weight: only a UP-LVSM whose target poses come from its estimator has "
           "latent poses to make equivariant");
+  require(tr.turned_view_weight >= 0 && std::isfinite(tr.turned_view_weight) && tr.turned_view_degrees > 0 &&
+              tr.turned_view_degrees <= 30,
+          s, "training.turned_view_weight must be a finite number >= 0 and turned_view_degrees in (0, 30]");
+  require(tr.turned_view_weight == 0 ||
+              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
+          s,
+          "training.turned_view_weight: only a UP-LVSM whose target poses come from its estimator has latent poses "
+          "to turn");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
   require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
           "training.latent_translation_weight must be a finite number >= 0");

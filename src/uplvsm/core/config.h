@@ -130,6 +130,11 @@ struct TrainingConfig {
   // Its weight in the loss; 0: off (the official recipe).
   double rotation_equivariance_weight = 0;
   double rotation_equivariance_degrees = 10;
+  // Not in the paper: a rendering signal for turns (train/turned_view_loss.h). Every target is also rendered from its
+  // latent pose turned by a random yaw within ±turned_view_degrees and scored against the target warped as its camera
+  // turned by that yaw (on the pixels the warp keeps). Its weight in the loss; 0: off (the official recipe).
+  double turned_view_weight = 0;
+  double turned_view_degrees = 10;
   // Not in the paper: UP-LVSM's latent camera starts as a pure rotation. The estimator's translation is multiplied
   // by step / latent_translation_warmup_steps (0 at the start, 1 from then on), so early camera changes can only be
   // explained by turning the camera. 0: off (the official recipe).

@@ -65,6 +65,14 @@ torch::Tensor quat_slerp(const torch::Tensor& q0_in, const torch::Tensor& q1_in,
   return q.to(q0_in.scalar_type());
 }
 
+torch::Tensor quat_multiply(const torch::Tensor& a, const torch::Tensor& b) {
+  auto ax = a.select(-1, 0), ay = a.select(-1, 1), az = a.select(-1, 2), aw = a.select(-1, 3);
+  auto bx = b.select(-1, 0), by = b.select(-1, 1), bz = b.select(-1, 2), bw = b.select(-1, 3);
+  return torch::stack({aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+                       aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz},
+                      -1);
+}
+
 torch::Tensor normalize_quat(const torch::Tensor& q, double eps) {
   auto q32 = q.to(torch::kFloat32);
   return (q32 / q32.norm(2, -1, true).clamp_min(eps)).to(q.scalar_type());
