@@ -19,6 +19,10 @@ TEST(MemoryEstimate, ParameterCountFromTheConfigEqualsTheBuiltModel) {
   no_qk_norm.dinov2.num_register_tokens = 0;
   no_qk_norm.dinov2.mlp_ratio = 2;
   configs.push_back(no_qk_norm);
+  auto correspondence = test::micro_model();
+  correspondence.keep_image_tokens = true;
+  correspondence.transformer.estimator_correspondence = true;
+  configs.push_back(correspondence);
   for (std::string name : {"tiny", "tiny_ptlvsm", "tiny_lvsm", "tiny_mapper"})
     configs.push_back(load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json").model);
   for (const auto& c : configs) {

@@ -96,6 +96,7 @@ void transformer_fields(C& c, F&& f) {
   f("identity_rotation_init", c.identity_rotation_init);
   f("rotation_only_latent_camera", c.rotation_only_latent_camera);
   f("latent_rotation_gain", c.latent_rotation_gain);
+  f("estimator_correspondence", c.estimator_correspondence);
 }
 
 template <typename C, typename F>
@@ -292,6 +293,9 @@ void validate_model(const ModelConfig& m, const std::string& s) {
   const auto& t = m.transformer;
   require(!m.pose_mapper || m.variant == Variant::UPLVSM, s,
           "model.pose_mapper: only the uplvsm variant has latent poses to map to");
+  require(!m.transformer.estimator_correspondence || (m.variant == Variant::UPLVSM && m.keep_image_tokens), s,
+          "model.transformer.estimator_correspondence reads input view 0's image tokens: it needs the uplvsm variant "
+          "and model.keep_image_tokens: true");
   require(!m.keep_image_tokens || m.variant == Variant::UPLVSM, s,
           "model.keep_image_tokens: only the uplvsm variant has an encoder whose image tokens it could keep");
   require(m.patch_size > 0 && m.image_size > 0 && m.image_size % m.patch_size == 0, s,

@@ -44,6 +44,10 @@ struct TransformerConfig {
   // output change turns the latent camera this many times as far (1: the official head). A lever that makes a
   // turn as cheap to learn as a move; the translation, read by a linear layer, can grow at no cost.
   double latent_rotation_gain = 1.0;
+  // Not in the paper (needs model.keep_image_tokens): the estimator also reads where each target patch finds its
+  // content in input view 0 (model/correspondence_displacement.h), so a global shift of the image (a turn) is
+  // visible to it, not averaged away by the mean pooling. Starts as the official estimator (its output layer at 0).
+  bool estimator_correspondence = false;
 };
 
 struct Dinov2Config {

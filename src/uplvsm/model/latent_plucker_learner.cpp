@@ -12,6 +12,10 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
   quaR_head = register_module("quaR_head", DinoMlp(c.d, c.d / 2, 4));
   init_linear_weights(*absT_head, 0.02);
   init_linear_weights(*quaR_head, 0.02);
+  if (c.estimator_correspondence) {
+    correspondence = register_module("correspondence", CorrespondenceReadout(c.d, c.d_head));
+    n_latents = c.n_latent_vectors;
+  }
   rotation_only = c.rotation_only_latent_camera;
   rotation_gain = c.latent_rotation_gain;
   if (c.identity_rotation_init) {
@@ -22,9 +26,13 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
 
 torch::Tensor LatentPluckerLearnerImpl::pooled(const torch::Tensor& image_tokens, const torch::Tensor& scene_latents) {
   const int64_t n = image_tokens.size(1);
-  return run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1), grad_checkpoint_every,
-                   "uplvsm::estimator", OutputRows{0, n})
-      .mean(1);
+  auto tokens = run_stack(transformer_estimator, torch::cat({image_tokens, scene_latents}, 1), grad_checkpoint_every,
+                          "uplvsm::estimator", OutputRows{0, n});
+  if (!correspondence) return tokens.mean(1);
+  TORCH_CHECK(scene_latents.size(1) >= n_latents + n, "estimator_correspondence: the scene representation has ",
+              scene_latents.size(1), " rows, not the ", n_latents, " latents and input view 0's ", n,
+              " image tokens (model.keep_image_tokens)");
+  return tokens.mean(1) + correspondence(tokens, scene_latents.narrow(1, n_latents, n));
 }
 
 torch::Tensor LatentPluckerLearnerImpl::heads(const torch::Tensor& pooled) {

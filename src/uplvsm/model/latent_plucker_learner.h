@@ -6,6 +6,7 @@
 #include <torch/torch.h>
 
 #include "uplvsm/core/config.h"
+#include "uplvsm/model/correspondence_displacement.h"
 #include "uplvsm/model/dinov2.h"
 #include "uplvsm/model/transformer.h"
 
@@ -21,6 +22,10 @@ struct LatentPluckerLearnerImpl : torch::nn::Module {
 
   torch::nn::ModuleList transformer_estimator{nullptr};
   DinoMlp absT_head{nullptr}, quaR_head{nullptr};
+  // model.transformer.estimator_correspondence: reads view 0's image tokens, the first n rows after the
+  // n_latents scene latents (model.keep_image_tokens); null otherwise.
+  CorrespondenceReadout correspondence{nullptr};
+  int64_t n_latents = 0;
   int64_t grad_checkpoint_every = 0;  // see run_stack
   bool rotation_only = false;         // model.transformer.rotation_only_latent_camera
   double rotation_gain = 1.0;         // model.transformer.latent_rotation_gain

@@ -41,6 +41,7 @@ int64_t parameter_count(const ModelConfig& c) {
          t.d;
     n += stack_parameters(t.estimator_n_layer, t) + head_parameters(t.d, t.d / 2, 3) + head_parameters(t.d, t.d / 2, 4);
     if (c.pose_mapper) n += 7 * 7 + 7;
+    if (t.estimator_correspondence) n += 2 * t.d * t.d_head + head_parameters(4, t.d / 2, t.d);
   }
   return n + t.d + t.d * p * p * 3;  // image_token_decoder: LayerNorm, Linear
 }
