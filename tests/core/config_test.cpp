@@ -171,11 +171,13 @@ TEST(Config, LatentRotationGainReadsAndMustBePositive) {
   auto c = config_from_json({{"model", {{"transformer", {{"latent_rotation_gain", 10.0}}}}}}, "ok.json");
   EXPECT_EQ(c.model.transformer.latent_rotation_gain, 10.0);
   EXPECT_FALSE(Config().model.transformer.estimator_correspondence);  // the official estimator by default
-  EXPECT_TRUE(config_from_json({{"model", {{"keep_image_tokens", true}, {"transformer", {{"estimator_correspondence", true}}}}}},
-                               "ok.json")
-                  .model.transformer.estimator_correspondence);
-  const auto msg = test::error_of(
-      [] { config_from_json({{"model", {{"transformer", {{"estimator_correspondence", true}}}}}}, "bad.json"); });
+  EXPECT_TRUE(
+      config_from_json(
+          {{"model", {{"keep_image_tokens", true}, {"transformer", {{"estimator_correspondence", true}}}}}}, "ok.json")
+          .model.transformer.estimator_correspondence);
+  const auto msg = test::error_of([] {
+    config_from_json({{"model", {{"transformer", {{"estimator_correspondence", true}}}}}}, "bad.json");
+  });
   EXPECT_NE(msg.find("estimator_correspondence reads input view 0's image tokens"), std::string::npos) << msg;
   for (double bad : {0.0, -2.0}) {
     const auto msg = test::error_of([bad] {

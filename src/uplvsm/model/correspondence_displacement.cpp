@@ -2,7 +2,6 @@
 
 #include <cmath>
 
-
 namespace uplvsm::model {
 
 torch::Tensor patch_grid(int64_t n, const torch::TensorOptions& options) {
@@ -36,7 +35,8 @@ CorrespondenceReadoutImpl::CorrespondenceReadoutImpl(int64_t d, int64_t d_head) 
   mlp->fc2->bias.zero_();
 }
 
-torch::Tensor CorrespondenceReadoutImpl::forward(const torch::Tensor& target_tokens, const torch::Tensor& view0_tokens) {
+torch::Tensor CorrespondenceReadoutImpl::forward(const torch::Tensor& target_tokens,
+                                                 const torch::Tensor& view0_tokens) {
   auto displacement = correspondence_displacement(query(target_tokens), key(view0_tokens));  // [N, n, 2]
   auto grid = patch_grid(target_tokens.size(1), target_tokens.options()).expand_as(displacement);
   return mlp(torch::cat({grid, displacement}, -1)).mean(1);
