@@ -170,6 +170,16 @@ TEST(Config, LatentRotationGainReadsAndMustBePositive) {
   EXPECT_EQ(Config().model.transformer.latent_rotation_gain, 1.0);  // the official head by default
   auto c = config_from_json({{"model", {{"transformer", {{"latent_rotation_gain", 10.0}}}}}}, "ok.json");
   EXPECT_EQ(c.model.transformer.latent_rotation_gain, 10.0);
+  for (double bad : {0.0, -2.0}) {
+    const auto msg = test::error_of([bad] {
+      config_from_json({{"model", {{"transformer", {{"latent_rotation_gain", bad}}}}}}, "bad.json");
+    });
+    EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
+    EXPECT_NE(msg.find("model.transformer.latent_rotation_gain must be a finite number > 0"), std::string::npos) << msg;
+  }
+}
+
+TEST(Config, EstimatorCorrespondenceNeedsTheImageTokens) {
   EXPECT_FALSE(Config().model.transformer.estimator_correspondence);  // the official estimator by default
   EXPECT_TRUE(
       config_from_json(
@@ -179,13 +189,6 @@ TEST(Config, LatentRotationGainReadsAndMustBePositive) {
     config_from_json({{"model", {{"transformer", {{"estimator_correspondence", true}}}}}}, "bad.json");
   });
   EXPECT_NE(msg.find("estimator_correspondence reads input view 0's image tokens"), std::string::npos) << msg;
-  for (double bad : {0.0, -2.0}) {
-    const auto msg = test::error_of([bad] {
-      config_from_json({{"model", {{"transformer", {{"latent_rotation_gain", bad}}}}}}, "bad.json");
-    });
-    EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
-    EXPECT_NE(msg.find("model.transformer.latent_rotation_gain must be a finite number > 0"), std::string::npos) << msg;
-  }
 }
 
 TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
