@@ -147,6 +147,11 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
             std::string::npos);
   EXPECT_NE(message({{"training", {{"turned_view_weight", -1}}}}).find("turned_view_weight must be"),
             std::string::npos);
+  EXPECT_NE(message({{"training", {{"rotation_alignment_weight", -1}}}}).find("rotation_alignment_weight must be"),
+            std::string::npos);
+  EXPECT_NE(message({{"model", {{"variant", "ptlvsm"}}}, {"training", {{"rotation_alignment_weight", 1}}}})
+                .find("training.rotation_alignment_weight: only a UP-LVSM"),
+            std::string::npos);
 }
 
 TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {

@@ -122,6 +122,17 @@ TEST(Trainer, TurnedViewTermAddsToTheLossAndResumesExactly) {
   expect_term_adds_to_the_loss_and_resumes_exactly(config, "train_turned_view", 2);
 }
 
+// The rotation-alignment term (train/rotation_alignment_loss.h).
+TEST(Trainer, RotationAlignmentTermAddsToTheLossAndResumesExactly) {
+  auto config = test::micro_config();
+  config.training.train_steps = 4;
+  config.training.rotation_alignment_weight = 1.0;
+  // The official init's latent rotations are arbitrary (30°+): view 0 warped that far keeps no pixel, and the term is
+  // 0.
+  config.model.transformer.identity_rotation_init = true;
+  expect_term_adds_to_the_loss_and_resumes_exactly(config, "train_rotation_alignment", 2);
+}
+
 // training.latent_translation_warmup_steps: at step 0 the translation is scaled by 0, so its head gets no gradient
 // (Adam's first moment stays exactly 0) while the rotation head learns; after the step the model is the plain one.
 // training.latent_translation_weight adds to the loss. Both are refused, by name, for a model without a latent camera.

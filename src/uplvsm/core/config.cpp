@@ -164,6 +164,7 @@ void training_fields(C& c, F&& f) {
   f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
   f("turned_view_weight", c.turned_view_weight);
   f("turned_view_degrees", c.turned_view_degrees);
+  f("rotation_alignment_weight", c.rotation_alignment_weight);
   f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
   f("latent_translation_weight", c.latent_translation_weight);
 }
@@ -347,6 +348,13 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
           s,
           "training.turned_view_weight: only a UP-LVSM whose target poses come from its estimator has latent poses "
           "to turn");
+  require(tr.rotation_alignment_weight >= 0 && std::isfinite(tr.rotation_alignment_weight), s,
+          "training.rotation_alignment_weight must be a finite number >= 0");
+  require(tr.rotation_alignment_weight == 0 ||
+              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
+          s,
+          "training.rotation_alignment_weight: only a UP-LVSM whose target poses come from its estimator has latent "
+          "rotations to align");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
   require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
           "training.latent_translation_weight must be a finite number >= 0");

@@ -139,6 +139,9 @@ struct TrainingConfig {
   // turned by that yaw (on the pixels the warp keeps). Its weight in the loss; 0: off (the official recipe).
   double turned_view_weight = 0;
   double turned_view_degrees = 10;
+  // Not in the paper: a direct teacher for the latent rotation (train/rotation_alignment_loss.h): input view 0
+  // warped by each target's latent rotation must look like the target (parallax ignored). Its weight; 0: off.
+  double rotation_alignment_weight = 0;
   // Not in the paper: UP-LVSM's latent camera starts as a pure rotation. The estimator's translation is multiplied
   // by step / latent_translation_warmup_steps (0 at the start, 1 from then on), so early camera changes can only be
   // explained by turning the camera. 0: off (the official recipe).

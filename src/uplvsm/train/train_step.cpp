@@ -7,6 +7,7 @@
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/optimizer.h"
+#include "uplvsm/train/rotation_alignment_loss.h"
 #include "uplvsm/train/turned_view_loss.h"
 
 namespace uplvsm::train {
@@ -88,6 +89,8 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
       loss = loss + tc.turned_view_weight *
                         turned_view_loss(*model::as_uplvsm(*ctx.net), batch.targets, out.pose_enc, out.scene_latents,
                                          draw_turn_angles(target.size(0) * target.size(1), tc, step));
+    if (tc.rotation_alignment_weight > 0)
+      loss = loss + tc.rotation_alignment_weight * rotation_alignment_loss(batch.inputs, batch.targets, out.pose_enc);
   }
   (loss / accum).backward();
   return {loss.item<double>() / accum, mse.item<double>() / accum};
