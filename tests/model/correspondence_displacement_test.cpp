@@ -29,7 +29,7 @@ TEST(CorrespondenceDisplacement, AShiftedImageIsDisplacedByItsShift) {
   auto queries = torch::zeros({1, n, n});
   for (int64_t r = 0; r < side; ++r)
     for (int64_t c = 0; c + 1 < side; ++c) queries[0][r * side + c][r * side + c + 1] = 40.0;
-  auto displacement = correspondence_displacement(queries, keys);
+  auto displacement = correspondence_displacement(queries, keys, patch_grid(n, torch::TensorOptions()));
   for (int64_t r = 0; r < side; ++r)
     for (int64_t c = 0; c + 1 < side; ++c) {
       EXPECT_NEAR(displacement[0][r * side + c][0].item<float>(), 2.0 / side, 1e-4) << r << "," << c;

@@ -14,8 +14,10 @@ TEST(RotationAlignmentLoss, IsZeroAtTheTurnThatMadeTheTargetAndGrowsAway) {
   const int64_t S = 32;
   // A smooth view 0 (low frequencies), so bilinear resampling is near exact.
   auto coarse = torch::rand({1, 3, 4, 4});
-  auto view0 = torch::nn::functional::interpolate(
-      coarse, torch::nn::functional::InterpolateFuncOptions().size(std::vector<int64_t>{S, S}).mode(torch::kBicubic).align_corners(false));
+  auto view0 = torch::nn::functional::interpolate(coarse, torch::nn::functional::InterpolateFuncOptions()
+                                                              .size(std::vector<int64_t>{S, S})
+                                                              .mode(torch::kBicubic)
+                                                              .align_corners(false));
   auto k = torch::tensor({{36.0f, 36.0f, 16.0f, 16.0f}});
   auto yaw = torch::tensor({0.12f});
   auto target = geometry::warp_to_rotated_camera(view0, k, geometry::yaw_rotation(yaw));
@@ -34,4 +36,8 @@ TEST(RotationAlignmentLoss, IsZeroAtTheTurnThatMadeTheTargetAndGrowsAway) {
   train::rotation_alignment_loss(inputs, targets, grad_pose).backward();
   EXPECT_GT(grad_pose.grad().abs().narrow(-1, 3, 4).sum().item<double>(), 0);  // it teaches the rotation
   EXPECT_EQ(grad_pose.grad().narrow(-1, 0, 3).abs().sum().item<double>(), 0);  // and only the rotation
+  EXPECT_NE(test::error_of([&] {
+              train::rotation_alignment_loss(inputs, targets, pose(0.1f).view({1, 7}));
+            }).find("expected latent poses [1, 1, 7]"),
+            std::string::npos);
 }

@@ -63,6 +63,10 @@ TEST(TurnedViewLoss, MatchesTheRotationMatrixRouteAndIsThePlainErrorWithoutATurn
   auto plain = c.net->render_views(c.latents, c.pose_enc, c.targets.fxfycxcy, 32, 32);
   EXPECT_NEAR(zero.item<double>(), torch::mse_loss(plain, c.targets.images).item<double>(), 1e-6);
   EXPECT_GT(std::abs(loss.item<double>() - zero.item<double>()), 1e-4);  // the turn changed what is compared
+  EXPECT_NE(test::error_of([&] {
+              train::turned_view_loss(*c.net, c.targets, c.pose_enc, c.latents, yaws.narrow(0, 0, 3));
+            }).find("expected 4 yaws, got 3"),
+            std::string::npos);
 }
 
 TEST(TurnedViewLoss, ItsGradientReachesTheDecoderAndTheEstimator) {

@@ -324,6 +324,13 @@ void validate_model(const ModelConfig& m, const std::string& s) {
 // Where the target cameras come from, against what the model can do with them.
 void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const std::string& s) {
   const auto tp = tr.target_poses;
+  // The training terms on latent poses: only where the estimator supplies them.
+  const bool estimated_poses =
+      (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator));
+  auto only_with_estimated_poses = [&](bool used, const std::string& field, const std::string& what) {
+    require(!used || estimated_poses, s,
+            field + ": only a UP-LVSM whose target poses come from its estimator has " + what);
+  };
   require(m.variant == Variant::UPLVSM || tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Dataset, s,
           "training.target_poses: the " + to_string(m.variant) +
               " variant renders from dataset cameras ('auto' or 'dataset')");
@@ -335,34 +342,22 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
   require(tr.rotation_equivariance_weight >= 0 && tr.rotation_equivariance_degrees > 0 &&
               tr.rotation_equivariance_degrees <= 30,
           s, "training.rotation_equivariance_weight must be >= 0 and rotation_equivariance_degrees in (0, 30]");
-  require(tr.rotation_equivariance_weight == 0 ||
-              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
-          s,
-          "training.rotation_equivariance_weight: only a UP-LVSM whose target poses come from its estimator has "
-          "latent poses to make equivariant");
+  only_with_estimated_poses(tr.rotation_equivariance_weight != 0, "training.rotation_equivariance_weight",
+                            "latent poses to make equivariant");
   require(tr.turned_view_weight >= 0 && std::isfinite(tr.turned_view_weight) && tr.turned_view_degrees > 0 &&
               tr.turned_view_degrees <= 30,
           s, "training.turned_view_weight must be a finite number >= 0 and turned_view_degrees in (0, 30]");
-  require(tr.turned_view_weight == 0 ||
-              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
-          s,
-          "training.turned_view_weight: only a UP-LVSM whose target poses come from its estimator has latent poses "
-          "to turn");
+  only_with_estimated_poses(tr.turned_view_weight != 0, "training.turned_view_weight", "latent poses to turn");
   require(tr.rotation_alignment_weight >= 0 && std::isfinite(tr.rotation_alignment_weight), s,
           "training.rotation_alignment_weight must be a finite number >= 0");
-  require(tr.rotation_alignment_weight == 0 ||
-              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
-          s,
-          "training.rotation_alignment_weight: only a UP-LVSM whose target poses come from its estimator has latent "
-          "rotations to align");
+  only_with_estimated_poses(tr.rotation_alignment_weight != 0, "training.rotation_alignment_weight",
+                            "latent rotations to align");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
   require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
           "training.latent_translation_weight must be a finite number >= 0");
-  require((tr.latent_translation_warmup_steps == 0 && tr.latent_translation_weight == 0) ||
-              (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator)),
-          s,
-          "training.latent_translation_warmup_steps / latent_translation_weight: only a UP-LVSM whose target poses "
-          "come from its estimator has a latent translation to warm up or weigh");
+  only_with_estimated_poses(tr.latent_translation_warmup_steps != 0 || tr.latent_translation_weight != 0,
+                            "training.latent_translation_warmup_steps / latent_translation_weight",
+                            "a latent translation to warm up or weigh");
 }
 
 void validate_training(const Config& c, const std::string& s) {

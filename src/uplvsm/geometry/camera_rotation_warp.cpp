@@ -37,13 +37,16 @@ torch::Tensor warp_to_rotated_camera(const torch::Tensor& images, const torch::T
       .to(images.scalar_type());
 }
 
+torch::Tensor pixels_kept_by_rotation(const torch::Tensor& fxfycxcy, int64_t height, int64_t width,
+                                      const torch::Tensor& rotation) {
+  auto ones = torch::ones({fxfycxcy.size(0), 1, height, width}, fxfycxcy.options().dtype(torch::kFloat32));
+  return (warp_to_rotated_camera(ones, fxfycxcy, rotation) > 0.999).to(torch::kFloat32);
+}
+
 torch::Tensor yaw_safe_region(const torch::Tensor& fxfycxcy, int64_t height, int64_t width, double max_radians) {
-  const int64_t N = fxfycxcy.size(0);
-  auto ones = torch::ones({N, 1, height, width}, fxfycxcy.options().dtype(torch::kFloat32));
-  auto angle = torch::full({N}, max_radians, ones.options());
-  auto left = warp_to_rotated_camera(ones, fxfycxcy, yaw_rotation(angle));
-  auto right = warp_to_rotated_camera(ones, fxfycxcy, yaw_rotation(-angle));
-  return ((left > 0.999) & (right > 0.999)).to(torch::kFloat32);
+  auto angle = torch::full({fxfycxcy.size(0)}, max_radians, fxfycxcy.options().dtype(torch::kFloat32));
+  return pixels_kept_by_rotation(fxfycxcy, height, width, yaw_rotation(angle)) *
+         pixels_kept_by_rotation(fxfycxcy, height, width, yaw_rotation(-angle));
 }
 
 }  // namespace uplvsm::geometry

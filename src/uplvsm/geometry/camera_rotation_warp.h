@@ -17,6 +17,11 @@ torch::Tensor yaw_rotation(const torch::Tensor& radians);
 torch::Tensor warp_to_rotated_camera(const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                      const torch::Tensor& rotation);
 
+// [N, 1, H, W] in {0, 1}: the pixels of the rotated cameras' H x W views that the original images cover (where
+// warp_to_rotated_camera has data rather than its zero padding).
+torch::Tensor pixels_kept_by_rotation(const torch::Tensor& fxfycxcy, int64_t height, int64_t width,
+                                      const torch::Tensor& rotation);
+
 // [N, 1, H, W] in {0, 1}: the pixels every yaw within ±max_radians keeps inside the image (the same band for any
 // angle, so it says nothing about the angle a warped image was made with).
 torch::Tensor yaw_safe_region(const torch::Tensor& fxfycxcy, int64_t height, int64_t width, double max_radians);

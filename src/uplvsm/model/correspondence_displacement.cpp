@@ -12,13 +12,13 @@ torch::Tensor patch_grid(int64_t n, const torch::TensorOptions& options) {
   return torch::stack({x.reshape({n}), y.reshape({n})}, -1);
 }
 
-torch::Tensor correspondence_displacement(const torch::Tensor& queries, const torch::Tensor& keys) {
+torch::Tensor correspondence_displacement(const torch::Tensor& queries, const torch::Tensor& keys,
+                                          const torch::Tensor& grid) {
   TORCH_CHECK(queries.dim() == 3 && queries.sizes() == keys.sizes(),
               "correspondence_displacement: queries and keys must both be [N, n, c], got ", queries.sizes(), " and ",
               keys.sizes());
   const auto scale = 1.0 / std::sqrt(static_cast<double>(queries.size(2)));
   auto scores = torch::matmul(queries.to(torch::kFloat32), keys.to(torch::kFloat32).transpose(1, 2)) * scale;
-  auto grid = patch_grid(queries.size(1), queries.options());
   return torch::matmul(torch::softmax(scores, -1), grid) - grid;
 }
 
@@ -37,9 +37,9 @@ CorrespondenceReadoutImpl::CorrespondenceReadoutImpl(int64_t d, int64_t d_head) 
 
 torch::Tensor CorrespondenceReadoutImpl::forward(const torch::Tensor& target_tokens,
                                                  const torch::Tensor& view0_tokens) {
-  auto displacement = correspondence_displacement(query(target_tokens), key(view0_tokens));  // [N, n, 2]
-  auto grid = patch_grid(target_tokens.size(1), target_tokens.options()).expand_as(displacement);
-  return mlp(torch::cat({grid, displacement}, -1)).mean(1);
+  auto grid = patch_grid(target_tokens.size(1), target_tokens.options());
+  auto displacement = correspondence_displacement(query(target_tokens), key(view0_tokens), grid);  // [N, n, 2]
+  return mlp(torch::cat({grid.expand_as(displacement), displacement}, -1)).mean(1);
 }
 
 }  // namespace uplvsm::model

@@ -12,9 +12,11 @@ namespace uplvsm::model {
 // [n, 2] (x, y) centres of a square grid of n patches in row-major order, in [-1, 1].
 torch::Tensor patch_grid(int64_t n, const torch::TensorOptions& options);
 
-// queries [N, n, c] (target patches), keys [N, n, c] (view-0 patches) -> [N, n, 2]: softmax(q k^T / sqrt(c)) times
-// the grid, minus the grid: the soft-matched position of each target patch relative to its own (fp32).
-torch::Tensor correspondence_displacement(const torch::Tensor& queries, const torch::Tensor& keys);
+// queries [N, n, c] (target patches), keys [N, n, c] (view-0 patches), grid [n, 2] (patch_grid) -> [N, n, 2]:
+// softmax(q k^T / sqrt(c)) times the grid, minus the grid: the soft-matched position of each target patch relative
+// to its own (fp32).
+torch::Tensor correspondence_displacement(const torch::Tensor& queries, const torch::Tensor& keys,
+                                          const torch::Tensor& grid);
 
 struct CorrespondenceReadoutImpl : torch::nn::Module {
   CorrespondenceReadoutImpl(int64_t d, int64_t d_head);

@@ -13,13 +13,11 @@ torch::Tensor rotation_alignment_loss(const model::Views& inputs, const model::V
               "rotation_alignment_loss: expected latent poses [", b, ", ", v, ", 7], got ", pose_enc.sizes());
   using torch::indexing::Slice;
   auto rotation = geometry::quat_to_rotation(pose_enc.to(torch::kFloat32).index({Slice(), Slice(), Slice(3, 7)}))
-                      .flatten(0, 1);                                                        // [b v, 3, 3]
+                      .flatten(0, 1);                                                          // [b v, 3, 3]
   auto view0 = inputs.images.select(1, 0).unsqueeze(1).expand({b, v, C, H, W}).flatten(0, 1);  // [b v, C, H, W]
   auto k0 = inputs.fxfycxcy.select(1, 0).unsqueeze(1).expand({b, v, 4}).flatten(0, 1);
   auto seen = geometry::warp_to_rotated_camera(view0.to(torch::kFloat32), k0, rotation);
-  auto valid = (geometry::warp_to_rotated_camera(torch::ones({b * v, 1, H, W}, seen.options()), k0, rotation) > 0.999)
-                   .to(torch::kFloat32)
-                   .detach();
+  auto valid = geometry::pixels_kept_by_rotation(k0, H, W, rotation.detach());
   auto squared = (seen - images.flatten(0, 1).to(torch::kFloat32)).pow(2) * valid;
   return squared.sum() / (valid.sum() * static_cast<double>(C)).clamp_min(1.0);
 }

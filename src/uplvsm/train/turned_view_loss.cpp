@@ -25,8 +25,7 @@ torch::Tensor turned_view_loss(model::UPLVSMImpl& net, const model::Views& targe
   auto turn = geometry::yaw_rotation(angles);
   auto flat = images.flatten(0, 1).to(torch::kFloat32);
   auto truth = geometry::warp_to_rotated_camera(flat, k, turn);
-  auto valid = (geometry::warp_to_rotated_camera(torch::ones({b * v, 1, H, W}, flat.options()), k, turn) > 0.999)
-                   .to(torch::kFloat32);
+  auto valid = geometry::pixels_kept_by_rotation(k, H, W, turn);
   // c2w' = c2w [turn 0; 0 1]: the same centre, the rotation composed on the right (q' = q ⊗ q_turn).
   auto half = angles * 0.5;
   auto zero = torch::zeros_like(half);
