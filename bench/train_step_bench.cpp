@@ -18,6 +18,7 @@
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/optimizer.h"
+#include "uplvsm/train/train_step.h"
 
 namespace {
 
@@ -56,6 +57,7 @@ void run_train_step(benchmark::State& state, const std::string& config_name, Tra
   net->train();
   net->set_grad_checkpoint_every(checkpoint_every);
   auto optimizer = train::make_optimizer(*net, config.training);
+  const auto params = train::trainable_parameters(*net);
   const int64_t S = config.model.image_size, v = kTrainInputViews + shape.target_views, B = shape.batch;
   auto images = torch::rand({B, v, 3, S, S}).to(device);
   auto fxfycxcy = torch::tensor({0.9 * S, 0.9 * S, 0.5 * S, 0.5 * S}).expand({B, v, 4}).contiguous().to(device);
@@ -65,7 +67,7 @@ void run_train_step(benchmark::State& state, const std::string& config_name, Tra
   auto in_k = fxfycxcy.index({Slice(), Slice(0, kTrainInputViews)});
   auto tgt_k = fxfycxcy.index({Slice(), Slice(kTrainInputViews)});
   auto step = [&] {
-    optimizer->zero_grad();
+    train::release_gradients(params);  // as the trainer's step: no gradients held during the forward
     torch::Tensor loss;
     {
       AutocastGuard amp(device, bf16);

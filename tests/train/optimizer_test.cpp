@@ -32,3 +32,53 @@ TEST(Optimizer, WarmupThenCosine) {
   EXPECT_NEAR(train::lr_lambda(550, 100, 1000), 0.5, 1e-12);
   EXPECT_NEAR(train::lr_lambda(1000, 100, 1000), 0.0, 1e-12);
 }
+
+// The moments exist before the first step (allocated next to the weights), as the zeros AdamW's first step would
+// create: two steps move the weights and moments exactly as an AdamW left to create its state lazily.
+TEST(Optimizer, MomentsAllocatedUpFrontStepLikeLazyOnes) {
+  torch::manual_seed(5);
+  auto eager_net = torch::nn::Linear(6, 4), lazy_net = torch::nn::Linear(6, 4);
+  {
+    torch::NoGradGuard no_grad;
+    lazy_net->weight.copy_(eager_net->weight);
+    lazy_net->bias.copy_(eager_net->bias);
+  }
+  TrainingConfig tc;
+  tc.lr = 1e-2;
+  tc.weight_decay = 0.05;
+  auto eager = train::make_optimizer(*eager_net, tc);
+  ASSERT_EQ(eager->state().size(), 2u);
+  for (const auto& [key, state] : eager->state()) {
+    const auto& s = static_cast<torch::optim::AdamWParamState&>(*state);
+    EXPECT_EQ(s.step(), 0);
+    EXPECT_EQ(s.exp_avg().abs().max().item<float>(), 0.f);
+    EXPECT_EQ(s.exp_avg_sq().abs().max().item<float>(), 0.f);
+  }
+  const auto groups = train::split_param_groups(*lazy_net);
+  auto options = [&](double wd) {
+    return std::make_unique<torch::optim::AdamWOptions>(
+        torch::optim::AdamWOptions(tc.lr).betas({tc.beta1, tc.beta2}).eps(tc.eps).weight_decay(wd));
+  };
+  std::vector<torch::optim::OptimizerParamGroup> param_groups;
+  param_groups.emplace_back(groups.decay, options(tc.weight_decay));
+  param_groups.emplace_back(groups.no_decay, options(0.0));
+  torch::optim::AdamW lazy(param_groups, torch::optim::AdamWOptions(tc.lr));
+  ASSERT_TRUE(lazy.state().empty());
+  for (int step = 0; step < 2; ++step) {
+    const auto x = torch::randn({3, 6});
+    for (auto net : {eager_net, lazy_net}) {  // a holder copy shares its module
+      net->zero_grad();
+      net->forward(x).pow(2).sum().backward();
+    }
+    eager->step();
+    lazy.step();
+  }
+  EXPECT_TRUE(eager_net->weight.equal(lazy_net->weight));
+  EXPECT_TRUE(eager_net->bias.equal(lazy_net->bias));
+  const auto& eager_state = static_cast<torch::optim::AdamWParamState&>(
+      *eager->state().at(train::state_key(eager->state(), eager_net->weight)));
+  const auto& lazy_state =
+      static_cast<torch::optim::AdamWParamState&>(*lazy.state().at(train::state_key(lazy.state(), lazy_net->weight)));
+  EXPECT_EQ(eager_state.step(), 2);
+  EXPECT_TRUE(eager_state.exp_avg_sq().equal(lazy_state.exp_avg_sq()));
+}

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "test_util.h"
+#include "train_test_util.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/state_dict.h"
@@ -104,4 +105,40 @@ TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
   }
   EXPECT_EQ(ours.size(), final_weights.size());
   EXPECT_GE(static_cast<double>(close) / static_cast<double>(elements), 0.999);
+}
+
+// The step drops the previous step's gradients instead of zeroing them in place (PyTorch 2's
+// zero_grad(set_to_none=True), as the official loop): a buffer a caller still holds keeps its values and the new
+// step's gradient lives in a fresh one, so the gradients need no memory during the next forward.
+TEST(TrainStep, ReleasesThePreviousStepsGradients) {
+  torch::manual_seed(3);
+  model::UPLVSM net(test::micro_model());
+  net->train();
+  TrainingConfig tc;
+  tc.lr = 1e-3;
+  tc.warmup = 0;
+  tc.train_steps = 10;
+  auto optimizer = train::make_optimizer(*net, tc);
+  train::StepContext ctx;
+  ctx.net = net.get();
+  ctx.optimizer = optimizer.get();
+  ctx.params = train::trainable_parameters(*net);
+  ctx.training = tc;
+  train::TrainState state;
+  const auto views = [](int64_t v) {
+    return model::Views{torch::rand({1, v, 3, 32, 32}), torch::tensor({28.f, 28.f, 16.f, 16.f}).repeat({1, v, 1}), {}};
+  };
+  const std::vector<train::MicroBatch> batch{{views(2), views(2)}};
+  train::train_step(ctx, state, batch);
+  std::vector<torch::Tensor> held, values;
+  for (const auto& p : ctx.params) {
+    ASSERT_TRUE(p.grad().defined());
+    held.push_back(p.grad());
+    values.push_back(p.grad().clone());
+  }
+  train::train_step(ctx, state, batch);
+  for (size_t i = 0; i < held.size(); ++i) {
+    EXPECT_FALSE(ctx.params[i].grad().is_same(held[i])) << i;
+    EXPECT_TRUE(held[i].equal(values[i])) << i;
+  }
 }

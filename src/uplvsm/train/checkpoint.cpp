@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <filesystem>
-#include <sstream>
-#include <type_traits>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -47,17 +45,6 @@ TrainState TrainState::from_json(const nlohmann::json& j) {
 std::string checkpoint_name(int64_t step) { return fmt::format("ckpt_{:016d}.safetensors", step); }
 
 namespace {
-// LibTorch keys optimiser state by the parameter's TensorImpl: a string in 1.x, a pointer in newer releases.
-template <typename Map>
-typename Map::key_type state_key(const Map&, const torch::Tensor& p) {
-  if constexpr (std::is_same_v<typename Map::key_type, std::string>) {
-    std::ostringstream key;  // what 1.x's c10::guts::to_string wrote (gone from 2.x)
-    key << p.unsafeGetTensorImpl();
-    return key.str();
-  } else
-    return static_cast<typename Map::key_type>(p.unsafeGetTensorImpl());
-}
-
 std::map<std::string, torch::Tensor> named_trainable(const torch::nn::Module& module) {
   std::map<std::string, torch::Tensor> out;
   for (const auto& item : module.named_parameters(true))
@@ -71,7 +58,7 @@ model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::M
   auto& states = opt.state();
   for (const auto& [name, p] : named_trainable(module)) {
     auto it = states.find(state_key(states, p));
-    if (it == states.end()) continue;  // no step taken yet
+    if (it == states.end()) continue;  // an optimiser made elsewhere, before its first step
     auto& s = static_cast<torch::optim::AdamWParamState&>(*it->second);
     out["exp_avg/" + name] = s.exp_avg().detach().cpu();
     out["exp_avg_sq/" + name] = s.exp_avg_sq().detach().cpu();

@@ -19,6 +19,21 @@ ParamGroups split_param_groups(const torch::nn::Module& module) {
   return g;
 }
 
+namespace {
+// What AdamW::step creates for a parameter it has no state for (step 0, zero moments, the parameter's layout).
+void allocate_moments(torch::optim::AdamW& optimizer) {
+  auto& states = optimizer.state();
+  for (auto& group : optimizer.param_groups())
+    for (auto& p : group.params()) {
+      auto state = std::make_unique<torch::optim::AdamWParamState>();
+      state->step(0);
+      state->exp_avg(torch::zeros_like(p, torch::MemoryFormat::Preserve));
+      state->exp_avg_sq(torch::zeros_like(p, torch::MemoryFormat::Preserve));
+      states[state_key(states, p)] = std::move(state);
+    }
+}
+}  // namespace
+
 std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& module, const TrainingConfig& c) {
   auto groups = split_param_groups(module);
   auto options = [&](double wd) {
@@ -28,7 +43,9 @@ std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& mod
   std::vector<torch::optim::OptimizerParamGroup> param_groups;
   param_groups.emplace_back(groups.decay, options(c.weight_decay));
   param_groups.emplace_back(groups.no_decay, options(0.0));
-  return std::make_unique<torch::optim::AdamW>(param_groups, torch::optim::AdamWOptions(c.lr));
+  auto optimizer = std::make_unique<torch::optim::AdamW>(param_groups, torch::optim::AdamWOptions(c.lr));
+  allocate_moments(*optimizer);
+  return optimizer;
 }
 
 double lr_lambda(int64_t step, int64_t warmup, int64_t total) {

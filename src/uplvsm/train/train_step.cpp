@@ -131,6 +131,10 @@ void apply_update(StepContext& ctx, TrainState& state, StepResult& r) {
 
 }  // namespace
 
+void release_gradients(const std::vector<torch::Tensor>& params) {
+  for (const auto& p : params) p.mutable_grad().reset();
+}
+
 std::vector<torch::Tensor> trainable_parameters(const torch::nn::Module& module) {
   std::vector<torch::Tensor> params;
   for (const auto& p : module.parameters())
@@ -144,7 +148,7 @@ StepResult train_step(StepContext& ctx, TrainState& state, const std::vector<Mic
   const auto& tc = ctx.training;
   StepResult r;
   r.stop = stop_requested;
-  ctx.optimizer->zero_grad();
+  release_gradients(ctx.params);
   const auto accum = static_cast<double>(micro_batches.size());
   for (const auto& batch : micro_batches) {
     const auto losses = forward_backward(ctx, batch, accum, state.step);

@@ -43,6 +43,12 @@ struct StepResult {
   bool stop = false;         // some rank asked to stop (a signal); agreed by every rank
 };
 
+// Drops the parameters' gradients, not zeroing them in place as LibTorch 1.13's zero_grad does: PyTorch 2's
+// zero_grad(set_to_none=True), which the official trainer calls. The x224 model's 1 GiB of gradients then exists only
+// from its backward to its update, not beside the next forward's saved activations; a parameter that receives no
+// gradient is skipped by AdamW (no decay, no moment update), as there.
+void release_gradients(const std::vector<torch::Tensor>& params);
+
 // The trainable parameters of a module, in registration order.
 std::vector<torch::Tensor> trainable_parameters(const torch::nn::Module& module);
 
