@@ -152,6 +152,15 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
   EXPECT_NE(message({{"model", {{"variant", "ptlvsm"}}}, {"training", {{"rotation_alignment_weight", 1}}}})
                 .find("training.rotation_alignment_weight: only a UP-LVSM"),
             std::string::npos);
+  EXPECT_NE(message({{"training", {{"rotation_alignment_weight", 1}, {"rotation_alignment_blur", -1}}}})
+                .find("rotation_alignment_blur must be a blur in pixels"),
+            std::string::npos);
+  EXPECT_NE(message({{"training", {{"rotation_alignment_blur", 4}}}})
+                .find("rotation_alignment_blur needs training.rotation_alignment_weight > 0"),
+            std::string::npos);
+  EXPECT_EQ(config_from_json({{"training", {{"rotation_alignment_weight", 1}, {"rotation_alignment_blur", 4}}}})
+                .training.rotation_alignment_blur,
+            4);
 }
 
 TEST(Config, CurriculumAndIdentityRotationInitReadAndCheck) {

@@ -127,6 +127,7 @@ TEST(Trainer, RotationAlignmentTermAddsToTheLossAndResumesExactly) {
   auto config = test::micro_config();
   config.training.train_steps = 4;
   config.training.rotation_alignment_weight = 1.0;
+  config.training.rotation_alignment_blur = 2.0;  // coarse-to-fine
   // The official init's latent rotations are arbitrary (30°+): view 0 warped that far keeps no pixel, and the term is
   // 0.
   config.model.transformer.identity_rotation_init = true;

@@ -165,6 +165,7 @@ void training_fields(C& c, F&& f) {
   f("turned_view_weight", c.turned_view_weight);
   f("turned_view_degrees", c.turned_view_degrees);
   f("rotation_alignment_weight", c.rotation_alignment_weight);
+  f("rotation_alignment_blur", c.rotation_alignment_blur);
   f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
   f("latent_translation_weight", c.latent_translation_weight);
 }
@@ -350,6 +351,10 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
   only_with_estimated_poses(tr.turned_view_weight != 0, "training.turned_view_weight", "latent poses to turn");
   require(tr.rotation_alignment_weight >= 0 && std::isfinite(tr.rotation_alignment_weight), s,
           "training.rotation_alignment_weight must be a finite number >= 0");
+  require(tr.rotation_alignment_blur >= 0 && tr.rotation_alignment_blur <= 64, s,
+          "training.rotation_alignment_blur must be a blur in pixels in [0, 64]");
+  require(tr.rotation_alignment_blur == 0 || tr.rotation_alignment_weight > 0, s,
+          "training.rotation_alignment_blur needs training.rotation_alignment_weight > 0");
   only_with_estimated_poses(tr.rotation_alignment_weight != 0, "training.rotation_alignment_weight",
                             "latent rotations to align");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");

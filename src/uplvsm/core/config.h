@@ -142,6 +142,9 @@ struct TrainingConfig {
   // Not in the paper: a direct teacher for the latent rotation (train/rotation_alignment_loss.h): input view 0
   // warped by each target's latent rotation must look like the target (parallax ignored). Its weight; 0: off.
   double rotation_alignment_weight = 0;
+  // Gaussian blur (sigma, pixels) of both images before that comparison: a photometric alignment only sees shifts of
+  // about its images' blur, so this widens its basin to the view changes the data has (coarse-to-fine). 0: sharp.
+  double rotation_alignment_blur = 0;
   // Not in the paper: UP-LVSM's latent camera starts as a pure rotation. The estimator's translation is multiplied
   // by step / latent_translation_warmup_steps (0 at the start, 1 from then on), so early camera changes can only be
   // explained by turning the camera. 0: off (the official recipe).

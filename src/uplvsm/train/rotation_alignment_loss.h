@@ -11,8 +11,13 @@
 namespace uplvsm::train {
 
 // inputs: the scene's input views (view 0 is read); targets: their images and intrinsics; pose_enc [b, v_t, 7] the
-// targets' latent poses (only the rotation is used; the gradient flows into it).
+// targets' latent poses (only the rotation is used; the gradient flows into it). blur_sigma > 0: both images are
+// blurred by a Gaussian of that sigma (pixels) first, which widens the range of turns the term can find (a sharp
+// comparison sees only a pixel or two of shift).
 torch::Tensor rotation_alignment_loss(const model::Views& inputs, const model::Views& targets,
-                                      const torch::Tensor& pose_enc);
+                                      const torch::Tensor& pose_enc, double blur_sigma = 0);
+
+// images [n, C, H, W] blurred by a separable Gaussian of `sigma` pixels (taps to 3 sigma, borders replicated).
+torch::Tensor gaussian_blur(const torch::Tensor& images, double sigma);
 
 }  // namespace uplvsm::train

@@ -90,7 +90,8 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
                         turned_view_loss(*model::as_uplvsm(*ctx.net), batch.targets, out.pose_enc, out.scene_latents,
                                          draw_turn_angles(target.size(0) * target.size(1), tc, step));
     if (tc.rotation_alignment_weight > 0)
-      loss = loss + tc.rotation_alignment_weight * rotation_alignment_loss(batch.inputs, batch.targets, out.pose_enc);
+      loss = loss + tc.rotation_alignment_weight *
+                        rotation_alignment_loss(batch.inputs, batch.targets, out.pose_enc, tc.rotation_alignment_blur);
   }
   (loss / accum).backward();
   return {loss.item<double>() / accum, mse.item<double>() / accum};
