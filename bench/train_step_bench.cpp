@@ -127,6 +127,7 @@ BENCHMARK(BM_TrainStepDemoBatch)
     ->Arg(4)
     ->Arg(16)
     ->Arg(32)
+    ->Arg(64)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(5.0);
