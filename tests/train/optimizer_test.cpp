@@ -54,15 +54,7 @@ TEST(Optimizer, MomentsAllocatedUpFrontStepLikeLazyOnes) {
     EXPECT_EQ(s.exp_avg().abs().max().item<float>(), 0.f);
     EXPECT_EQ(s.exp_avg_sq().abs().max().item<float>(), 0.f);
   }
-  const auto groups = train::split_param_groups(*lazy_net);
-  auto options = [&](double wd) {
-    return std::make_unique<torch::optim::AdamWOptions>(
-        torch::optim::AdamWOptions(tc.lr).betas({tc.beta1, tc.beta2}).eps(tc.eps).weight_decay(wd));
-  };
-  std::vector<torch::optim::OptimizerParamGroup> param_groups;
-  param_groups.emplace_back(groups.decay, options(tc.weight_decay));
-  param_groups.emplace_back(groups.no_decay, options(0.0));
-  torch::optim::AdamW lazy(param_groups, torch::optim::AdamWOptions(tc.lr));
+  torch::optim::AdamW lazy(train::official_param_groups(*lazy_net, tc), torch::optim::AdamWOptions(tc.lr));
   ASSERT_TRUE(lazy.state().empty());
   for (int step = 0; step < 2; ++step) {
     const auto x = torch::randn({3, 6});

@@ -65,6 +65,10 @@ TEST(RotationAlignmentLoss, GaussianBlurIsTheNormalisedGaussian) {
               train::gaussian_blur(torch::zeros({3, 8, 8}), 1.0);
             }).find("expected images"),
             std::string::npos);
+  EXPECT_NE(test::error_of([] {
+              train::gaussian_blur(torch::zeros({1, 3, 8, 8}), 0.0);
+            }).find("sigma must be > 0"),
+            std::string::npos);
 }
 
 // Coarse-to-fine: a target turned ~14 px away from a view 0 of pixel noise. Blurred, the term falls all the way from

@@ -53,6 +53,18 @@ double scalar(const model::NamedTensors& steps, int k, const std::string& name) 
   return steps.at("step" + std::to_string(k) + "." + name).to(torch::kFloat64).item<double>();
 }
 
+// The trainer's step context for `net` with the official optimiser, which `optimizer` owns.
+train::StepContext step_context(model::UPLVSM& net, const TrainingConfig& tc,
+                                std::unique_ptr<torch::optim::AdamW>& optimizer) {
+  optimizer = train::make_optimizer(*net, tc);
+  train::StepContext ctx;
+  ctx.net = net.get();
+  ctx.optimizer = optimizer.get();
+  ctx.params = train::trainable_parameters(*net);
+  ctx.training = tc;
+  return ctx;
+}
+
 }  // namespace
 
 TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
@@ -67,12 +79,8 @@ TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
   net->train();
 
   const auto tc = official_training_config(params.at("training"));
-  auto optimizer = train::make_optimizer(*net, tc);
-  train::StepContext ctx;
-  ctx.net = net.get();
-  ctx.optimizer = optimizer.get();
-  ctx.params = train::trainable_parameters(*net);
-  ctx.training = tc;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  auto ctx = step_context(net, tc, optimizer);
   train::TrainState state;
 
   const auto steps = io::read_safetensors(test::fixture("official_uplvsm_train/steps.safetensors")).tensors;
@@ -118,12 +126,8 @@ TEST(TrainStep, ReleasesThePreviousStepsGradients) {
   tc.lr = 1e-3;
   tc.warmup = 0;
   tc.train_steps = 10;
-  auto optimizer = train::make_optimizer(*net, tc);
-  train::StepContext ctx;
-  ctx.net = net.get();
-  ctx.optimizer = optimizer.get();
-  ctx.params = train::trainable_parameters(*net);
-  ctx.training = tc;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  auto ctx = step_context(net, tc, optimizer);
   train::TrainState state;
   const auto views = [](int64_t v) {
     return model::Views{torch::rand({1, v, 3, 32, 32}), torch::tensor({28.f, 28.f, 16.f, 16.f}).repeat({1, v, 1}), {}};

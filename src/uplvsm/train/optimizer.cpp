@@ -34,7 +34,8 @@ void allocate_moments(torch::optim::AdamW& optimizer) {
 }
 }  // namespace
 
-std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& module, const TrainingConfig& c) {
+std::vector<torch::optim::OptimizerParamGroup> official_param_groups(const torch::nn::Module& module,
+                                                                     const TrainingConfig& c) {
   auto groups = split_param_groups(module);
   auto options = [&](double wd) {
     return std::make_unique<torch::optim::AdamWOptions>(
@@ -43,7 +44,12 @@ std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& mod
   std::vector<torch::optim::OptimizerParamGroup> param_groups;
   param_groups.emplace_back(groups.decay, options(c.weight_decay));
   param_groups.emplace_back(groups.no_decay, options(0.0));
-  auto optimizer = std::make_unique<torch::optim::AdamW>(param_groups, torch::optim::AdamWOptions(c.lr));
+  return param_groups;
+}
+
+std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& module, const TrainingConfig& c) {
+  auto optimizer =
+      std::make_unique<torch::optim::AdamW>(official_param_groups(module, c), torch::optim::AdamWOptions(c.lr));
   allocate_moments(*optimizer);
   return optimizer;
 }

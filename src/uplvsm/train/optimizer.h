@@ -20,6 +20,10 @@ struct ParamGroups {
 };
 ParamGroups split_param_groups(const torch::nn::Module& module);
 
+// The two AdamW parameter groups above with the config's learning rate, betas, eps and weight decay.
+std::vector<torch::optim::OptimizerParamGroup> official_param_groups(const torch::nn::Module& module,
+                                                                     const TrainingConfig& c);
+
 // AdamW over `module`'s trainable parameters with its moments allocated now, next to the weights, as the zeros
 // AdamW's first step would create: the same numbers, but the 2x-the-weights state no longer fills the heap's holes
 // that the first step's activations leave, which raised the x224 training step's peak RSS by about 0.9 GiB.
