@@ -5,6 +5,7 @@
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/flash_attention.h"
+#include "uplvsm/model/flash_attention_simd.h"  // internal: the kernels' exp2
 #include "uplvsm/model/transformer.h"
 
 using namespace uplvsm;
@@ -45,7 +46,33 @@ void expect_close(const Grads& a, const Grads& b, double tol, bool relative = fa
   }
 }
 
+UPLVSM_AVX512 void exp2_16(const float* t, float* out) {
+  _mm512_storeu_ps(out, model::flash::detail::exp2_ps(_mm512_loadu_ps(t)));
+}
+
 }  // namespace
+
+TEST(FlashAttention, Bf16KernelsBaseTwoExpIsWithinTwoUlpsAndKeepsNaN) {
+  if (!fused_available(torch::kBFloat16, 64)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  // Every exponent the softmax meets (scores minus their max: t <= 0) down to underflow, and a few above 0.
+  std::vector<float> t;
+  for (double x = -126.0; x <= 4.0; x += 0.0137) t.push_back(static_cast<float>(x));
+  for (float x : {-0.5f, 0.5f, -1e-7f, 0.0f}) t.push_back(x);
+  t.resize((t.size() + 15) / 16 * 16, 0.0f);
+  std::vector<float> out(t.size());
+  for (size_t i = 0; i < t.size(); i += 16) exp2_16(t.data() + i, out.data() + i);
+  double worst = 0;
+  for (size_t i = 0; i < t.size(); ++i)
+    worst = std::max(worst, std::abs(out[i] / std::exp2(static_cast<double>(t[i])) - 1.0));
+  EXPECT_LE(worst, 2.5e-7);  // fit error 1.4e-7 plus fp32 rounding
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  float special[16] = {-inf, nan, -200.0f, -155.0f}, special_out[16];
+  exp2_16(special, special_out);
+  EXPECT_EQ(special_out[0], 0.0f);
+  EXPECT_TRUE(std::isnan(special_out[1]));
+  EXPECT_EQ(special_out[2], 0.0f);
+  EXPECT_EQ(special_out[3], 0.0f) << "below fp32's smallest denormal";
+}
 
 TEST(FlashAttention, Fp32MatchesExactAttentionAndGradients) {
   if (!fused_available(torch::kFloat32, 64)) GTEST_SKIP() << "no AVX-512 on this CPU";
@@ -88,6 +115,21 @@ TEST(FlashAttention, Bf16StaysWithinDocumentedTolerance) {
   // Against exact attention of the same bf16 inputs: fp32 accumulation leaves the bf16 rounding of the
   // probabilities, score gradients and results (2^-9 relative each): within 2% of each tensor's largest value.
   expect_close(fused, run(reference_attention, q, k, v, w), 2e-2, /*relative=*/true);
+}
+
+TEST(FlashAttention, Bf16GradientsAtTheDemoHeadWidthAndSeveralKeyTiles) {
+  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  torch::manual_seed(7);
+  // d_head 32 (the demo model) and 16; 200 keys = three 64-key backward tiles and a tail of 8, so the transposed
+  // dK / dV stores meet full and partial 16 x 16 blocks; Lq != Lk.
+  for (int64_t D : {32, 16}) {
+    auto q = torch::randn({2, 3, 75, D}).mul(2).to(torch::kBFloat16),
+         k = torch::randn({2, 3, 200, D}).mul(2).to(torch::kBFloat16),
+         v = torch::randn({2, 3, 200, D}).to(torch::kBFloat16);
+    auto w = torch::randn({2, 3, 75, D}, torch::kFloat64);
+    SCOPED_TRACE(testing::Message() << "D = " << D);
+    expect_close(run(model::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 2e-2, true);
+  }
 }
 
 TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsewhere) {

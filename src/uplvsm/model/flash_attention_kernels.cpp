@@ -1,5 +1,6 @@
 #include "uplvsm/model/flash_attention_kernels.h"
 
+#include "uplvsm/model/bf16_simd.h"
 #include "uplvsm/model/flash_attention_simd.h"
 
 namespace uplvsm::model::flash {
@@ -189,16 +190,27 @@ void forward_tasks(const Problem& p, int64_t begin, int64_t end, void* o, Stride
   }
 }
 
-void backward_delta(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo, int64_t begin,
-                    int64_t end, float* delta) {
-  std::vector<float> a(p.D), b(p.D);
+// 16 elements of row `row` of an fp32 or bf16 operand, from column d, as fp32.
+UPLVSM_AVX512 inline __m512 load16(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row, int64_t d) {
+  const int64_t offset = head_offset(p, s, bh, row) + d;
+  return p.precision == Precision::Fp32 ? row_simd::load16(static_cast<const float*>(base) + offset)
+                                        : row_simd::load16(static_cast<const uint16_t*>(base) + offset);
+}
+
+// delta = rowsum(dout * o), accumulated in double (D is a multiple of 16).
+UPLVSM_AVX512 void backward_delta(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo,
+                                  int64_t begin, int64_t end, float* delta) {
   for (int64_t bh = begin; bh < end; ++bh)
     for (int64_t i = 0; i < p.Lq; ++i) {
-      load_row(p, o, so, bh, i, 1.0f, a.data());
-      load_row(p, dout, sdo, bh, i, 1.0f, b.data());
-      double sum = 0;
-      for (int64_t d = 0; d < p.D; ++d) sum += static_cast<double>(a[d]) * b[d];
-      delta[bh * p.Lq + i] = static_cast<float>(sum);
+      __m512d sum = _mm512_setzero_pd();
+      for (int64_t d = 0; d < p.D; d += 16) {
+        const __m512 a = load16(p, o, so, bh, i, d), b = load16(p, dout, sdo, bh, i, d);
+        sum = _mm512_fmadd_pd(_mm512_cvtps_pd(_mm512_castps512_ps256(a)), _mm512_cvtps_pd(_mm512_castps512_ps256(b)),
+                              sum);
+        sum = _mm512_fmadd_pd(_mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(a), 1))),
+                              _mm512_cvtps_pd(_mm256_castpd_ps(_mm512_extractf64x4_pd(_mm512_castps_pd(b), 1))), sum);
+      }
+      delta[bh * p.Lq + i] = static_cast<float>(_mm512_reduce_add_pd(sum));
     }
 }
 

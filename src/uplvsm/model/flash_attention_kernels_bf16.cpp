@@ -1,6 +1,7 @@
 // The bf16 fused attention kernels: every matmul is an AVX-512 BF16 dot product of bf16 pairs with fp32
 // accumulation (twice the fp32 FMA rate); softmax, running max/sum and gradients accumulate in fp32. Operands are
 // packed per head into pair layouts (O(L d) work) so that the micro-kernel only streams.
+#include "uplvsm/model/bf16_simd.h"
 #include "uplvsm/model/flash_attention_simd.h"
 
 namespace uplvsm::model::flash::detail {
@@ -26,8 +27,7 @@ enum Slot : int {
   kDSpairs,
   kDSrows,
   kDKt,
-  kDVt,
-  kRow
+  kDVt
 };
 
 // C[R x 16*NV] (+)= A[R x 2*K2] B[2*K2 x 16*NV]: A rows are bf16 pairs (one uint32 each) lda words apart; B is
@@ -114,15 +114,34 @@ void pack_transposed_row_pairs(const uint16_t* rows, int64_t L, int64_t D, uint3
 
 // ---- fp32 tiles -> bf16 operands ----
 
-// Row-major bf16 copy of an fp32 [rows x cols] tile (pairs along columns); column `cols` zeroed when odd.
-UPLVSM_AVX512_BF16 void tile_to_bf16(const float* src, int64_t ld_src, int64_t rows, int64_t cols, uint16_t* dst,
-                                     int64_t ld_dst) {
-  for (int64_t r = 0; r < rows; ++r)
-    for (int64_t j = 0; j < round_up(cols, 2); j += 16) {
-      const __mmask16 mask = tail_mask(cols - j), store = tail_mask(round_up(cols, 2) - j);
-      const __m256bh h = _mm512_cvtneps_pbh(_mm512_maskz_loadu_ps(mask, src + r * ld_src + j));
-      _mm256_mask_storeu_epi16(dst + r * ld_dst + j, store, (__m256i)h);
+// One online-softmax step of the bf16 forward, in base 2: scores S (rows x keys, fp32, unscaled) -> P = 2^(c S - m)
+// with c = scale log2(e), written straight as bf16 rows (ld_p apart, column `keys` zeroed when odd) for the P v
+// matmul; the running max m (base-2 units) and sum l updated, the output accumulator O (rows x D) rescaled.
+UPLVSM_AVX512_BF16 void online_softmax_step_bf16(int64_t rows, int64_t keys, float c, const float* S, int64_t ld_s,
+                                                 uint16_t* P, int64_t ld_p, float* m, float* l, float* O, int64_t D) {
+  const __m512 vc = _mm512_set1_ps(c);
+  const int64_t cols = round_up(keys, 2);
+  for (int64_t r = 0; r < rows; ++r) {
+    const float* s = S + r * ld_s;
+    __m512 vmax = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
+    for (int64_t j = 0; j < keys; j += 16)
+      vmax = _mm512_mask_max_ps(vmax, tail_mask(keys - j), vmax, _mm512_maskz_loadu_ps(tail_mask(keys - j), s + j));
+    const float m_new = std::max(m[r], c * _mm512_reduce_max_ps(vmax));  // c > 0: max(c s) = c max(s)
+    const __m512 vm = _mm512_set1_ps(m_new);
+    __m512 vsum = _mm512_setzero_ps();
+    for (int64_t j = 0; j < cols; j += 16) {
+      const __mmask16 mask = tail_mask(keys - j);
+      const __m512 e = _mm512_maskz_mov_ps(mask, exp2_ps(_mm512_fmsub_ps(_mm512_maskz_loadu_ps(mask, s + j), vc, vm)));
+      vsum = _mm512_add_ps(vsum, e);
+      _mm256_mask_storeu_epi16(P + r * ld_p + j, tail_mask(cols - j), (__m256i)_mm512_cvtneps_pbh(e));
     }
+    const float alpha = std::exp2(m[r] - m_new);  // 0 on the first tile (m = -inf)
+    l[r] = l[r] * alpha + _mm512_reduce_add_ps(vsum);
+    m[r] = m_new;
+    if (alpha != 1.0f)
+      for (int64_t d = 0; d < D; d += 16)
+        _mm512_storeu_ps(O + r * D + d, _mm512_mul_ps(_mm512_loadu_ps(O + r * D + d), _mm512_set1_ps(alpha)));
+  }
 }
 
 // Two rows' bf16 values as pair words: word n = (lo[n], hi[n]).
@@ -131,11 +150,12 @@ UPLVSM_AVX512_BF16 inline __m512i bf16_pair_words(__m512 lo, __m512 hi) {
   return _mm512_or_si512(wlo, _mm512_slli_epi32(_mm512_cvtepu16_epi32((__m256i)_mm512_cvtneps_pbh(hi)), 16));
 }
 
-// Row r, columns [j, j + 16) of the softmax backward: P = exp(scale S - lse), dS = P (dP - delta), zero off `mask`.
+// Row r, columns [j, j + 16) of the softmax backward: P = exp(scale S - lse) = 2^(c S - lse log2 e) with
+// c = scale log2 e, dS = P (dP - delta), zero off `mask`.
 UPLVSM_AVX512_BF16 inline void softmax_gradient(const float* S, const float* dP, int64_t offset, __mmask16 mask,
-                                                __m512 vscale, float lse, float delta, __m512& P, __m512& dS) {
+                                                __m512 vc, float lse, float delta, __m512& P, __m512& dS) {
   const __m512 s = _mm512_maskz_loadu_ps(mask, S + offset);
-  P = _mm512_maskz_mov_ps(mask, exp_ps(_mm512_fmsub_ps(s, vscale, _mm512_set1_ps(lse))));
+  P = _mm512_maskz_mov_ps(mask, exp2_ps(_mm512_fmsub_ps(s, vc, _mm512_set1_ps(lse * kLog2e))));
   dS = _mm512_maskz_mul_ps(mask, P, _mm512_sub_ps(_mm512_maskz_loadu_ps(mask, dP + offset), _mm512_set1_ps(delta)));
 }
 
@@ -146,14 +166,14 @@ UPLVSM_AVX512_BF16 inline void softmax_gradient(const float* S, const float* dP,
 UPLVSM_AVX512_BF16 void softmax_backward_to_bf16(int64_t rows, int64_t keys, int64_t cols, float scale, const float* S,
                                                  const float* dP, int64_t ld, const float* lse, const float* delta,
                                                  uint32_t* Ppairs, uint32_t* dSpairs, uint16_t* dSrows) {
-  const __m512 vscale = _mm512_set1_ps(scale);
+  const __m512 vc = _mm512_set1_ps(scale * kLog2e);
   for (int64_t r = 0; r < rows; r += 2) {
     const bool pair_complete = r + 1 < rows;
     for (int64_t j = 0; j < cols; j += 16) {
       const __mmask16 mask = keys > j ? tail_mask(keys - j) : __mmask16(0);
       __m512 P0, dS0, P1 = _mm512_setzero_ps(), dS1 = _mm512_setzero_ps();
-      softmax_gradient(S, dP, r * ld + j, mask, vscale, lse[r], delta[r], P0, dS0);
-      if (pair_complete) softmax_gradient(S, dP, (r + 1) * ld + j, mask, vscale, lse[r + 1], delta[r + 1], P1, dS1);
+      softmax_gradient(S, dP, r * ld + j, mask, vc, lse[r], delta[r], P0, dS0);
+      if (pair_complete) softmax_gradient(S, dP, (r + 1) * ld + j, mask, vc, lse[r + 1], delta[r + 1], P1, dS1);
       _mm512_storeu_si512(Ppairs + r / 2 * ld + j, bf16_pair_words(P0, P1));
       _mm512_storeu_si512(dSpairs + r / 2 * ld + j, bf16_pair_words(dS0, dS1));
       _mm256_storeu_si256(reinterpret_cast<__m256i*>(dSrows + r * ld + j), (__m256i)_mm512_cvtneps_pbh(dS0));
@@ -163,14 +183,53 @@ UPLVSM_AVX512_BF16 void softmax_backward_to_bf16(int64_t rows, int64_t keys, int
   }
 }
 
-// Stores rows [j0, j0 + keys) of a gradient kept transposed ([D x ld] fp32), times `mul`.
-void store_transposed(const Problem& p, void* base, Strides s, int64_t bh, int64_t j0, int64_t keys, const float* t,
-                      int64_t ld, float mul) {
-  float* row = scratch<float>(kRow, p.D);
-  for (int64_t j = 0; j < keys; ++j) {
-    for (int64_t d = 0; d < p.D; ++d) row[d] = t[d * ld + j];
-    store_row(p, base, s, bh, j0 + j, row, mul);
+// dst[d] = bf16(src[d] * mul) for d < D (a multiple of 16), rounded as c10::BFloat16 (denormals kept).
+UPLVSM_AVX512 void store_row_bf16(uint16_t* dst, const float* src, int64_t D, float mul) {
+  const __m512 vmul = _mm512_set1_ps(mul);
+  for (int64_t d = 0; d < D; d += 16) row_simd::store16(dst + d, _mm512_mul_ps(_mm512_loadu_ps(src + d), vmul));
+}
+
+// In-register transpose of 16 rows of 16 floats: afterwards r[k][i] is the old r[i][k].
+UPLVSM_AVX512 void transpose_16x16(__m512 r[16]) {
+  __m512 t[16];
+  for (int i = 0; i < 8; ++i) {  // interleave row pairs: 2x2 blocks
+    t[2 * i] = _mm512_unpacklo_ps(r[2 * i], r[2 * i + 1]);
+    t[2 * i + 1] = _mm512_unpackhi_ps(r[2 * i], r[2 * i + 1]);
   }
+  for (int i = 0; i < 4; ++i) {  // 4x4 blocks within each 128-bit lane
+    r[4 * i] = _mm512_shuffle_ps(t[4 * i], t[4 * i + 2], 0x44);
+    r[4 * i + 1] = _mm512_shuffle_ps(t[4 * i], t[4 * i + 2], 0xEE);
+    r[4 * i + 2] = _mm512_shuffle_ps(t[4 * i + 1], t[4 * i + 3], 0x44);
+    r[4 * i + 3] = _mm512_shuffle_ps(t[4 * i + 1], t[4 * i + 3], 0xEE);
+  }
+  for (int i = 0; i < 4; ++i) {  // 128-bit lanes across row groups 0/1 and 2/3
+    t[i] = _mm512_shuffle_f32x4(r[i], r[4 + i], 0x88);
+    t[4 + i] = _mm512_shuffle_f32x4(r[i], r[4 + i], 0xDD);
+    t[8 + i] = _mm512_shuffle_f32x4(r[8 + i], r[12 + i], 0x88);
+    t[12 + i] = _mm512_shuffle_f32x4(r[8 + i], r[12 + i], 0xDD);
+  }
+  for (int i = 0; i < 4; ++i) {
+    r[i] = _mm512_shuffle_f32x4(t[i], t[8 + i], 0x88);
+    r[8 + i] = _mm512_shuffle_f32x4(t[i], t[8 + i], 0xDD);
+    r[4 + i] = _mm512_shuffle_f32x4(t[4 + i], t[12 + i], 0x88);
+    r[12 + i] = _mm512_shuffle_f32x4(t[4 + i], t[12 + i], 0xDD);
+  }
+}
+
+// Stores rows [j0, j0 + keys) of a gradient kept transposed ([D x ld] fp32), times `mul`, 16 x 16 blocks at a time.
+UPLVSM_AVX512 void store_transposed(const Problem& p, void* base, Strides s, int64_t bh, int64_t j0, int64_t keys,
+                                    const float* t, int64_t ld, float mul) {
+  const __m512 vmul = _mm512_set1_ps(mul);
+  for (int64_t jb = 0; jb < keys; jb += 16)
+    for (int64_t d0 = 0; d0 < p.D; d0 += 16) {
+      __m512 block[16];
+      for (int i = 0; i < 16; ++i) block[i] = _mm512_loadu_ps(t + (d0 + i) * ld + jb);  // ld >= round_up(keys, 16)
+      transpose_16x16(block);
+      for (int64_t k = 0; k < std::min<int64_t>(16, keys - jb); ++k) {
+        uint16_t* dst = static_cast<uint16_t*>(base) + head_offset(p, s, bh, j0 + jb + k) + d0;
+        row_simd::store16(dst, _mm512_mul_ps(block[k], vmul));
+      }
+    }
 }
 
 const uint32_t* words(const uint16_t* x) { return reinterpret_cast<const uint32_t*>(x); }
@@ -205,13 +264,12 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
     for (int64_t j0 = 0; j0 < p.Lk; j0 += kKeyTile) {
       const int64_t keys = std::min(kKeyTile, p.Lk - j0);
       gemm_bf16(rows, round_up(keys, 16), D / 2, words(Q), D / 2, Kp + j0, ld_k, S, kKeyTile, false);  // q k^T
-      online_softmax_step(rows, keys, kKeyTile, p.scale, S, m, l, O, D);
-      tile_to_bf16(S, kKeyTile, rows, keys, P, kKeyTile);
+      online_softmax_step_bf16(rows, keys, p.scale * kLog2e, S, kKeyTile, P, kKeyTile, m, l, O, D);
       gemm_bf16(rows, D, round_up(keys, 2) / 2, words(P), kKeyTile / 2, Vp + j0 / 2 * D, D, O, D, true);  // O += P v
     }
     for (int64_t r = 0; r < rows; ++r) {
-      store_row(p, o, so, bh, i0 + r, O + r * D, 1.0f / l[r]);
-      lse[bh * p.Lq + i0 + r] = m[r] + std::log(l[r]);
+      store_row_bf16(static_cast<uint16_t*>(o) + head_offset(p, so, bh, i0 + r), O + r * D, D, 1.0f / l[r]);
+      lse[bh * p.Lq + i0 + r] = m[r] / kLog2e + std::log(l[r]);  // m is in base-2 units
     }
   }
 }
@@ -268,7 +326,8 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
     store_transposed(p, dk, sdk, bh, j0, keys, dKt, kTk, p.scale);
     store_transposed(p, dv, sdv, bh, j0, keys, dVt, kTk, 1.0f);
   }
-  for (int64_t i = 0; i < Lq; ++i) store_row(p, dq, sdq, bh, i, dQ + i * D, p.scale);
+  for (int64_t i = 0; i < Lq; ++i)
+    store_row_bf16(static_cast<uint16_t*>(dq) + head_offset(p, sdq, bh, i), dQ + i * D, D, p.scale);
 }
 
 }  // namespace uplvsm::model::flash::detail

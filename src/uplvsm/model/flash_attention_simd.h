@@ -1,4 +1,4 @@
-// Internal to the fused attention kernels (flash_attention_kernels*.cpp): tile sizes, the AVX-512 exp and the
+// Internal to the fused attention kernels (flash_attention_kernels*.cpp): tile sizes, the AVX-512 exp / exp2 and the
 // row-wise softmax steps shared by the fp32 and bf16 kernels, operand rows <-> fp32, per-thread scratch.
 #pragma once
 #include <immintrin.h>
@@ -51,6 +51,24 @@ UPLVSM_AVX512 inline __m512 exp_ps(__m512 x) {
   poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f));
   return _mm512_scalef_ps(poly, n);
 }
+
+// 2^t for t <= 0 in the bf16 kernels: t = n + f with n an integer and |f| <= 1/2, 2^f by a degree-5 fit of
+// relative error 1.4e-7 (their P is rounded to bf16's 2^-9 right after, so exp_ps's Cody-Waite reduction and degree
+// 7 are not needed). t <= -160 and -inf give 0, NaN stays NaN (vmaxps returns its second operand when either is NaN).
+UPLVSM_AVX512 inline __m512 exp2_ps(__m512 t) {
+  t = _mm512_max_ps(_mm512_set1_ps(-160.0f), t);
+  const __m512 n = _mm512_roundscale_ps(t, _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
+  const __m512 f = _mm512_sub_ps(t, n);
+  __m512 poly = _mm512_set1_ps(1.3266970636323094e-3f);
+  poly = _mm512_fmadd_ps(poly, f, _mm512_set1_ps(9.675459936261177e-3f));
+  poly = _mm512_fmadd_ps(poly, f, _mm512_set1_ps(5.550742521882057e-2f));
+  poly = _mm512_fmadd_ps(poly, f, _mm512_set1_ps(2.4022121727466583e-1f));
+  poly = _mm512_fmadd_ps(poly, f, _mm512_set1_ps(6.931469440460205e-1f));
+  poly = _mm512_fmadd_ps(poly, f, _mm512_set1_ps(1.0000001192092896f));
+  return _mm512_scalef_ps(poly, n);
+}
+
+constexpr float kLog2e = 1.44269504088896341f;
 
 UPLVSM_AVX512 inline __mmask16 tail_mask(int64_t remaining) {
   return remaining >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << remaining) - 1);
