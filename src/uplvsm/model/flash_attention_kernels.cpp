@@ -57,6 +57,63 @@ void gemm(int64_t M, int64_t N, int64_t K, const float* A, int64_t a_rs, int64_t
   }
 }
 
+// ---- fp32 rows and softmax steps ----
+
+// Row `row` of head `bh` of an fp32 operand (length D), times `mul`.
+void load_row(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row, float mul, float* dst) {
+  const float* src = static_cast<const float*>(base) + head_offset(p, s, bh, row);
+  for (int64_t d = 0; d < p.D; ++d) dst[d] = src[d] * mul;
+}
+
+void store_row(const Problem& p, void* base, Strides s, int64_t bh, int64_t row, const float* src, float mul) {
+  float* dst = static_cast<float*>(base) + head_offset(p, s, bh, row);
+  for (int64_t d = 0; d < p.D; ++d) dst[d] = src[d] * mul;
+}
+
+// One online-softmax step for a query tile: scores S (rows x keys, fp32, already scaled: q carries the scale) -> P in
+// place, the running max m and sum l updated and the output accumulator O (rows x D) rescaled.
+UPLVSM_AVX512 void online_softmax_step(int64_t rows, int64_t keys, int64_t ld_s, float* S, float* m, float* l, float* O,
+                                       int64_t D) {
+  for (int64_t r = 0; r < rows; ++r) {
+    float* s = S + r * ld_s;
+    __m512 vmax = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
+    for (int64_t j = 0; j < keys; j += 16) {
+      const __mmask16 mask = tail_mask(keys - j);
+      vmax = _mm512_mask_max_ps(vmax, mask, vmax, _mm512_maskz_loadu_ps(mask, s + j));
+    }
+    const float m_new = std::max(m[r], _mm512_reduce_max_ps(vmax));
+    const __m512 vm = _mm512_set1_ps(m_new);
+    __m512 vsum = _mm512_setzero_ps();
+    for (int64_t j = 0; j < keys; j += 16) {
+      const __mmask16 mask = tail_mask(keys - j);
+      const __m512 e = exp_ps(_mm512_sub_ps(_mm512_maskz_loadu_ps(mask, s + j), vm));
+      _mm512_mask_storeu_ps(s + j, mask, e);
+      vsum = _mm512_add_ps(vsum, _mm512_maskz_mov_ps(mask, e));
+    }
+    const float alpha = std::exp(m[r] - m_new);  // 0 on the first tile (m = -inf)
+    l[r] = l[r] * alpha + _mm512_reduce_add_ps(vsum);
+    m[r] = m_new;
+    if (alpha != 1.0f)
+      for (int64_t d = 0; d < D; ++d) O[r * D + d] *= alpha;
+  }
+}
+
+// Backward of softmax for a tile of scaled scores: P = exp(S - lse) recomputed, dS = P (dP - delta) row-wise; S is
+// overwritten with P, dP with dS.
+UPLVSM_AVX512 void softmax_backward_tile(int64_t rows, int64_t keys, int64_t ld, float* S, float* dP, const float* lse,
+                                         const float* delta) {
+  for (int64_t r = 0; r < rows; ++r) {
+    const __m512 vl = _mm512_set1_ps(lse[r]), vd = _mm512_set1_ps(delta[r]);
+    for (int64_t j = 0; j < keys; j += 16) {
+      const __mmask16 mask = tail_mask(keys - j);
+      const __m512 P = exp_ps(_mm512_sub_ps(_mm512_maskz_loadu_ps(mask, S + r * ld + j), vl));
+      _mm512_mask_storeu_ps(S + r * ld + j, mask, P);
+      const __m512 g = _mm512_sub_ps(_mm512_maskz_loadu_ps(mask, dP + r * ld + j), vd);
+      _mm512_mask_storeu_ps(dP + r * ld + j, mask, _mm512_mul_ps(P, g));
+    }
+  }
+}
+
 // ---- forward ----
 
 // Rows [0, L) of an operand as a row-major [L x D] fp32 matrix, times `mul`.
@@ -98,7 +155,7 @@ void forward_rows_fp32(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
     for (int64_t j0 = 0; j0 < p.Lk; j0 += kKeyTile) {
       const int64_t keys = std::min(kKeyTile, p.Lk - j0), key_pad = round_up(keys, 16);
       gemm(rows, key_pad, D, Q, D, 1, Kt + j0, ld_kt, S, kKeyTile, false);  // S = (scale q) k^T
-      online_softmax_step(rows, keys, kKeyTile, 1.0f, S, m, l, O, D);
+      online_softmax_step(rows, keys, kKeyTile, S, m, l, O, D);
       gemm(rows, D, keys, S, kKeyTile, 1, Vf + j0 * D, D, O, D, true);  // O += P v
     }
     for (int64_t r = 0; r < rows; ++r) {
@@ -140,7 +197,7 @@ void backward_head_fp32(const Problem& p, int64_t bh, const void* dout, Strides 
       const float* dOi = dO + i0 * D;
       gemm(rows, key_pad, D, Qi, D, 1, Kt + j0, ld_t, S, kBwdKeyTile, false);    // S = Qs K^T
       gemm(rows, key_pad, D, dOi, D, 1, Vt + j0, ld_t, dP, kBwdKeyTile, false);  // dP = dO V^T
-      softmax_backward_tile(rows, keys, kBwdKeyTile, 1.0f, S, dP, lse_h + i0, delta_h + i0);
+      softmax_backward_tile(rows, keys, kBwdKeyTile, S, dP, lse_h + i0, delta_h + i0);
       gemm(keys, D, rows, S, 1, kBwdKeyTile, dOi, D, dV, D, true);                    // dV += P^T dO
       gemm(keys, D, rows, dP, 1, kBwdKeyTile, Qi, D, dK, D, true);                    // dK += dS^T Qs
       gemm(rows, D, keys, dP, kBwdKeyTile, 1, Kf + j0 * D, D, dQ + i0 * D, D, true);  // dQ += dS K

@@ -1,5 +1,5 @@
-// Internal to the fused attention kernels (flash_attention_kernels*.cpp): tile sizes, the AVX-512 exp / exp2 and the
-// row-wise softmax steps shared by the fp32 and bf16 kernels, operand rows <-> fp32, per-thread scratch.
+// Internal to the fused attention kernels (flash_attention_kernels*.cpp): tile sizes, the AVX-512 exp (fp32 kernels)
+// and exp2 (bf16 kernels), tail masks, per-thread scratch, the bf16 kernels' entry points.
 #pragma once
 #include <immintrin.h>
 
@@ -72,92 +72,6 @@ constexpr float kLog2e = 1.44269504088896341f;
 
 UPLVSM_AVX512 inline __mmask16 tail_mask(int64_t remaining) {
   return remaining >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << remaining) - 1);
-}
-
-// One online-softmax step for a query tile: scores S (rows x keys, fp32, times `score_scale`) -> P in place, the
-// running max m and sum l updated and the output accumulator O (rows x D) rescaled.
-UPLVSM_AVX512 inline void online_softmax_step(int64_t rows, int64_t keys, int64_t ld_s, float score_scale, float* S,
-                                              float* m, float* l, float* O, int64_t D) {
-  const __m512 vscale = _mm512_set1_ps(score_scale);
-  for (int64_t r = 0; r < rows; ++r) {
-    float* s = S + r * ld_s;
-    __m512 vmax = _mm512_set1_ps(-std::numeric_limits<float>::infinity());
-    for (int64_t j = 0; j < keys; j += 16) {
-      const __mmask16 mask = tail_mask(keys - j);
-      vmax = _mm512_mask_max_ps(vmax, mask, vmax, _mm512_mul_ps(_mm512_maskz_loadu_ps(mask, s + j), vscale));
-    }
-    const float m_new = std::max(m[r], _mm512_reduce_max_ps(vmax));
-    const __m512 vm = _mm512_set1_ps(m_new);
-    __m512 vsum = _mm512_setzero_ps();
-    for (int64_t j = 0; j < keys; j += 16) {
-      const __mmask16 mask = tail_mask(keys - j);
-      const __m512 e = exp_ps(_mm512_fmsub_ps(_mm512_maskz_loadu_ps(mask, s + j), vscale, vm));
-      _mm512_mask_storeu_ps(s + j, mask, e);
-      vsum = _mm512_add_ps(vsum, _mm512_maskz_mov_ps(mask, e));
-    }
-    const float alpha = std::exp(m[r] - m_new);  // 0 on the first tile (m = -inf)
-    l[r] = l[r] * alpha + _mm512_reduce_add_ps(vsum);
-    m[r] = m_new;
-    if (alpha != 1.0f)
-      for (int64_t d = 0; d < D; ++d) O[r * D + d] *= alpha;
-  }
-}
-
-// Backward of softmax for a tile: P = exp(score_scale S - lse) recomputed, dS = P (dP - delta) row-wise; S is
-// overwritten with P, dP with dS.
-UPLVSM_AVX512 inline void softmax_backward_tile(int64_t rows, int64_t keys, int64_t ld, float score_scale, float* S,
-                                                float* dP, const float* lse, const float* delta) {
-  const __m512 vscale = _mm512_set1_ps(score_scale);
-  for (int64_t r = 0; r < rows; ++r) {
-    const __m512 vl = _mm512_set1_ps(lse[r]), vd = _mm512_set1_ps(delta[r]);
-    for (int64_t j = 0; j < keys; j += 16) {
-      const __mmask16 mask = tail_mask(keys - j);
-      const __m512 s = _mm512_maskz_loadu_ps(mask, S + r * ld + j);
-      const __m512 P = exp_ps(_mm512_fmsub_ps(s, vscale, vl));
-      _mm512_mask_storeu_ps(S + r * ld + j, mask, P);
-      const __m512 g = _mm512_sub_ps(_mm512_maskz_loadu_ps(mask, dP + r * ld + j), vd);
-      _mm512_mask_storeu_ps(dP + r * ld + j, mask, _mm512_mul_ps(P, g));
-    }
-  }
-}
-
-inline float bf16_to_float(uint16_t h) {
-  const uint32_t bits = static_cast<uint32_t>(h) << 16;
-  float f;
-  std::memcpy(&f, &bits, sizeof f);
-  return f;
-}
-
-// Round to nearest even, NaN kept quiet (as c10::BFloat16).
-inline uint16_t float_to_bf16(float f) {
-  uint32_t bits;
-  std::memcpy(&bits, &f, sizeof bits);
-  if (std::isnan(f)) return 0x7FC0;
-  bits += 0x7FFF + ((bits >> 16) & 1);
-  return static_cast<uint16_t>(bits >> 16);
-}
-
-// Row `row` of head `bh` of operand `base` (length D) as fp32, times `mul`.
-inline void load_row(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row, float mul, float* dst) {
-  const int64_t offset = head_offset(p, s, bh, row);
-  if (p.precision == Precision::Fp32) {
-    const float* src = static_cast<const float*>(base) + offset;
-    for (int64_t d = 0; d < p.D; ++d) dst[d] = src[d] * mul;
-  } else {
-    const uint16_t* src = static_cast<const uint16_t*>(base) + offset;
-    for (int64_t d = 0; d < p.D; ++d) dst[d] = bf16_to_float(src[d]) * mul;
-  }
-}
-
-inline void store_row(const Problem& p, void* base, Strides s, int64_t bh, int64_t row, const float* src, float mul) {
-  const int64_t offset = head_offset(p, s, bh, row);
-  if (p.precision == Precision::Fp32) {
-    float* dst = static_cast<float*>(base) + offset;
-    for (int64_t d = 0; d < p.D; ++d) dst[d] = src[d] * mul;
-  } else {
-    uint16_t* dst = static_cast<uint16_t*>(base) + offset;
-    for (int64_t d = 0; d < p.D; ++d) dst[d] = float_to_bf16(src[d] * mul);
-  }
 }
 
 // Per-thread scratch, grown on demand and reused across calls; slots keep simultaneously live buffers apart.
