@@ -138,7 +138,7 @@ sanitize: deps
 DEMO_MODEL ?= models/demo.safetensors
 DEMO_MAPPER_MODEL ?= models/demo_mapper.safetensors
 DEMO_CEILING_MODEL ?= models/demo_lvsm.safetensors
-DEMO_MODEL_CONFIG ?= configs/demo.json
+DEMO_MODEL_CONFIG ?= configs/demo_image_tokens_gpu.json
 DEMO_RENDER = --data $(DEMO)/dataset_demo --split test --scenes 3 --frames 48 --side-by-side
 demo: build-cli
 	$(UPLVSM) info
@@ -154,34 +154,33 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
-	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo.json then configs/demo_continue.json) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; video: interpolation between the two inputs' latent poses; held-out scenes" \
-	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
-	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm.json) told every camera in training and at test: what a perfect latent camera could approach; trained on a third of the unposed model's scenes (830 steps x 64 on one GPU); video: interpolation between the inputs' real cameras" \
+	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo_image_tokens_gpu.json: 3000 steps x 64) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; the decoder also reads the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
+	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_image_tokens_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
+	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; the same training block for 1800 of the unposed model's 3000 steps (x 64; one GPU); video: interpolation between the inputs' real cameras" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
 
-# Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the main training
-# (configs/demo.json, 12000 steps), a warm restart from its weights on a second cosine schedule (configs/demo_continue.json,
-# 8500 steps: fresh optimiser, lower peak learning rate, another data order), the camera-mapper fine-tune
-# (configs/demo_mapper.json), then the weights-only exports. Hours on 2 cores; every step resumes, so run it again after
-# an interruption. Runs are deterministic for a given thread count.
+# Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the image-token
+# UP-LVSM recipe (configs/demo_image_tokens_gpu.json: 3000 steps at batch 64, small camera motion first), the
+# camera-mapper fine-tune (configs/demo_image_tokens_mapper.json, 1000 steps), then the weights-only exports. Trained
+# on one H200 (188 s + 47 s); DEMO_MODEL_DEVICE=cpu runs the same schedule on a CPU (hours on 2 cores). Every step
+# resumes, so run it again after an interruption.
 DEMO_MODEL_WORK ?= out/demo_model
+DEMO_MODEL_DEVICE ?= cuda
 demo-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
-	$(UPLVSM) train --config $(DEMO_MODEL_CONFIG) --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/main --resume auto
-	$(UPLVSM) train --config configs/demo_continue.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/continue --resume auto
-	$(UPLVSM) train --stage mapper --config configs/demo_mapper.json --init $(DEMO_MODEL_WORK)/continue --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/mapper --resume auto
-	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/continue --out $(DEMO_MODEL)
+	$(UPLVSM) train --config $(DEMO_MODEL_CONFIG) --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/main --resume auto --device $(DEMO_MODEL_DEVICE)
+	$(UPLVSM) train --stage mapper --config configs/demo_image_tokens_mapper.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data \
+	  --run $(DEMO_MODEL_WORK)/mapper --resume auto --device $(DEMO_MODEL_DEVICE)
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/main --out $(DEMO_MODEL)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
 
-# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm.json): 830 steps at batch 64, trained on one
-# GPU (H200, 148 s); on a CPU it runs the same schedule (CEILING_DEVICE=cpu): about 1-1.5 h on 2 cores, estimated from
-# 0.8 s per batch-8 step measured beside another run.
-CEILING_DEVICE ?= cuda
+# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm_gpu.json: the unposed recipe's training
+# block) for 1800 steps at batch 64: trained on one H200 beside the unposed recipe's own 1800-step run (259 s).
 demo-ceiling-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
-	$(UPLVSM) train --config configs/demo_lvsm.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling --resume auto \
-	  --set training.batch_size=64 --steps 830 --device $(CEILING_DEVICE)
+	$(UPLVSM) train --config configs/demo_lvsm_gpu.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling --resume auto \
+	  --steps 1800 --device $(DEMO_MODEL_DEVICE)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/ceiling --out $(DEMO_CEILING_MODEL)
 
 clean:
@@ -195,3 +194,5 @@ lint:
 	$(MAKE) deps EXTRA_APT_PACKAGES="$(LINT_APT_PACKAGES)"
 	@$(CLANG_FORMAT) --dry-run -Werror $(FORMATTED_SOURCES)
 	@echo "lint: $(words $(FORMATTED_SOURCES)) files formatted as .clang-format says"
+	@! grep -rn --include='*.cpp' --include='*.h' 'remove_all(' src tests | grep -v 'tests/test_util.h' || \
+	  { echo "lint: use uplvsm::test::remove_tree, not std::filesystem::remove_all (tests/test_util.h says why)"; exit 1; }

@@ -3,6 +3,8 @@
 #include <gtest/gtest.h>
 #include <torch/torch.h>
 
+#include <ftw.h>
+
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -49,10 +51,19 @@ inline std::optional<std::string> no_shared_blas() {
          "): the OpenBLAS checks apply to LibTorch builds that load OpenBLAS (Debian's)";
 }
 
+// Removes `path` and everything under it, like std::filesystem::remove_all, which the tests cannot call: PyPI's
+// LibTorch 2.11 (libtorch.so) exports its own copy of it, which binds before libstdc++'s and jumps to address 0
+// (seen on a lent H200, 2026-11-27; the library never calls it). POSIX nftw, children first, links not followed; a
+// missing path is no error.
+inline void remove_tree(const std::filesystem::path& path) {
+  const auto remove_entry = [](const char* entry, const struct stat*, int, struct FTW*) { return std::remove(entry); };
+  nftw(path.c_str(), remove_entry, 16, FTW_DEPTH | FTW_PHYS);
+}
+
 // A fresh, empty directory under the system temp dir, unique per test.
 inline std::filesystem::path temp_dir(const std::string& name) {
   auto dir = std::filesystem::temp_directory_path() / ("uplvsm_test_" + name + "_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
+  remove_tree(dir);
   std::filesystem::create_directories(dir);
   return dir;
 }
