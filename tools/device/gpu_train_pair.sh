@@ -4,8 +4,8 @@
 #   1. builds uplvsm against that machine's own CUDA LibTorch 2.x (tools/device/cuda_setup.sh) and renders the demo
 #      dataset there;
 #   2. trains the image-token UP-LVSM recipe (configs/demo_image_tokens_gpu.json) and the posed LVSM ceiling with the
-#      same training block (configs/demo_lvsm_gpu.json) side by side, for the same number of steps: the configs' 3000
-#      (192k scenes, the CPU recipe's budget) or fewer, as a short speed probe says fits, the same for both;
+#      same training block (configs/demo_lvsm_gpu.json) side by side, for the same number of steps: MAX_STEPS (3000:
+#      192k scenes, the CPU recipe's budget) or fewer, as a short speed probe says fits, the same for both;
 #   3. builds and runs the unit tests meanwhile at low priority (CUDA where a test has a CUDA case);
 #   4. leaves the weights (weights-only exports) and logs.tar.gz (logs, metrics.jsonl, the steps run, ctest) in $OUT.
 set -uo pipefail
@@ -29,7 +29,9 @@ DS=/tmp/ds96
 render_demo_dataset $DS || exit 1
 
 RUNS=(imgtok lvsm)
-declare -A CFG=([imgtok]=configs/demo_image_tokens_gpu.json [lvsm]=configs/demo_lvsm_gpu.json)
+# CONFIG_UNPOSED / CONFIG_POSED / MAX_STEPS pick another pair (the same training block in both, for a fair gap).
+declare -A CFG=([imgtok]=${CONFIG_UNPOSED:-configs/demo_image_tokens_gpu.json} [lvsm]=${CONFIG_POSED:-configs/demo_lvsm_gpu.json})
+MAX_STEPS=${MAX_STEPS:-3000}
 log "speed probe: 80 steps of each, side by side"
 PROBES=()
 for r in "${RUNS[@]}"; do
@@ -47,9 +49,9 @@ rows = [json.loads(l) for l in open(sys.argv[1])]
 a = next(r for r in rows if r["step"] >= 20); b = rows[-1]
 print((b["step"] - a["step"]) / (b["train_seconds"] - a["train_seconds"]))' /tmp/probe_$r/metrics.jsonl
 done | sort -g | head -1)
-# The same step count for both (the slower one's rate decides), a multiple of 50, at most the configs' 3000.
-STEPS=$(awk -v r="${RATE:-1}" -v t=$((TRAIN_END - $(elapsed) - 15)) \
-  'BEGIN { s = int(r * t / 50) * 50; print (s > 3000 ? 3000 : s) }')
+# The same step count for both (the slower one's rate decides), a multiple of 50, at most MAX_STEPS.
+STEPS=$(awk -v r="${RATE:-1}" -v t=$((TRAIN_END - $(elapsed) - 15)) -v m="$MAX_STEPS" \
+  'BEGIN { s = int(r * t / 50) * 50; print (s > m ? m : s) }')
 log "slowest probe rate ${RATE} steps/s; training both for $STEPS steps until t=${TRAIN_END} s"
 echo "$STEPS" >"$LOGS/steps.txt"
 for r in "${RUNS[@]}"; do
