@@ -19,6 +19,7 @@ export_runs() {
       log "export $r failed"
   done
 }
+
 # shellcheck source=tools/device/cuda_setup.sh
 source tools/device/cuda_setup.sh
 log "build tests (background, low priority, stopped at the end of training)"
