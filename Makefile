@@ -195,4 +195,4 @@ lint:
 	@$(CLANG_FORMAT) --dry-run -Werror $(FORMATTED_SOURCES)
 	@echo "lint: $(words $(FORMATTED_SOURCES)) files formatted as .clang-format says"
 	@! grep -rn --include='*.cpp' --include='*.h' 'remove_all(' src tests | grep -v 'tests/test_util.h' || \
-	  { echo "lint: use uplvsm::test::remove_tree, not std::filesystem::remove_all (tests/test_util.h says why)"; exit 1; }
+	  { echo "lint: use test::remove_tree (tests/test_util.h): std::filesystem::remove_all crashes under PyPI's LibTorch 2.11"; exit 1; }

@@ -89,5 +89,5 @@ TEST(DatasetCli, ObjectsTrainAndEvaluateWithUnorderedViews) {
   const auto j = nlohmann::json::parse(metrics);
   EXPECT_EQ(j.at("scenes"), 2);
   EXPECT_GT(j.at("table").at("copy_nearest").at("psnr").get<double>(), 5.0);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }

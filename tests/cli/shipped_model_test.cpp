@@ -73,5 +73,5 @@ TEST(ShippedModel, ReproducesItsPsnrOnTheFixedTestSlice) {
     EXPECT_NE(demo_page.find(fmt::format("{:.2f}", model.at("test").at("psnr").get<double>())), std::string::npos)
         << "docs/demo.md does not quote the model card's test PSNR of " << weights;
   }
-  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) ::uplvsm::test::remove_tree(dir);
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(dir);
 }

@@ -140,7 +140,7 @@ TEST(ChunkDataset, WriteReadRoundTrip) {
   // Same content, same bytes (no timestamps in the zip).
   write_chunk((dir / "again.torch").string(), scenes);
   EXPECT_EQ(io::read_file(path), io::read_file((dir / "again.torch").string()));
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, BadFilesThrowNamingFileAndField) {
@@ -194,7 +194,7 @@ TEST(ChunkDataset, BadFilesThrowNamingFileAndField) {
   msg = error_of([&] { write_chunk((dir / "w.torch").string(), {s}); });
   EXPECT_NE(msg.find("cameras"), std::string::npos) << msg;
   EXPECT_FALSE(fs::exists(dir / "w.torch"));
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, NanCameraAndGarbageJpegNameSceneAndFrame) {
@@ -212,7 +212,7 @@ TEST(ChunkDataset, NanCameraAndGarbageJpegNameSceneAndFrame) {
   msg = error_of([&] { ds.load_views(0, {3}, PreprocessOptions{}); });
   EXPECT_NE(msg.find("dddd000000000001 frame 3"), std::string::npos) << msg;
   EXPECT_NE(msg.find("JPEG"), std::string::npos) << msg;
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, WrongSizeFrameThrowsBadFrameError) {
@@ -233,7 +233,7 @@ TEST(ChunkDataset, WrongSizeFrameThrowsBadFrameError) {
     EXPECT_NE(std::string(e.what()).find("frame 1"), std::string::npos);
   }
   EXPECT_EQ(ds.load_views(0, {2, 0}, PreprocessOptions{}).images.size(0), 2);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, ScansChunksWithoutIndex) {
@@ -247,7 +247,7 @@ TEST(ChunkDataset, ScansChunksWithoutIndex) {
   EXPECT_EQ(ds.num_frames(0), 3);
   EXPECT_EQ(ds.num_frames(1), 2);
   EXPECT_THROW(ChunkDataset(dir.string(), "test"), std::runtime_error);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, IndexEntriesThatPointNowhereNameTheKeyAndFile) {
@@ -268,7 +268,7 @@ TEST(ChunkDataset, IndexEntriesThatPointNowhereNameTheKeyAndFile) {
   EXPECT_EQ(ds.scene(0).key, "ffff000000000001");
   msg = test::error_of([&] { ds.scene(1); });
   EXPECT_NE(msg.find("says scene ffff000000000002 is in 000000.torch"), std::string::npos) << msg;
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, ChunkStartsMarkEachChunksContiguousRange) {
@@ -283,7 +283,7 @@ TEST(ChunkDataset, ChunkStartsMarkEachChunksContiguousRange) {
   for (int64_t i = 0; i < ds.size(); ++i) EXPECT_EQ(ds.chunk_name(i), i < 2 ? "000000.torch" : "000001.torch");
   ds.keep_only({"aa00000000000002", "bb00000000000001"});  // the starts follow the subset
   EXPECT_EQ(ds.chunk_starts(), (std::vector<int64_t>{0, 1}));
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ChunkDataset, ConcurrentLoadsMatchSerial) {
@@ -314,7 +314,7 @@ TEST(ChunkDataset, ConcurrentLoadsMatchSerial) {
     });
   for (auto& th : threads) th.join();
   EXPECT_EQ(mismatches.load(), 0);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 }  // namespace

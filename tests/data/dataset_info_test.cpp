@@ -36,7 +36,7 @@ TEST(DatasetInfo, DefaultsRoundTripAndErrors) {
   expect_error("[1, 2]", "JSON object");
   expect_error("{not json", "JSON object");
   expect_error("{\"generator\": 3}", "generator");
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 }  // namespace

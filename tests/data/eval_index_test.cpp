@@ -108,7 +108,7 @@ TEST(EvalIndex, RoundTripAndErrors) {
       << R"({"k": {"context": [)" << std::string(100000, '[') << std::string(100000, ']') << R"(, 1], "target": [1]}})";
   const auto msg = test::error_of([&] { read_eval_index((dir / "deep.json").string()); });
   EXPECT_NE(msg.find("non-frame value an array of 1"), std::string::npos) << msg;
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 }  // namespace

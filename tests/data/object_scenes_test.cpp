@@ -118,7 +118,7 @@ TEST(ObjectScenes, DatasetIsUnorderedWithRandomEvaluationViews) {
   ChunkDataset rooms((dir / "rooms").string(), "test");
   for (int64_t i = 0; i < 4; ++i) EXPECT_LT(test_split.find(rooms.key(i)), 0);
   EXPECT_TRUE(rooms.info().ordered_views);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(ObjectScenes, BadOptionsNameThemselves) {

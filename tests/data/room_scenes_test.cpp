@@ -189,7 +189,7 @@ TEST(RoomScenes, WriteBuiltinDatasetReadsBack) {
   write_builtin_dataset((dir / "c").string(), 1, 0, 78, opt, 2);
   ChunkDataset other((dir / "c").string(), "train");
   EXPECT_EQ(keys.count(other.key(0)), 0u);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 // Developer benchmark: the default built-in dataset (400 train + 100 test scenes, 72x128, 32 frames) written to

@@ -126,7 +126,7 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
 
   expect_baselines_recomputed(dataset, s, r);
   expect_result_files(out, s, r);
-  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) ::uplvsm::test::remove_tree(out);
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(out);
 }
 
 TEST(Evaluator, LpipsOnlyWithItsWeights) {
@@ -180,7 +180,7 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
   EXPECT_TRUE(j["lpips"]["available"].get<bool>());
   EXPECT_EQ(j["lpips"]["net"], "alex");
   EXPECT_NEAR(j["buckets"]["large"]["copy_nearest"]["lpips"].get<double>(), lp_copy.mean().item<double>(), 1e-6);
-  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) ::uplvsm::test::remove_tree(out);
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(out);
 }
 
 TEST(Evaluator, Bf16ForwardCloseToFp32) {
@@ -222,7 +222,7 @@ TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
   opt.max_scenes = 1;
   opt.index_path.clear();
   EXPECT_EQ(evaluate(net, dataset, tiny_prep(), opt).scenes, 1);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(Evaluator, RunsOnCuda) {

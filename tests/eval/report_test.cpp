@@ -90,8 +90,8 @@ TEST(Report, WritesIndexWithExistingAssets) {
   EXPECT_EQ(curve.size(1), 800);
   EXPECT_EQ(read_train_log(in.train_log_jsonl).size(), 5u);
   if (std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) return;
-  ::uplvsm::test::remove_tree(src);
-  ::uplvsm::test::remove_tree(out);
+  test::remove_tree(src);
+  test::remove_tree(out);
 }
 
 TEST(Report, VideoAndPlainTable) {
@@ -112,8 +112,8 @@ TEST(Report, VideoAndPlainTable) {
   EXPECT_EQ(html.find("Large"), std::string::npos);
   EXPECT_NE(html.find("Test set (3 scenes)"), std::string::npos);
   EXPECT_FALSE(fs::exists(out / "training_curve.png"));
-  ::uplvsm::test::remove_tree(src);
-  ::uplvsm::test::remove_tree(out);
+  test::remove_tree(src);
+  test::remove_tree(out);
 }
 
 TEST(Report, LpipsColumnOnlyWhenAvailable) {
@@ -157,7 +157,7 @@ TEST(Report, RejectsMalformedMetrics) {
   EXPECT_THROW(write_report((src / "out").string(), in), std::runtime_error);
   write(src / "metrics.json", "{\"scenes\": 1}");
   EXPECT_THROW(write_report((src / "out").string(), in), std::runtime_error);
-  ::uplvsm::test::remove_tree(src);
+  test::remove_tree(src);
 }
 
 TEST(Report, HtmlEscape) { EXPECT_EQ(html_escape("a<b & \"c\"'"), "a&lt;b &amp; &quot;c&quot;&#39;"); }
@@ -189,8 +189,8 @@ TEST(Report, ComparisonPageShowsModelsSideBySide) {
   // Narrow columns show the whole test set only, not the overlap buckets.
   EXPECT_EQ(html.find("Large overlap"), std::string::npos);
   EXPECT_NE(html.find("Test set (3 scenes)"), std::string::npos);
-  ::uplvsm::test::remove_tree(src);
-  ::uplvsm::test::remove_tree(out);
+  test::remove_tree(src);
+  test::remove_tree(out);
 }
 
 TEST(Report, PixelWidthIsAnIntegerMultipleOfTheNativeWidth) {

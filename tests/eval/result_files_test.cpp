@@ -67,7 +67,7 @@ TEST(ResultFiles, WritesMetricsJsonAndBothCsvs) {
   EXPECT_EQ(views[0].substr(0, 28), "key,frame,extrapolated,psnr,");
   EXPECT_EQ(views[1].substr(0, 20), "\"a,b\",0,1,20.000000,");
   EXPECT_EQ(views[3].substr(0, 16), "c,1,0,30.000000,");
-  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) ::uplvsm::test::remove_tree(out.parent_path());
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(out.parent_path());
 }
 
 }  // namespace

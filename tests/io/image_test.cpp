@@ -108,7 +108,7 @@ TEST(Image, PngRoundTripAndReadImageByMagic) {
   int files = 0;
   for (const auto& e : std::filesystem::directory_iterator(dir)) files += e.is_regular_file();
   EXPECT_EQ(files, 4);
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(Image, DecodeImageTellsPngFromJpegInMemory) {

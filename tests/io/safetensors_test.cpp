@@ -12,6 +12,7 @@ namespace uplvsm::io {
 namespace {
 
 using test::fixture;
+using test::remove_tree;
 using test::temp_dir;
 
 // Builds a raw safetensors file from a header string and a data buffer.
@@ -60,7 +61,7 @@ TEST(AtomicFile, WriteReadAndCreateParents) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("missing.bin"), std::string::npos);
   }
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Safetensors, ReadsTransformerWeightsFixture) {
@@ -150,7 +151,7 @@ TEST(Safetensors, RoundTripsEveryDtype) {
     offset = e.end;
   }
   EXPECT_EQ(bytes.size(), 8 + n + static_cast<uint64_t>(offset));
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Safetensors, EmptyMapAndNoMetadata) {
@@ -160,7 +161,7 @@ TEST(Safetensors, EmptyMapAndNoMetadata) {
   auto st = read_safetensors(path);
   EXPECT_TRUE(st.tensors.empty());
   EXPECT_TRUE(st.metadata.empty());
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Safetensors, WriterRejectsUnsupportedDtype) {
@@ -169,7 +170,7 @@ TEST(Safetensors, WriterRejectsUnsupportedDtype) {
   TensorMap m{{"c", torch::zeros({2}, torch::kComplexFloat)}};
   EXPECT_THROW(write_safetensors(path, m), std::runtime_error);
   EXPECT_FALSE(std::filesystem::exists(path));
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Safetensors, TrailingBytesAreIgnored) {
@@ -181,7 +182,7 @@ TEST(Safetensors, TrailingBytesAreIgnored) {
   write_raw(path, raw_file(R"({"a":{"dtype":"F32","shape":[2],"data_offsets":[0,8]}})", data));
   auto st = read_safetensors(path);
   EXPECT_FLOAT_EQ(st.tensors.at("a")[1].item<float>(), -2.0f);
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Safetensors, CorruptedFilesRaiseErrorsNamingThePath) {
@@ -235,7 +236,7 @@ TEST(Safetensors, CorruptedFilesRaiseErrorsNamingThePath) {
   expect_read_error(p("meta.st"), "__metadata__");
 
   expect_read_error(p("does_not_exist.st"), "cannot open");
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 }  // namespace

@@ -17,6 +17,7 @@ extern "C" {
 namespace uplvsm::io {
 namespace {
 
+using test::remove_tree;
 using test::temp_dir;
 
 // n frames h x w of a moving gradient; `few_colours` quantises it to 160 distinct colours (an exact GIF palette).
@@ -146,7 +147,7 @@ TEST(Gif, ExactRoundTripWithFewColours) {
   ASSERT_EQ(g.frames.size(), 12u);
   EXPECT_EQ(g.delays, std::vector<int>(12, 10));
   for (size_t i = 0; i < frames.size(); ++i) EXPECT_TRUE(torch::equal(g.frames[i], frames[i])) << "frame " << i;
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Gif, RandomIndicesExerciseEveryCodeSize) {
@@ -172,7 +173,7 @@ TEST(Gif, RandomIndicesExerciseEveryCodeSize) {
       EXPECT_TRUE(torch::equal(g.frames[0], img)) << h << "x" << w << " colours " << ncol;
     }
   }
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Gif, ManyColoursAreQuantisedClosely) {
@@ -191,7 +192,7 @@ TEST(Gif, ManyColoursAreQuantisedClosely) {
       EXPECT_LT(err, dither ? 8.0 : 5.0) << "frame " << i;
     }
   }
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Gif, RejectsBadFrames) {
@@ -210,7 +211,7 @@ TEST(Gif, RejectsBadFrames) {
   EXPECT_THROW(write_gif(path, {torch::zeros({4, 4}, torch::kUInt8)}, 10), std::runtime_error);
   EXPECT_THROW(write_gif(path, gradient_frames(2), 0.0), std::runtime_error);
   EXPECT_FALSE(std::filesystem::exists(path));
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 // ---- MP4 ----
@@ -293,7 +294,7 @@ TEST(Mp4, WritesDecodableVideo) {
   int n = 0;
   for (auto& e : std::filesystem::directory_iterator(dir)) n += e.is_regular_file();
   EXPECT_EQ(n, 1);  // no temp files left
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Mp4, OddSizesArePaddedToEven) {
@@ -307,7 +308,7 @@ TEST(Mp4, OddSizesArePaddedToEven) {
   EXPECT_EQ(v.height, 36);
   EXPECT_EQ(v.frames, 5);
   EXPECT_GT(psnr(v.first.narrow(0, 0, 35).narrow(1, 0, 63), frames[0]), 30.0);
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Mp4, UnavailableIsAClearError) {
@@ -324,7 +325,7 @@ TEST(Mp4, UnavailableIsAClearError) {
     EXPECT_TRUE(msg.find("without FFmpeg") != std::string::npos || msg.find("encoder") != std::string::npos) << msg;
   }
   EXPECT_FALSE(std::filesystem::exists(path));
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 TEST(Mp4, RejectsMismatchedFrames) {
@@ -339,7 +340,7 @@ TEST(Mp4, RejectsMismatchedFrames) {
     EXPECT_NE(std::string(e.what()).find("frame 2"), std::string::npos) << e.what();
   }
   EXPECT_FALSE(std::filesystem::exists(path));
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 }  // namespace

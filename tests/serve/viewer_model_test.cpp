@@ -56,7 +56,7 @@ TEST(ViewerModel, PosedModelsAreRefused) {
   model::write_checkpoint(path, c, {{"step", 0}}, model::state_dict(*net), {});
   auto message = error_of([&] { serve::ViewerModel::load(path, "", torch::kCPU, false); });
   EXPECT_NE(message.find("PT-LVSM"), std::string::npos) << message;
-  ::uplvsm::test::remove_tree(dir);
+  remove_tree(dir);
 }
 
 }  // namespace

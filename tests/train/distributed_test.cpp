@@ -154,7 +154,7 @@ TEST(Distributed, TwoGlooRanksMatchOneProcessWithTheCombinedBatch) {
     norm += v.to(torch::kFloat64).pow(2).sum().item<double>();
   }
   EXPECT_LT(std::sqrt(diff / norm), 1e-4) << "relative L2 difference of the weights";
-  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) ::uplvsm::test::remove_tree(dir);
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(dir);
 }
 
 TEST(Distributed, TwoGlooEvalShardsMergeToTheSingleProcessResults) {
@@ -194,5 +194,5 @@ TEST(Distributed, TwoGlooEvalShardsMergeToTheSingleProcessResults) {
   EXPECT_EQ(a.at("table"), b.at("table"));
   EXPECT_NE(read_text(dir / "eval0.log").find("evaluated"), std::string::npos);
   EXPECT_EQ(read_text(dir / "eval1.log").find("evaluated"), std::string::npos);  // only rank 0 reports
-  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) ::uplvsm::test::remove_tree(dir);
+  if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(dir);
 }

@@ -100,7 +100,7 @@ TEST(PerceptualLoss, LoadsVgg19Weights) {
   auto loaded = train::load_perceptual_loss(path);
   for (const auto& [k, v] : model::state_dict(*loaded->vgg)) EXPECT_TRUE(torch::equal(v, tensors.at(k))) << k;
   EXPECT_FALSE(loaded->is_training());
-  ::uplvsm::test::remove_tree(dir);
+  test::remove_tree(dir);
 }
 
 TEST(PerceptualLoss, RefusesOtherVggWeights) {
