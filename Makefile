@@ -154,25 +154,29 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
-	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo_image_tokens_gpu.json: 3000 steps x 64) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; the decoder also reads the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
+	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train (configs/demo_image_tokens_gpu.json: 3000 steps x 64 on a GPU; then configs/demo_image_tokens_continue.json: 12000 steps x 8 on 2 CPU cores) on the built-in rooms; unposed: target poses from the Latent Plücker Learner; the decoder also reads the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
 	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_image_tokens_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
-	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; the same training block for 1800 of the unposed model's 3000 steps (x 64; one GPU); video: interpolation between the inputs' real cameras" \
+	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; the unposed model's first-stage training block for 1800 steps (x 64; one GPU); video: interpolation between the inputs' real cameras" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
 
 # Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the image-token
-# UP-LVSM recipe (configs/demo_image_tokens_gpu.json: 3000 steps at batch 64, small camera motion first), the
-# camera-mapper fine-tune (configs/demo_image_tokens_mapper.json, 1000 steps), then the weights-only exports. Trained
-# on one H200 (188 s + 47 s); DEMO_MODEL_DEVICE=cpu runs the same schedule on a CPU (hours on 2 cores). Every step
+# UP-LVSM recipe (configs/demo_image_tokens_gpu.json: 3000 steps at batch 64, small camera motion first; one H200,
+# 188 s), its continuation at batch 8 (configs/demo_image_tokens_continue.json: 12000 steps from those weights; 2 CPU
+# cores, ~75 min), the camera-mapper fine-tune (configs/demo_image_tokens_mapper.json, 1000 steps), then the
+# weights-only exports. DEMO_MODEL_DEVICE=cpu runs the first stage on a CPU too (hours on 2 cores). Every step
 # resumes, so run it again after an interruption.
 DEMO_MODEL_WORK ?= out/demo_model
 DEMO_MODEL_DEVICE ?= cuda
+DEMO_CONTINUE_DEVICE ?= cpu
 demo-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
 	$(UPLVSM) train --config $(DEMO_MODEL_CONFIG) --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/main --resume auto --device $(DEMO_MODEL_DEVICE)
-	$(UPLVSM) train --stage mapper --config configs/demo_image_tokens_mapper.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data \
-	  --run $(DEMO_MODEL_WORK)/mapper --resume auto --device $(DEMO_MODEL_DEVICE)
-	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/main --out $(DEMO_MODEL)
+	$(UPLVSM) train --config configs/demo_image_tokens_continue.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data \
+	  --run $(DEMO_MODEL_WORK)/continue --resume auto --device $(DEMO_CONTINUE_DEVICE)
+	$(UPLVSM) train --stage mapper --config configs/demo_image_tokens_mapper.json --init $(DEMO_MODEL_WORK)/continue --data $(DEMO_MODEL_WORK)/data \
+	  --run $(DEMO_MODEL_WORK)/mapper --resume auto --device $(DEMO_CONTINUE_DEVICE)
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/continue --out $(DEMO_MODEL)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
 
 # Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm_gpu.json: the unposed recipe's training
