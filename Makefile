@@ -163,7 +163,7 @@ demo: build-cli
 # Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the image-token
 # UP-LVSM recipe (configs/demo_image_tokens_gpu.json: 3000 steps at batch 64, small camera motion first; one H200,
 # 188 s), its continuation at batch 8 (configs/demo_image_tokens_continue.json: 12000 steps from those weights; 2 CPU
-# cores, ~75 min), the camera-mapper fine-tune (configs/demo_image_tokens_mapper.json, 1000 steps), then the
+# cores, 85 min), the camera-mapper fine-tune (configs/demo_image_tokens_mapper.json, 2000 steps; 15 min), then the
 # weights-only exports. DEMO_MODEL_DEVICE=cpu runs the first stage on a CPU too (hours on 2 cores). Every step
 # resumes, so run it again after an interruption.
 DEMO_MODEL_WORK ?= out/demo_model
