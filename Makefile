@@ -130,9 +130,8 @@ sanitize: deps
 	  echo "sanitize: test_$$layer"; ./test_$$layer --gtest_brief=1 $(SAN_TEST_ARGS) || exit 1; \
 	done
 
-# The shipped demo models (models/, trained by `uplvsm train` with configs/demo_image_tokens_gpu.json, then
-# configs/demo_image_tokens_mapper.json for camera control: see docs/demo.md "The shipped demo model") are evaluated and rendered on held-out scenes at their
-# resolution, beside LVSM of the same width told every camera (the ceiling the unposed model is measured against); the
+# The shipped demo models (models/, trained by `uplvsm train`: `make demo-model` below and docs/demo.md "The shipped
+# demo model") are evaluated and rendered on held-out scenes at their resolution, beside LVSM of the same width told every camera (the ceiling the unposed model is measured against); the
 # `tiny` config is trained from scratch beside them (proof that training works on this machine); one report shows them
 # side by side.
 DEMO_MODEL ?= models/demo.safetensors
