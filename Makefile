@@ -131,9 +131,9 @@ sanitize: deps
 	done
 
 # The shipped demo models (models/, trained by `uplvsm train`: `make demo-model` below and docs/demo.md "The shipped
-# demo model") are evaluated and rendered on held-out scenes at their resolution, beside LVSM of the same width told every camera (the ceiling the unposed model is measured against); the
-# `tiny` config is trained from scratch beside them (proof that training works on this machine); one report shows them
-# side by side.
+# demo model") are evaluated and rendered on held-out scenes at their resolution, beside LVSM of the same width told
+# every camera (the ceiling the unposed model is measured against); the `tiny` config is trained from scratch beside
+# them (proof that training works on this machine); one report shows them side by side.
 DEMO_MODEL ?= models/demo.safetensors
 DEMO_MAPPER_MODEL ?= models/demo_mapper.safetensors
 DEMO_CEILING_MODEL ?= models/demo_lvsm.safetensors
