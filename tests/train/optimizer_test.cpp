@@ -74,3 +74,99 @@ TEST(Optimizer, MomentsAllocatedUpFrontStepLikeLazyOnes) {
   EXPECT_EQ(eager_state.step(), 2);
   EXPECT_TRUE(eager_state.exp_avg_sq().equal(lazy_state.exp_avg_sq()));
 }
+
+namespace {
+// Two AdamW optimisers over identical copies of the same parameters (a decayed and an undecayed group).
+struct AdamWPair {
+  std::vector<torch::Tensor> a, b;
+  std::unique_ptr<torch::optim::AdamW> torch_adamw, fused_adamw;
+};
+
+AdamWPair adamw_pair(const std::vector<std::vector<int64_t>>& shapes, double weight_decay) {
+  AdamWPair pair;
+  for (const auto& shape : shapes) {
+    auto t = torch::randn(shape);
+    pair.a.push_back(t.clone().requires_grad_());
+    pair.b.push_back(t.clone().requires_grad_());
+  }
+  auto make = [&](const std::vector<torch::Tensor>& params) {
+    const auto half = params.begin() + static_cast<std::ptrdiff_t>(params.size() / 2);
+    auto options = [&](double wd) {
+      return std::make_unique<torch::optim::AdamWOptions>(
+          torch::optim::AdamWOptions(1e-3).betas({0.9, 0.95}).eps(1e-8).weight_decay(wd));
+    };
+    std::vector<torch::optim::OptimizerParamGroup> groups;
+    groups.emplace_back(std::vector<torch::Tensor>(params.begin(), half), options(weight_decay));
+    groups.emplace_back(std::vector<torch::Tensor>(half, params.end()), options(0.0));
+    return std::make_unique<torch::optim::AdamW>(groups, torch::optim::AdamWOptions(1e-3));
+  };
+  pair.torch_adamw = make(pair.a);
+  pair.fused_adamw = make(pair.b);
+  return pair;
+}
+
+void set_same_gradients(AdamWPair& pair, int step) {
+  for (size_t i = 0; i < pair.a.size(); ++i) {
+    // Gradients over many magnitudes (and exact zeros), so every rounding step of the update matters.
+    auto g = torch::randn(pair.a[i].sizes()) * std::pow(10.0, static_cast<double>((step + i) % 7) - 4.0);
+    g.index_put_({g.abs() < 1e-5}, 0.0);
+    pair.a[i].mutable_grad() = g.clone();
+    pair.b[i].mutable_grad() = g.clone();
+  }
+}
+}  // namespace
+
+// The one-pass step gives LibTorch's AdamW::step bit for bit — weights and both moments, both groups, a learning
+// rate that changes between steps, tensors on one thread and split across threads (> 16384 elements, odd tails), a
+// parameter without a gradient left alone — and bumps the version counters the in-place ops would.
+TEST(Optimizer, OnePassAdamWStepIsLibTorchsStepBitForBit) {
+  torch::manual_seed(11);
+  auto pair = adamw_pair({{37, 129}, {3, 5}, {40001}, {128}, {7}, {20000, 3}}, 0.05);
+  for (int step = 0; step < 6; ++step) {
+    set_same_gradients(pair, step);
+    if (step == 4) {  // no gradient this step: neither optimiser touches it, nor advances its step count
+      pair.a[1].mutable_grad().reset();
+      pair.b[1].mutable_grad().reset();
+    }
+    const double lr = 1e-3 * (1.0 + 0.37 * step);
+    train::set_learning_rate(*pair.torch_adamw, lr);
+    train::set_learning_rate(*pair.fused_adamw, lr);
+    std::vector<int64_t> versions;
+    for (const auto& p : pair.b) versions.push_back(static_cast<int64_t>(p._version()));
+    pair.torch_adamw->step();
+    train::adamw_step(*pair.fused_adamw);
+    for (size_t i = 0; i < pair.a.size(); ++i) {
+      ASSERT_TRUE(torch::equal(pair.a[i], pair.b[i])) << "step " << step << ", parameter " << i << ": max |diff| "
+                                                      << (pair.a[i] - pair.b[i]).abs().max().item<double>();
+      const bool updated = pair.b[i].grad().defined();
+      EXPECT_EQ(static_cast<int64_t>(pair.b[i]._version()) > versions[i], updated) << "parameter " << i;
+    }
+  }
+  auto& ta = pair.torch_adamw->state();
+  auto& fa = pair.fused_adamw->state();
+  for (size_t i = 0; i < pair.a.size(); ++i) {
+    const auto& s = static_cast<torch::optim::AdamWParamState&>(*ta.at(train::state_key(ta, pair.a[i])));
+    const auto& f = static_cast<torch::optim::AdamWParamState&>(*fa.at(train::state_key(fa, pair.b[i])));
+    EXPECT_EQ(s.step(), f.step());
+    EXPECT_TRUE(torch::equal(s.exp_avg(), f.exp_avg())) << "parameter " << i;
+    EXPECT_TRUE(torch::equal(s.exp_avg_sq(), f.exp_avg_sq())) << "parameter " << i;
+  }
+}
+
+// What the one pass does not cover takes LibTorch's own step: a bf16 parameter, or AMSGrad.
+TEST(Optimizer, OnePassAdamWStepFallsBackToLibTorchsStep) {
+  torch::manual_seed(12);
+  auto pair = adamw_pair({{9, 4}, {6}}, 0.1);
+  for (auto* params : {&pair.a, &pair.b}) {
+    torch::NoGradGuard no_grad;
+    (*params)[1].set_data((*params)[1].to(torch::kBFloat16));
+  }
+  for (int step = 0; step < 3; ++step) {
+    set_same_gradients(pair, step);
+    pair.a[1].mutable_grad() = pair.a[1].grad().to(torch::kBFloat16);
+    pair.b[1].mutable_grad() = pair.b[1].grad().to(torch::kBFloat16);
+    pair.torch_adamw->step();
+    train::adamw_step(*pair.fused_adamw);
+    for (size_t i = 0; i < pair.a.size(); ++i) EXPECT_TRUE(torch::equal(pair.a[i], pair.b[i])) << "parameter " << i;
+  }
+}

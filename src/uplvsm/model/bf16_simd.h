@@ -1,6 +1,7 @@
-// Internal to the fused row-wise kernels (qk_norm.cpp, layer_norm_to_bf16.cpp): AVX-512 loads and stores of 16
-// fp32 or bf16 features, rounding to bf16 exactly as c10::BFloat16 does, and the runtime CPU check. Files that include
-// it compile their AVX-512 functions with UPLVSM_ROW_AVX512 and call them only when cpu_has_avx512() is true.
+// Internal to the fused row-wise kernels (qk_norm.cpp, layer_norm_to_bf16.cpp) and the one-pass AdamW step
+// (train/optimizer.cpp): AVX-512 loads and stores of 16 fp32 or bf16 features, rounding to bf16 exactly as
+// c10::BFloat16 does, and the runtime CPU check. Files that include it compile their AVX-512 functions with
+// UPLVSM_ROW_AVX512 and call them only when cpu_has_avx512() is true.
 #pragma once
 #include <c10/util/BFloat16.h>
 #include <immintrin.h>

@@ -43,7 +43,7 @@ double pretrain_step(model::MaskedImageModelImpl& mim, torch::optim::AdamW& opti
   }
   loss.backward();
   if (tc.grad_clip_norm > 0) torch::nn::utils::clip_grad_norm_(mim.parameters(), tc.grad_clip_norm);
-  optimizer.step();
+  adamw_step(optimizer);  // LibTorch's AdamW::step, in one pass
   return loss.item<double>();
 }
 

@@ -108,6 +108,14 @@ void agree_across_ranks(Communicator& comm, const std::vector<torch::Tensor>& pa
   r.stop = shared[2].item<double>() > 0;
 }
 
+// The trainer's optimiser is AdamW (make_optimizer): its one-pass step; any other optimiser takes its own.
+void step_optimizer(torch::optim::Optimizer& optimizer) {
+  if (auto* adamw = dynamic_cast<torch::optim::AdamW*>(&optimizer))
+    adamw_step(*adamw);
+  else
+    optimizer.step();
+}
+
 // The official skip rules around AdamW (see the header).
 void apply_update(StepContext& ctx, TrainState& state, StepResult& r) {
   const auto& tc = ctx.training;
@@ -124,7 +132,7 @@ void apply_update(StepContext& ctx, TrainState& state, StepResult& r) {
     r.skipped = true;
   } else {
     set_learning_rate(*ctx.optimizer, r.lr);
-    ctx.optimizer->step();
+    step_optimizer(*ctx.optimizer);
     ++state.param_update_step;
   }
   ++state.scheduler_step;
