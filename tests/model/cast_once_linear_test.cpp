@@ -66,4 +66,23 @@ TEST(CastOnceLinear, TrainingAndFp32TakeLinearsOwnPath) {
   EXPECT_GT(layer->weight.grad().abs().sum().item<double>(), 0.0);
 }
 
+// With a bias and tokens ([batch, tokens, features], as DINOv2's blocks call it), training computes ATen's linear too:
+// the bias inside the bf16 matmul, one rounding — not LibTorch 1.13's nn::Linear, which rounds the product to bf16
+// and then adds the fp32 bias in a second pass.
+TEST(CastOnceLinear, TrainingWithABiasOnTokensIsATensLinear) {
+  torch::manual_seed(4);
+  CastOnceLinear layer(torch::nn::LinearOptions(40, 24).bias(true));
+  {
+    torch::NoGradGuard no_grad;
+    layer->bias.copy_(torch::randn({24}) * 3.0);  // large enough that a second rounding shows
+  }
+  auto x = torch::randn({2, 9, 40});
+  AutocastGuard autocast(torch::kCPU, true);
+  auto y = layer(x);
+  EXPECT_TRUE(torch::equal(y, reference(layer, x)));
+  y.sum().backward();
+  ASSERT_TRUE(layer->bias.grad().defined());
+  EXPECT_EQ(layer->bias.grad().scalar_type(), torch::kFloat32);
+}
+
 }  // namespace

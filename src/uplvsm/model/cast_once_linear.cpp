@@ -46,7 +46,9 @@ std::pair<torch::Tensor, torch::Tensor> CastOnceLinearImpl::bf16_weights() {
 torch::Tensor CastOnceLinearImpl::forward(const torch::Tensor& input) {
   const bool cast_once = cast_once_enabled() && !torch::GradMode::is_enabled() &&
                          weight.scalar_type() == torch::kFloat32 && autocast_active(weight.device());
-  if (!cast_once) return torch::nn::LinearImpl::forward(input);
+  // ATen's linear, as PyTorch's nn.Linear: a bias folds into the matmul (addmm, also for 3-D inputs), where LibTorch
+  // 1.13's C++ frontend (nn::LinearImpl) adds it in a separate pass — under autocast into a bf16 output via fp32.
+  if (!cast_once) return torch::linear(input, weight, bias);
   auto [w, b] = bf16_weights();
   return torch::linear(input, w, b);  // autocast casts the input; the weights are bf16 already
 }

@@ -2,8 +2,9 @@
 // of on every call (autocast's own cache lives only as long as one autocast region, i.e. one forward): for the
 // paper's 260 M-parameter model that cast is ~0.3-0.9 s of every render call on two cores. The copy is remade when
 // the weights change (their version counter, e.g. an optimizer step or a state-dict load) and is never used while
-// gradients are recorded, so training and fp32 inference compute exactly what torch::nn::Linear computes; so does
-// bf16 inference (the same round-to-nearest-even cast of the same weights). Parameter names stay `weight`/`bias`.
+// gradients are recorded. Every path computes what ATen's linear (PyTorch's nn.Linear) computes: training and fp32
+// inference call it, bf16 inference calls it with the same round-to-nearest-even cast of the same weights. Parameter
+// names stay `weight`/`bias`.
 #pragma once
 #include <torch/torch.h>
 
