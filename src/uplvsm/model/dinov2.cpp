@@ -20,7 +20,9 @@ DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, 
 
 torch::Tensor DinoAttentionImpl::forward(const torch::Tensor& x) {
   const int64_t B = x.size(0), N = x.size(1), C = x.size(2);
-  auto qkv_ = qkv(x).view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4});
+  // unbind, not three selects: its backward stacks the three gradients in one pass instead of zero-filling and
+  // copying into the whole qkv gradient three times.
+  auto qkv_ = qkv(x).view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4}).unbind(0);
   auto q = qkv_[0], k = qkv_[1], v = qkv_[2];
   if (q_norm) {
     const auto dtype = qk_norm_output_dtype(q, C / heads);
