@@ -131,9 +131,11 @@ DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x, const torch::T
   }
   t = torch::cat({cls_token.expand({N, -1, -1}), t}, 1) + interpolate_pos_encoding(H, W);
   const int64_t R = config.num_register_tokens;
-  if (R > 0)
-    t = torch::cat({t.index({Slice(), Slice(0, 1)}), register_tokens.expand({N, -1, -1}), t.index({Slice(), Slice(1)})},
-                   1);
+  if (R > 0) {
+    // One split: its backward is one cat, where two slices zero-filled the whole gradient twice.
+    auto cls_and_patches = t.split_with_sizes({1, t.size(1) - 1}, 1);
+    t = torch::cat({cls_and_patches[0], register_tokens.expand({N, -1, -1}), cls_and_patches[1]}, 1);
+  }
   t = run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list = blocks](size_t i, const torch::Tensor& x) {
     return list->ptr<DinoBlockImpl>(i)->forward(x);
   });

@@ -68,7 +68,10 @@ torch::Tensor NovelViewModelImpl::tokenize(const torch::Tensor& images) {
 torch::Tensor NovelViewModelImpl::with_camera_tokens(const torch::Tensor& tokens, const torch::Tensor& rays) {
   const int64_t b = tokens.size(0), v = tokens.size(1), k = rays.size(1);
   auto marker = canonical_pose_tokenizer(rays.flatten(0, 1)).view({b, k, tokens.size(2), tokens.size(3)});
-  return torch::cat({tokens.narrow(1, 0, k) + marker, tokens.narrow(1, k, v - k)}, 1);
+  if (k == v) return tokens + marker;
+  // One split: its backward is one cat, where two slices zero-filled the whole gradient twice.
+  auto marked_and_rest = tokens.split_with_sizes({k, v - k}, 1);
+  return torch::cat({marked_and_rest[0] + marker, marked_and_rest[1]}, 1);
 }
 
 torch::Tensor NovelViewModelImpl::repeat_per_view(const torch::Tensor& x, int64_t views) {
