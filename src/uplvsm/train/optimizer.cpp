@@ -6,6 +6,9 @@
 
 #include "uplvsm/model/bf16_simd.h"
 
+// GCC 12's _mm512_sqrt_ps starts from _mm512_undefined_ps, which -Wmaybe-uninitialized misreads.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+
 namespace uplvsm::train {
 
 ParamGroups split_param_groups(const torch::nn::Module& module) {
