@@ -46,6 +46,14 @@ void BM_MatmulPeak(benchmark::State& state) {
 }
 BENCHMARK(BM_MatmulPeak)->ArgName("bf16")->Arg(0)->Arg(1)->Unit(benchmark::kMillisecond);
 
+// LibTorch's AdamW::step, or the trainer's one-pass step (train::adamw_step) that gives the same numbers.
+void step_adamw(torch::optim::AdamW& optimizer, bool one_pass) {
+  if (one_pass)
+    train::adamw_step(optimizer);
+  else
+    optimizer.step();
+}
+
 void run_train_step(benchmark::State& state, const std::string& config_name, TrainShape shape, bool bf16,
                     int64_t checkpoint_every, bool one_pass_adamw = true) {
   auto config = bench_config(config_name);
@@ -75,10 +83,7 @@ void run_train_step(benchmark::State& state, const std::string& config_name, Tra
       loss = torch::mse_loss(out.render.to(torch::kFloat32), targets);
     }
     loss.backward();
-    if (one_pass_adamw)
-      train::adamw_step(*optimizer);  // as the trainer's step
-    else
-      optimizer->step();
+    step_adamw(*optimizer, one_pass_adamw);
     return loss.item<double>();
   };
   step();  // warm-up: allocator, optimiser state
@@ -157,12 +162,7 @@ void BM_AdamWStep(benchmark::State& state, const std::string& config_name) {
   auto optimizer = train::make_optimizer(*net, config.training);
   for (auto& p : train::trainable_parameters(*net)) p.mutable_grad() = torch::randn_like(p) * 1e-3;
   const bool fused = state.range(0) != 0;
-  for (auto _ : state) {
-    if (fused)
-      train::adamw_step(*optimizer);
-    else
-      optimizer->step();
-  }
+  for (auto _ : state) step_adamw(*optimizer, fused);
   state.SetLabel(std::to_string(net->parameters().size()) + " tensors");
 }
 BENCHMARK_CAPTURE(BM_AdamWStep, demo, std::string("demo"))

@@ -64,7 +64,6 @@ std::unique_ptr<torch::optim::AdamW> make_optimizer(const torch::nn::Module& mod
 namespace {
 // AdamW's per-step constants, rounded to fp32 as its tensor ops round their Scalar arguments.
 struct AdamWConstants {
-  bool decoupled_decay;
   float decay, beta1, one_minus_beta1, beta2, one_minus_beta2, sqrt_bias_correction2, eps, minus_step_size;
 };
 
@@ -72,8 +71,8 @@ AdamWConstants adamw_constants(const torch::optim::AdamWOptions& o, int64_t step
   const auto [beta1, beta2] = o.betas();
   const double bias_correction1 = 1 - std::pow(beta1, static_cast<double>(step));
   const double bias_correction2 = 1 - std::pow(beta2, static_cast<double>(step));
-  return {o.weight_decay() != 0,
-          static_cast<float>(1 - o.lr() * o.weight_decay()),
+  // No decay multiplies by 1, which is exact (AdamW::step skips the multiply).
+  return {o.weight_decay() != 0 ? static_cast<float>(1 - o.lr() * o.weight_decay()) : 1.0f,
           static_cast<float>(beta1),
           static_cast<float>(1 - beta1),
           static_cast<float>(beta2),
@@ -91,7 +90,7 @@ UPLVSM_ROW_AVX512 __attribute__((optimize("fp-contract=off"))) void adamw_update
                                                                                         const float* g, int64_t begin,
                                                                                         int64_t end,
                                                                                         const AdamWConstants& k) {
-  const __m512 decay = _mm512_set1_ps(k.decoupled_decay ? k.decay : 1.0f);  // x 1 is exact: no decay
+  const __m512 decay = _mm512_set1_ps(k.decay);
   const __m512 beta1 = _mm512_set1_ps(k.beta1), one_minus_beta1 = _mm512_set1_ps(k.one_minus_beta1);
   const __m512 beta2 = _mm512_set1_ps(k.beta2), one_minus_beta2 = _mm512_set1_ps(k.one_minus_beta2);
   const __m512 sqrt_bc2 = _mm512_set1_ps(k.sqrt_bias_correction2), eps = _mm512_set1_ps(k.eps);
