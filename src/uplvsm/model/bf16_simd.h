@@ -1,4 +1,4 @@
-// Internal to the fused row-wise kernels (qk_norm.cpp, layer_norm_to_bf16.cpp) and the one-pass AdamW step
+// Internal to the fused row-wise kernels (qk_norm.cpp, layer_norm_to_bf16.cpp, gelu.cpp) and the one-pass AdamW step
 // (train/optimizer.cpp): AVX-512 loads and stores of 16 fp32 or bf16 features, rounding to bf16 exactly as
 // c10::BFloat16 does, and the runtime CPU check. Files that include it compile their AVX-512 functions with
 // UPLVSM_ROW_AVX512 and call them only when cpu_has_avx512() is true.
@@ -7,6 +7,10 @@
 #include <immintrin.h>
 
 #include <type_traits>
+
+// GCC 12's AVX-512 intrinsics (reductions, extracts, masked forms) start from _mm512_undefined_*, which
+// -Wmaybe-uninitialized misreads in every file using these helpers.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 
 #define UPLVSM_ROW_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
 

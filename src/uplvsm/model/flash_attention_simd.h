@@ -1,5 +1,5 @@
-// Internal to the fused attention kernels (flash_attention_kernels*.cpp): tile sizes, the AVX-512 exp (fp32 kernels)
-// and exp2 (bf16 kernels), tail masks, per-thread scratch, the bf16 kernels' entry points.
+// Internal to the fused attention kernels (flash_attention_kernels*.cpp): tile sizes, the AVX-512 exp2 (bf16
+// kernels; exp is exp_simd.h's), tail masks, per-thread scratch, the bf16 kernels' entry points.
 #pragma once
 #include <immintrin.h>
 
@@ -9,6 +9,7 @@
 #include <limits>
 #include <vector>
 
+#include "uplvsm/model/exp_simd.h"
 #include "uplvsm/model/flash_attention_kernels.h"
 
 // GCC 12's AVX-512 reduction intrinsics start from _mm512_undefined_ps, which -Wmaybe-uninitialized misreads.
@@ -18,6 +19,8 @@
 #define UPLVSM_AVX512_BF16 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16")))
 
 namespace uplvsm::model::flash::detail {
+
+using row_simd::exp_ps;
 
 constexpr int64_t kRows = 6;           // micro-kernel rows: 6 x 4 accumulators + 4 B vectors fit 32 zmm registers
 constexpr int64_t kQueryTile = 48;     // forward: query rows per online-softmax step
@@ -30,26 +33,6 @@ inline int64_t round_up(int64_t x, int64_t m) { return (x + m - 1) / m * m; }
 inline int64_t row_chunks(const Problem& p) { return (p.Lq + kRowsPerTask - 1) / kRowsPerTask; }
 inline int64_t head_offset(const Problem& p, Strides s, int64_t bh, int64_t row) {
   return (bh / p.H) * s.b + (bh % p.H) * s.h + row * s.l;
-}
-
-// exp(x) for x <= 0 (scores minus their running max / log-sum-exp): Cody-Waite reduction x = n ln2 + r and a
-// degree-7 Taylor polynomial on |r| <= ln2 / 2 (relative error < 1e-8 before rounding); -inf gives 0 and NaN
-// stays NaN (vmaxps returns its second operand when either is NaN), so a diverged model still yields NaN outputs.
-UPLVSM_AVX512 inline __m512 exp_ps(__m512 x) {
-  x = _mm512_max_ps(_mm512_set1_ps(-104.0f), x);
-  const __m512 n = _mm512_roundscale_ps(_mm512_mul_ps(x, _mm512_set1_ps(1.44269504088896341f)),
-                                        _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
-  __m512 r = _mm512_fnmadd_ps(n, _mm512_set1_ps(0.693145751953125f), x);
-  r = _mm512_fnmadd_ps(n, _mm512_set1_ps(1.428606765330187045e-06f), r);
-  __m512 poly = _mm512_set1_ps(1.0f / 5040);
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f / 720));
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f / 120));
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f / 24));
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f / 6));
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(0.5f));
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f));
-  poly = _mm512_fmadd_ps(poly, r, _mm512_set1_ps(1.0f));
-  return _mm512_scalef_ps(poly, n);
 }
 
 // 2^t for t <= 0 in the bf16 kernels: t = n + f with n an integer and |f| <= 1/2, 2^f by a degree-5 fit of

@@ -2,6 +2,7 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/flash_attention.h"
+#include "uplvsm/model/gelu.h"
 #include "uplvsm/model/gradient_checkpoint.h"
 #include "uplvsm/model/layer_norm_to_bf16.h"
 #include "uplvsm/model/qk_norm.h"
@@ -88,7 +89,7 @@ torch::Tensor QKNormAttentionImpl::attention_map(const torch::Tensor& x) {
 MLPImpl::MLPImpl(int64_t d, int64_t hidden) {
   mlp = register_module(
       "mlp", torch::nn::Sequential(CastOnceLinear(torch::nn::LinearOptions(d, hidden).bias(false)),
-                                   torch::nn::Functional([](const torch::Tensor& t) { return torch::gelu(t); }),
+                                   torch::nn::Functional([](const torch::Tensor& t) { return model::gelu(t); }),
                                    CastOnceLinear(torch::nn::LinearOptions(hidden, d).bias(false))));
 }
 
