@@ -1,6 +1,7 @@
 // Tests of model/layer_norm_to_bf16: the fused LayerNorm-into-bf16 against the exact unfused chain (LibTorch's fp32
 // layer_norm, then the cast): values and gradients of x, weight and bias, with and without bias, widths with and
-// without the vectorised path, bf16 and fp32 upstream gradients, independent of the thread count.
+// without the vectorised path, bf16 and fp32 upstream gradients, independent of the thread count; and the residual
+// add joined to it (add_layer_norm_to_bf16) against LibTorch's add followed by the same chain.
 #include "uplvsm/model/layer_norm_to_bf16.h"
 
 #include <gtest/gtest.h>
@@ -87,6 +88,64 @@ TEST(LayerNormToBf16, FallsBackWhereItDoesNotFuse) {
   EXPECT_FALSE(layer_norm_to_bf16_fuses(x, torch::ones({16}), torch::zeros({8})));
   EXPECT_FALSE(layer_norm_to_bf16_fuses(x, torch::ones({16}, torch::kFloat64), {}));
   auto y = layer_norm_to_bf16(x, torch::ones({8}).repeat({2}), {}, 1e-5);  // fuses: a contiguous copy
+  EXPECT_EQ(y.scalar_type(), torch::kBFloat16);
+}
+
+struct ResidualResult {
+  torch::Tensor h, y, grad_x, grad_branch, grad_w, grad_b;
+};
+
+// h = x + branch, y = norm(h); the loss reaches both outputs (h through the next residual) unless `only`.
+ResidualResult run_residual(bool fused, int64_t D, torch::ScalarType branch_dtype, const std::string& only = "") {
+  torch::manual_seed(21);
+  auto x = (torch::randn({3, 29, D}) * 2).requires_grad_(true);
+  auto branch = torch::randn({3, 29, D}).to(branch_dtype).requires_grad_(true);
+  auto weight = (1 + 0.3 * torch::randn({D})).requires_grad_(true);
+  auto bias = (0.2 * torch::randn({D})).requires_grad_(true);
+  auto [h, y] = fused ? add_layer_norm_to_bf16(x, branch, weight, bias, 1e-5)
+                      : add_layer_norm_to_bf16_unfused(x, branch, weight, bias, 1e-5);
+  auto up_h = torch::randn(h.sizes()), up_y = torch::randn(y.sizes()).to(torch::kBFloat16);
+  torch::Tensor loss = torch::zeros({});
+  if (only != "y") loss = loss + (h * up_h).sum();
+  if (only != "h") loss = loss + (y.to(torch::kFloat32) * up_y.to(torch::kFloat32)).sum();
+  loss.backward();
+  auto grad_or_empty = [](const torch::Tensor& t) { return t.grad().defined() ? t.grad().clone() : torch::Tensor(); };
+  return {h.detach(), y.detach(), x.grad().clone(), branch.grad().clone(), grad_or_empty(weight), grad_or_empty(bias)};
+}
+
+// h is LibTorch's add exactly; the norm's output and gradients as in the test above; the branch's gradient is the
+// stream's, rounded to the branch's dtype.
+TEST(LayerNormToBf16, ResidualAddJoinedToTheNormMatchesAddThenNorm) {
+  for (int64_t D : {128, 20}) {
+    for (auto branch_dtype : {torch::kBFloat16, torch::kFloat32}) {
+      for (std::string only : {"", "h", "y"}) {
+        SCOPED_TRACE(testing::Message() << "D " << D << " branch " << branch_dtype << " only " << only);
+        auto fused = run_residual(true, D, branch_dtype, only), ref = run_residual(false, D, branch_dtype, only);
+        EXPECT_TRUE(torch::equal(fused.h, ref.h));
+        ASSERT_EQ(fused.grad_branch.scalar_type(), branch_dtype);
+        EXPECT_GT(fused.y.eq(ref.y).to(torch::kFloat64).mean().item<double>(), 0.99) << "share of bit-equal outputs";
+        EXPECT_LT(largest_relative_error(fused.grad_x, ref.grad_x), 1e-5);
+        EXPECT_LT(largest_relative_error(fused.grad_branch, ref.grad_branch),
+                  branch_dtype == torch::kFloat32 ? 1e-5 : 1e-2);
+        if (only == "h") {
+          EXPECT_TRUE(torch::equal(fused.grad_x, ref.grad_x));  // the add's gradient alone: nothing to round
+          EXPECT_FALSE(fused.grad_w.defined() && fused.grad_w.abs().sum().item<double>() > 0);
+        } else {
+          EXPECT_LT(largest_relative_error(fused.grad_w, ref.grad_w), 1e-5);
+          EXPECT_LT(largest_relative_error(fused.grad_b, ref.grad_b), 1e-5);
+        }
+      }
+    }
+  }
+}
+
+TEST(LayerNormToBf16, ResidualAddFallsBackWhereItDoesNotFuse) {
+  auto x = torch::randn({2, 16});
+  EXPECT_TRUE(add_layer_norm_to_bf16_fuses(x, x.to(torch::kBFloat16), torch::ones({16}), {}));
+  EXPECT_FALSE(add_layer_norm_to_bf16_fuses(x, torch::randn({1, 16}), torch::ones({16}), {}));  // a broadcast
+  EXPECT_FALSE(add_layer_norm_to_bf16_fuses(x, x.to(torch::kFloat64), torch::ones({16}), {}));
+  auto [h, y] = add_layer_norm_to_bf16(x, torch::randn({1, 16}), torch::ones({16}), {}, 1e-5);
+  EXPECT_EQ(h.sizes(), x.sizes());
   EXPECT_EQ(y.scalar_type(), torch::kBFloat16);
 }
 

@@ -52,8 +52,8 @@ DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
 }
 
 torch::Tensor DinoBlockImpl::forward(const torch::Tensor& x) {
-  auto h = x + ls1(attn(norm1->forward_into_linear(x)));
-  return h + ls2(mlp(norm2->forward_into_linear(h)));
+  auto [h, normed] = norm2->add_then_forward_into_linear(x, ls1(attn(norm1->forward_into_linear(x))));
+  return h + ls2(mlp(normed));
 }
 
 torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {

@@ -28,12 +28,18 @@ bool forced_unfused() {
   return unfused;
 }
 
-// Per row: mean and 1 / sqrt(var + eps) (biased variance, two passes over the row), y = (x - mean) rstd w + b
-// rounded to bf16.
-void forward_rows(const float* x, const float* w, const float* b, float eps, int64_t D, int64_t begin, int64_t end,
-                  BF16* y, float* mean, float* rstd) {
+// Per row: with a residual branch, first x + branch into h (fp32, as LibTorch's add: the branch widened exactly,
+// one rounding) and the rest on h; then mean and 1 / sqrt(var + eps) (biased variance, two passes over the row),
+// y = (x - mean) rstd w + b rounded to bf16.
+template <typename B>
+void forward_rows(const float* x, const B* branch, float* h, const float* w, const float* b, float eps, int64_t D,
+                  int64_t begin, int64_t end, BF16* y, float* mean, float* rstd) {
   for (int64_t row = begin; row < end; ++row) {
     const float* xr = x + row * D;
+    if (branch) {
+      for (int64_t j = 0; j < D; ++j) h[row * D + j] = xr[j] + static_cast<float>(branch[row * D + j]);
+      xr = h + row * D;
+    }
     float sum = 0.0f, sum_sq = 0.0f;
     for (int64_t j = 0; j < D; ++j) sum += xr[j];
     const float m = sum / static_cast<float>(D);
@@ -44,11 +50,12 @@ void forward_rows(const float* x, const float* w, const float* b, float eps, int
   }
 }
 
-// Per row, with x_hat = (x - mean) rstd and h = g w: g_x = rstd (h - mean(h) - x_hat mean(h x_hat)); the weight
-// and bias gradients add g x_hat and g.
-template <typename G>
-void backward_rows(const float* x, const float* w, const float* mean, const float* rstd, const G* g, int64_t D,
-                   int64_t begin, int64_t end, float* gx, float* gw, float* gb) {
+// Per row, with x_hat = (x - mean) rstd and h = g w: g_x = rstd (h - mean(h) - x_hat mean(h x_hat)), plus the
+// gradient g_res that reaches x past the norm (a residual stream's) when given, also written rounded to the
+// branch's dtype when g_branch is given; the weight and bias gradients add g x_hat and g.
+template <typename G, typename B>
+void backward_rows(const float* x, const float* w, const float* mean, const float* rstd, const G* g, const float* g_res,
+                   int64_t D, int64_t begin, int64_t end, float* gx, B* g_branch, float* gw, float* gb) {
   for (int64_t row = begin; row < end; ++row) {
     const float *xr = x + row * D, m = mean[row], r = rstd[row];
     const G* gr = g + row * D;
@@ -62,7 +69,10 @@ void backward_rows(const float* x, const float* w, const float* mean, const floa
     const float a = sum_h / static_cast<float>(D), c = sum_hx / static_cast<float>(D);
     for (int64_t j = 0; j < D; ++j) {
       const float x_hat = (xr[j] - m) * r;
-      gx[row * D + j] = r * (static_cast<float>(gr[j]) * w[j] - a - x_hat * c);
+      float v = r * (static_cast<float>(gr[j]) * w[j] - a - x_hat * c);
+      if (g_res) v += g_res[row * D + j];
+      gx[row * D + j] = v;
+      if (g_branch) g_branch[row * D + j] = static_cast<B>(v);
     }
   }
 }
@@ -72,12 +82,23 @@ void backward_rows(const float* x, const float* w, const float* mean, const floa
 using row_simd::load16;
 using row_simd::store16;
 
-UPLVSM_ROW_AVX512 void forward_rows_avx512(const float* x, const float* w, const float* b, float eps, int64_t D,
-                                           int64_t begin, int64_t end, BF16* y, float* mean, float* rstd) {
+template <typename B>
+UPLVSM_ROW_AVX512 void forward_rows_avx512(const float* x, const B* branch, float* h, const float* w, const float* b,
+                                           float eps, int64_t D, int64_t begin, int64_t end, BF16* y, float* mean,
+                                           float* rstd) {
   for (int64_t row = begin; row < end; ++row) {
     const float* xr = x + row * D;
     __m512 acc = _mm512_setzero_ps();
-    for (int64_t j = 0; j < D; j += 16) acc = _mm512_add_ps(acc, _mm512_loadu_ps(xr + j));
+    if (branch) {
+      for (int64_t j = 0; j < D; j += 16) {
+        const __m512 v = _mm512_add_ps(_mm512_loadu_ps(xr + j), load16(branch + row * D + j));
+        _mm512_storeu_ps(h + row * D + j, v);
+        acc = _mm512_add_ps(acc, v);
+      }
+      xr = h + row * D;
+    } else {
+      for (int64_t j = 0; j < D; j += 16) acc = _mm512_add_ps(acc, _mm512_loadu_ps(xr + j));
+    }
     const float m = _mm512_reduce_add_ps(acc) / static_cast<float>(D);
     const __m512 mv = _mm512_set1_ps(m);
     acc = _mm512_setzero_ps();
@@ -96,10 +117,10 @@ UPLVSM_ROW_AVX512 void forward_rows_avx512(const float* x, const float* w, const
   }
 }
 
-template <typename G>
+template <typename G, typename B>
 UPLVSM_ROW_AVX512 void backward_rows_avx512(const float* x, const float* w, const float* mean, const float* rstd,
-                                            const G* g, int64_t D, int64_t begin, int64_t end, float* gx, float* gw,
-                                            float* gb) {
+                                            const G* g, const float* g_res, int64_t D, int64_t begin, int64_t end,
+                                            float* gx, B* g_branch, float* gw, float* gb) {
   for (int64_t row = begin; row < end; ++row) {
     const float* xr = x + row * D;
     const G* gr = g + row * D;
@@ -118,7 +139,10 @@ UPLVSM_ROW_AVX512 void backward_rows_avx512(const float* x, const float* w, cons
     for (int64_t j = 0; j < D; j += 16) {
       const __m512 x_hat = _mm512_mul_ps(_mm512_sub_ps(_mm512_loadu_ps(xr + j), mv), rv);
       const __m512 h = _mm512_mul_ps(load16(gr + j), _mm512_loadu_ps(w + j));
-      store16(gx + row * D + j, _mm512_mul_ps(rv, _mm512_fnmadd_ps(x_hat, c, _mm512_sub_ps(h, a))));
+      __m512 v = _mm512_mul_ps(rv, _mm512_fnmadd_ps(x_hat, c, _mm512_sub_ps(h, a)));
+      if (g_res) v = _mm512_add_ps(v, _mm512_loadu_ps(g_res + row * D + j));
+      _mm512_storeu_ps(gx + row * D + j, v);
+      if (g_branch) store16(g_branch + row * D + j, v);
     }
   }
 }
@@ -139,53 +163,122 @@ torch::Tensor sum_blocks(const torch::Tensor& partial) {
   return sum;
 }
 
+// The forward of both functions: y, with h = x + branch when a branch is given (else h is x), and each row's
+// mean and rstd.
+struct Normalised {
+  torch::Tensor h, y, mean, rstd;
+};
+
+Normalised normalise(const torch::Tensor& x, const torch::Tensor& branch, const torch::Tensor& weight,
+                     const torch::Tensor& bias, double eps) {
+  const int64_t D = x.size(-1), rows = x.numel() / D;
+  Normalised n{branch.defined() ? torch::empty(x.sizes(), x.options()) : x,
+               torch::empty(x.sizes(), x.options().dtype(torch::kBFloat16)), torch::empty({rows}, x.options()),
+               torch::empty({rows}, x.options())};
+  auto run = [&](auto* branch_tag) {
+    using B = std::remove_pointer_t<decltype(branch_tag)>;
+    const auto rows_kernel = vectorised(D) ? forward_rows_avx512<B> : forward_rows<B>;
+    at::parallel_for(0, rows, 64, [&](int64_t begin, int64_t end) {
+      rows_kernel(x.data_ptr<float>(), branch.defined() ? branch.data_ptr<B>() : nullptr, n.h.data_ptr<float>(),
+                  weight.data_ptr<float>(), data_or_null(bias), static_cast<float>(eps), D, begin, end,
+                  n.y.data_ptr<BF16>(), n.mean.data_ptr<float>(), n.rstd.data_ptr<float>());
+    });
+  };
+  if (branch.defined() && branch.scalar_type() == torch::kBFloat16)
+    run(static_cast<BF16*>(nullptr));
+  else
+    run(static_cast<float*>(nullptr));
+  return n;
+}
+
+// The backward of both: the gradient of the norm's input (plus g_res, the gradient reaching it past the norm, when
+// defined), in fp32 and, for a bf16 residual branch, rounded to bf16; the weight and bias gradients when asked.
+struct NormGradients {
+  torch::Tensor x, branch, weight, bias;
+};
+
+NormGradients normalise_backward(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& mean,
+                                 const torch::Tensor& rstd, torch::Tensor g, const torch::Tensor& g_res,
+                                 bool bf16_branch, bool weight_grad, bool bias_grad) {
+  g = g.contiguous();
+  if (g.scalar_type() != torch::kBFloat16) g = g.to(torch::kFloat32);
+  const auto res = g_res.defined() ? g_res.to(torch::kFloat32).contiguous() : torch::Tensor();
+  const int64_t D = x.size(-1), rows = x.numel() / D, blocks = (rows + kRowsPerBlock - 1) / kRowsPerBlock;
+  NormGradients out{torch::empty(x.sizes(), x.options()),
+                    bf16_branch ? torch::empty(x.sizes(), x.options().dtype(torch::kBFloat16)) : torch::Tensor(),
+                    {},
+                    {}};
+  auto gw_partial = torch::zeros({weight_grad ? blocks : 0, D}, weight.options());
+  auto gb_partial = torch::zeros({bias_grad ? blocks : 0, D}, weight.options());
+  auto run = [&](auto* g_tag) {
+    using G = std::remove_pointer_t<decltype(g_tag)>;
+    const auto rows_kernel = vectorised(D) ? backward_rows_avx512<G, BF16> : backward_rows<G, BF16>;
+    at::parallel_for(0, blocks, 1, [&](int64_t block_begin, int64_t block_end) {
+      for (int64_t b = block_begin; b < block_end; ++b)
+        rows_kernel(x.data_ptr<float>(), weight.data_ptr<float>(), mean.data_ptr<float>(), rstd.data_ptr<float>(),
+                    g.data_ptr<G>(), res.defined() ? res.data_ptr<float>() : nullptr, D, b * kRowsPerBlock,
+                    std::min(rows, (b + 1) * kRowsPerBlock), out.x.data_ptr<float>(),
+                    bf16_branch ? out.branch.data_ptr<BF16>() : nullptr,
+                    weight_grad ? gw_partial.data_ptr<float>() + b * D : nullptr,
+                    bias_grad ? gb_partial.data_ptr<float>() + b * D : nullptr);
+    });
+  };
+  if (g.scalar_type() == torch::kBFloat16)
+    run(static_cast<BF16*>(nullptr));
+  else
+    run(static_cast<float*>(nullptr));
+  if (!bf16_branch) out.branch = out.x;  // LibTorch's add hands an fp32 branch the same gradient
+  if (weight_grad) out.weight = sum_blocks(gw_partial);
+  if (bias_grad) out.bias = sum_blocks(gb_partial);
+  return out;
+}
+
 struct LayerNormToBf16Function : torch::autograd::Function<LayerNormToBf16Function> {
   static torch::Tensor forward(AutogradContext* ctx, torch::Tensor x, torch::Tensor weight, torch::Tensor bias,
                                double eps) {
     RECORD_FUNCTION("uplvsm::layer_norm_to_bf16", std::vector<c10::IValue>());
     x = x.contiguous();
-    const int64_t D = x.size(-1), rows = x.numel() / D;
-    auto y = torch::empty(x.sizes(), x.options().dtype(torch::kBFloat16));
-    auto mean = torch::empty({rows}, x.options()), rstd = torch::empty({rows}, x.options());
-    const auto rows_kernel = vectorised(D) ? forward_rows_avx512 : forward_rows;
-    at::parallel_for(0, rows, 64, [&](int64_t begin, int64_t end) {
-      rows_kernel(x.data_ptr<float>(), weight.data_ptr<float>(), data_or_null(bias), static_cast<float>(eps), D, begin,
-                  end, y.data_ptr<BF16>(), mean.data_ptr<float>(), rstd.data_ptr<float>());
-    });
-    ctx->save_for_backward({x, weight, mean, rstd});
+    auto n = normalise(x, {}, weight, bias, eps);
+    ctx->save_for_backward({x, weight, n.mean, n.rstd});
     ctx->saved_data["has_bias"] = bias.numel() > 0;
-    return y;
+    return n.y;
   }
 
   static variable_list backward(AutogradContext* ctx, variable_list grad_outputs) {
     RECORD_FUNCTION("uplvsm::layer_norm_to_bf16_backward", std::vector<c10::IValue>());
     auto saved = ctx->get_saved_variables();
-    const auto &x = saved[0], &weight = saved[1], &mean = saved[2], &rstd = saved[3];
-    auto g = grad_outputs[0].contiguous();
-    if (g.scalar_type() != torch::kBFloat16) g = g.to(torch::kFloat32);
-    const int64_t D = x.size(-1), rows = x.numel() / D, blocks = (rows + kRowsPerBlock - 1) / kRowsPerBlock;
-    const bool weight_grad = ctx->needs_input_grad(1);
     const bool bias_grad = ctx->saved_data["has_bias"].toBool() && ctx->needs_input_grad(2);
-    auto gx = torch::empty(x.sizes(), x.options());
-    auto gw_partial = torch::zeros({weight_grad ? blocks : 0, D}, weight.options());
-    auto gb_partial = torch::zeros({bias_grad ? blocks : 0, D}, weight.options());
-    auto run = [&](auto* g_tag) {
-      using G = std::remove_pointer_t<decltype(g_tag)>;
-      const auto rows_kernel = vectorised(D) ? backward_rows_avx512<G> : backward_rows<G>;
-      at::parallel_for(0, blocks, 1, [&](int64_t block_begin, int64_t block_end) {
-        for (int64_t b = block_begin; b < block_end; ++b)
-          rows_kernel(x.data_ptr<float>(), weight.data_ptr<float>(), mean.data_ptr<float>(), rstd.data_ptr<float>(),
-                      g.data_ptr<G>(), D, b * kRowsPerBlock, std::min(rows, (b + 1) * kRowsPerBlock),
-                      gx.data_ptr<float>(), weight_grad ? gw_partial.data_ptr<float>() + b * D : nullptr,
-                      bias_grad ? gb_partial.data_ptr<float>() + b * D : nullptr);
-      });
-    };
-    if (g.scalar_type() == torch::kBFloat16)
-      run(static_cast<BF16*>(nullptr));
-    else
-      run(static_cast<float*>(nullptr));
-    return {gx, weight_grad ? sum_blocks(gw_partial) : torch::Tensor(),
-            bias_grad ? sum_blocks(gb_partial) : torch::Tensor(), torch::Tensor()};
+    auto g = normalise_backward(saved[0], saved[1], saved[2], saved[3], grad_outputs[0], {}, false,
+                                ctx->needs_input_grad(1), bias_grad);
+    return {g.x, g.weight, g.bias, torch::Tensor()};
+  }
+};
+
+// h = x + branch and layer_norm(h) in bf16, as one node with two outputs.
+struct AddLayerNormToBf16Function : torch::autograd::Function<AddLayerNormToBf16Function> {
+  static variable_list forward(AutogradContext* ctx, torch::Tensor x, torch::Tensor branch, torch::Tensor weight,
+                               torch::Tensor bias, double eps) {
+    RECORD_FUNCTION("uplvsm::add_layer_norm_to_bf16", std::vector<c10::IValue>());
+    auto n = normalise(x.contiguous(), branch.contiguous(), weight, bias, eps);
+    ctx->save_for_backward({n.h, weight, n.mean, n.rstd});
+    ctx->saved_data["has_bias"] = bias.numel() > 0;
+    ctx->saved_data["bf16_branch"] = branch.scalar_type() == torch::kBFloat16;
+    return {n.h, n.y};
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grad_outputs) {
+    RECORD_FUNCTION("uplvsm::add_layer_norm_to_bf16_backward", std::vector<c10::IValue>());
+    auto saved = ctx->get_saved_variables();
+    const bool bf16_branch = ctx->saved_data["bf16_branch"].toBool();
+    const auto &g_h = grad_outputs[0], &g_y = grad_outputs[1];
+    if (!g_y.defined()) {  // only h was used: the residual add's own gradients
+      auto g = g_h.to(torch::kFloat32);
+      return {g, bf16_branch ? g.to(torch::kBFloat16) : g, torch::Tensor(), torch::Tensor(), torch::Tensor()};
+    }
+    const bool bias_grad = ctx->saved_data["has_bias"].toBool() && ctx->needs_input_grad(3);
+    auto g = normalise_backward(saved[0], saved[1], saved[2], saved[3], g_y, g_h, bf16_branch, ctx->needs_input_grad(2),
+                                bias_grad);
+    return {g.x, g.branch, g.weight, g.bias, torch::Tensor()};
   }
 };
 
@@ -211,6 +304,30 @@ torch::Tensor layer_norm_to_bf16(const torch::Tensor& x, const torch::Tensor& we
                                  double eps) {
   if (!layer_norm_to_bf16_fuses(x, weight, bias)) return layer_norm_to_bf16_unfused(x, weight, bias, eps);
   return LayerNormToBf16Function::apply(x, weight, bias.defined() ? bias : torch::empty({0}, weight.options()), eps);
+}
+
+bool add_layer_norm_to_bf16_fuses(const torch::Tensor& x, const torch::Tensor& branch, const torch::Tensor& weight,
+                                  const torch::Tensor& bias) {
+  return layer_norm_to_bf16_fuses(x, weight, bias) && branch.device().is_cpu() && branch.sizes() == x.sizes() &&
+         (branch.scalar_type() == torch::kBFloat16 || branch.scalar_type() == torch::kFloat32);
+}
+
+std::pair<torch::Tensor, torch::Tensor> add_layer_norm_to_bf16_unfused(const torch::Tensor& x,
+                                                                       const torch::Tensor& branch,
+                                                                       const torch::Tensor& weight,
+                                                                       const torch::Tensor& bias, double eps) {
+  auto h = x + branch;
+  return {h, layer_norm_to_bf16_unfused(h, weight, bias, eps)};
+}
+
+std::pair<torch::Tensor, torch::Tensor> add_layer_norm_to_bf16(const torch::Tensor& x, const torch::Tensor& branch,
+                                                               const torch::Tensor& weight, const torch::Tensor& bias,
+                                                               double eps) {
+  if (!add_layer_norm_to_bf16_fuses(x, branch, weight, bias))
+    return add_layer_norm_to_bf16_unfused(x, branch, weight, bias, eps);
+  auto out = AddLayerNormToBf16Function::apply(x, branch, weight,
+                                               bias.defined() ? bias : torch::empty({0}, weight.options()), eps);
+  return {out[0], out[1]};
 }
 
 }  // namespace uplvsm::model

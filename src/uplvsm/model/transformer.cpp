@@ -24,6 +24,14 @@ torch::Tensor LayerNormImpl::forward_into_linear(const torch::Tensor& x) {
   return forward(x);
 }
 
+std::pair<torch::Tensor, torch::Tensor> LayerNormImpl::add_then_forward_into_linear(const torch::Tensor& x,
+                                                                                    const torch::Tensor& branch) {
+  if (autocast_active(x.device()) && add_layer_norm_to_bf16_fuses(x, branch, weight, bias))
+    return add_layer_norm_to_bf16(x, branch, weight, bias, eps);
+  auto h = x + branch;
+  return {h, forward_into_linear(h)};
+}
+
 RMSNormImpl::RMSNormImpl(int64_t dim, double eps_) : eps(eps_) {
   weight = register_parameter("weight", torch::ones({dim}));
 }
@@ -102,8 +110,8 @@ TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps
 
 torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x, OutputRows rows) {
   const auto kept = rows.all(x.size(1)) ? x : x.narrow(1, rows.start, rows.count);
-  auto h = kept + attn->forward(norm1->forward_into_linear(x), rows);
-  return h + mlp(norm2->forward_into_linear(h));
+  auto [h, normed] = norm2->add_then_forward_into_linear(kept, attn->forward(norm1->forward_into_linear(x), rows));
+  return h + mlp(normed);
 }
 
 void init_linear_weights(torch::nn::Module& module, double std) {

@@ -16,6 +16,10 @@ struct LayerNormImpl : torch::nn::Module {
   // For a norm whose result only feeds linear layers: under bf16 autocast it comes out in bf16, the dtype those
   // layers cast to, from one fused pass (layer_norm_to_bf16.h); otherwise forward(x).
   torch::Tensor forward_into_linear(const torch::Tensor& x);
+  // A residual connection and this norm: {x + branch, forward_into_linear(x + branch)}, in one pass under bf16
+  // autocast on the CPU.
+  std::pair<torch::Tensor, torch::Tensor> add_then_forward_into_linear(const torch::Tensor& x,
+                                                                       const torch::Tensor& branch);
   torch::Tensor weight, bias;
   int64_t dim;
   double eps;
