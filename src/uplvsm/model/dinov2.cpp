@@ -52,8 +52,16 @@ DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
 }
 
 torch::Tensor DinoBlockImpl::forward(const torch::Tensor& x) {
-  auto [h, normed] = norm2->add_then_forward_into_linear(x, ls1(attn(norm1->forward_into_linear(x))));
-  return h + ls2(mlp(normed));
+  auto [h, mlp_out] = forward_deferred(x, {});
+  return h + mlp_out;
+}
+
+std::pair<torch::Tensor, torch::Tensor> DinoBlockImpl::forward_deferred(const torch::Tensor& stream,
+                                                                        const torch::Tensor& pending) {
+  auto [x, normed1] = pending.defined() ? norm1->add_then_forward_into_linear(stream, pending)
+                                        : std::pair{stream, norm1->forward_into_linear(stream)};
+  auto [h, normed2] = norm2->add_then_forward_into_linear(x, ls1(attn(normed1)));
+  return {h, ls2(mlp(normed2))};
 }
 
 torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
@@ -117,6 +125,18 @@ torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width
   return torch::cat({cls_pe, patches}, 1).to(pos_embed.scalar_type());
 }
 
+torch::Tensor Dinov2Impl::run_blocks(torch::Tensor t) {
+  if (grad_checkpoint_every > 0 && torch::GradMode::is_enabled())
+    return run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list = blocks](size_t i, const torch::Tensor& x) {
+      return list->ptr<DinoBlockImpl>(i)->forward(x);
+    });
+  // Nothing checkpointed: each block's closing residual add is deferred into the next block's first norm.
+  torch::Tensor pending;
+  for (size_t i = 0; i < blocks->size(); ++i)
+    std::tie(t, pending) = blocks->ptr<DinoBlockImpl>(i)->forward_deferred(t, pending);
+  return pending.defined() ? t + pending : t;
+}
+
 DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x, const torch::Tensor& mask,
                                           const torch::Tensor& mask_token) {
   const int64_t N = x.size(0), H = x.size(2), W = x.size(3);
@@ -136,9 +156,7 @@ DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x, const torch::T
     auto cls_and_patches = t.split_with_sizes({1, t.size(1) - 1}, 1);
     t = torch::cat({cls_and_patches[0], register_tokens.expand({N, -1, -1}), cls_and_patches[1]}, 1);
   }
-  t = run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list = blocks](size_t i, const torch::Tensor& x) {
-    return list->ptr<DinoBlockImpl>(i)->forward(x);
-  });
+  t = run_blocks(t);
   auto normed = norm(t);
   return {normed.select(1, 0), normed.index({Slice(), Slice(1 + R)}), t};
 }

@@ -37,6 +37,8 @@ TORCH_MODULE(LayerScale);
 struct DinoBlockImpl : torch::nn::Module {
   DinoBlockImpl(const Dinov2Config& c);
   torch::Tensor forward(const torch::Tensor& x);
+  // As TransformerBlockImpl::forward_deferred: the block on x = stream + pending, returning {h, ls2(mlp(...))}.
+  std::pair<torch::Tensor, torch::Tensor> forward_deferred(const torch::Tensor& stream, const torch::Tensor& pending);
   LayerNorm norm1{nullptr}, norm2{nullptr};
   DinoAttention attn{nullptr};
   LayerScale ls1{nullptr}, ls2{nullptr};
@@ -72,6 +74,9 @@ struct Dinov2Impl : torch::nn::Module {
   torch::nn::ModuleList blocks{nullptr};
   LayerNorm norm{nullptr};
   int64_t grad_checkpoint_every = 0;  // blocks per checkpointed group when training (0: off)
+
+ private:
+  torch::Tensor run_blocks(torch::Tensor tokens);
 };
 TORCH_MODULE(Dinov2);
 

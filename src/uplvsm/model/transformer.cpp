@@ -109,9 +109,18 @@ TransformerBlockImpl::TransformerBlockImpl(int64_t d, int64_t d_head, double eps
 }
 
 torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x, OutputRows rows) {
+  auto [h, mlp_out] = forward_deferred(x, {}, rows);
+  return h + mlp_out;
+}
+
+std::pair<torch::Tensor, torch::Tensor> TransformerBlockImpl::forward_deferred(const torch::Tensor& stream,
+                                                                               const torch::Tensor& pending,
+                                                                               OutputRows rows) {
+  auto [x, normed1] = pending.defined() ? norm1->add_then_forward_into_linear(stream, pending)
+                                        : std::pair{stream, norm1->forward_into_linear(stream)};
   const auto kept = rows.all(x.size(1)) ? x : x.narrow(1, rows.start, rows.count);
-  auto [h, normed] = norm2->add_then_forward_into_linear(kept, attn->forward(norm1->forward_into_linear(x), rows));
-  return h + mlp(normed);
+  auto [h, normed2] = norm2->add_then_forward_into_linear(kept, attn->forward(normed1, rows));
+  return {h, mlp(normed2)};
 }
 
 void init_linear_weights(torch::nn::Module& module, double std) {
@@ -142,6 +151,14 @@ torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int
               x.size(1));
   if (stack->size() == 0) return rows.all(x.size(1)) ? x : x.narrow(1, rows.start, rows.count);
   const size_t last = stack->size() - 1;
+  if (checkpoint_every <= 0 || !torch::GradMode::is_enabled()) {
+    // Nothing checkpointed: each block's closing residual add is deferred into the next block's first norm.
+    torch::Tensor stream = std::move(x), pending;
+    for (size_t i = 0; i <= last; ++i)
+      std::tie(stream, pending) =
+          stack->ptr<TransformerBlockImpl>(i)->forward_deferred(stream, pending, i == last ? rows : OutputRows{});
+    return stream + pending;
+  }
   return run_checkpointed_stack(
       stack, std::move(x), checkpoint_every, [stack, last, rows](size_t i, const torch::Tensor& t) {
         return stack->ptr<TransformerBlockImpl>(i)->forward(t, i == last ? rows : OutputRows{});

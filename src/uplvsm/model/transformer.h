@@ -75,6 +75,11 @@ TORCH_MODULE(MLP);
 struct TransformerBlockImpl : torch::nn::Module {
   TransformerBlockImpl(int64_t d, int64_t d_head, double qk_norm_eps);
   torch::Tensor forward(const torch::Tensor& x, OutputRows rows = {});
+  // The block on the residual stream x = stream + pending, where `pending` is the previous block's MLP output not
+  // yet added (or undefined): returns {h, mlp output}, whose sum is forward's result. Deferring the closing add lets
+  // it join the next block's first norm (LayerNormImpl::add_then_forward_into_linear).
+  std::pair<torch::Tensor, torch::Tensor> forward_deferred(const torch::Tensor& stream, const torch::Tensor& pending,
+                                                           OutputRows rows = {});
   LayerNorm norm1{nullptr}, norm2{nullptr};
   QKNormAttention attn{nullptr};
   MLP mlp{nullptr};
