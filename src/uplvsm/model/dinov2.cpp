@@ -1,5 +1,6 @@
 #include "uplvsm/model/dinov2.h"
 
+#include "uplvsm/model/gelu.h"
 #include "uplvsm/model/gradient_checkpoint.h"
 #include "uplvsm/model/qk_norm.h"
 
@@ -41,6 +42,8 @@ DinoMlpImpl::DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out) {
 LayerScaleImpl::LayerScaleImpl(int64_t dim, double init) {
   gamma = register_parameter("gamma", torch::full({dim}, init));
 }
+
+torch::Tensor DinoMlpImpl::forward(const torch::Tensor& x) { return fc2(model::gelu(fc1(x))); }
 
 DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
   norm1 = register_module("norm1", LayerNorm(c.embed_dim, 1e-6, true));

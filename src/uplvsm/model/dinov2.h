@@ -6,7 +6,6 @@
 #include <torch/torch.h>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/gelu.h"
 #include "uplvsm/model/transformer.h"
 
 namespace uplvsm::model {
@@ -22,7 +21,7 @@ TORCH_MODULE(DinoAttention);
 
 struct DinoMlpImpl : torch::nn::Module {
   DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out);
-  torch::Tensor forward(const torch::Tensor& x) { return fc2(model::gelu(fc1(x))); }
+  torch::Tensor forward(const torch::Tensor& x);
   CastOnceLinear fc1{nullptr}, fc2{nullptr};
 };
 TORCH_MODULE(DinoMlp);
