@@ -120,13 +120,14 @@ TEST(FlashAttention, Bf16StaysWithinDocumentedTolerance) {
 TEST(FlashAttention, Bf16GradientsAtTheDemoHeadWidthAndSeveralKeyTiles) {
   if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
   torch::manual_seed(7);
-  // d_head 32 (the demo model) and 16; 200 keys = three 64-key backward tiles and a tail of 8, so the transposed
-  // dK / dV stores meet full and partial 16 x 16 blocks; Lq != Lk.
+  // d_head 32 (the demo model) and 16; 1000 keys = a full 768-key forward tile and a tail of 232 (the online
+  // softmax rescales), seven 128-key backward tiles and a tail of 104, so the transposed dK / dV stores meet full and
+  // partial 16 x 16 blocks; 203 queries = two forward tasks and three backward query tiles, the last of odd length.
   for (int64_t D : {32, 16}) {
-    auto q = torch::randn({2, 3, 75, D}).mul(2).to(torch::kBFloat16),
-         k = torch::randn({2, 3, 200, D}).mul(2).to(torch::kBFloat16),
-         v = torch::randn({2, 3, 200, D}).to(torch::kBFloat16);
-    auto w = torch::randn({2, 3, 75, D}, torch::kFloat64);
+    auto q = torch::randn({2, 3, 203, D}).mul(2).to(torch::kBFloat16),
+         k = torch::randn({2, 3, 1000, D}).mul(2).to(torch::kBFloat16),
+         v = torch::randn({2, 3, 1000, D}).to(torch::kBFloat16);
+    auto w = torch::randn({2, 3, 203, D}, torch::kFloat64);
     SCOPED_TRACE(testing::Message() << "D = " << D);
     expect_close(run(model::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 2e-2, true);
   }

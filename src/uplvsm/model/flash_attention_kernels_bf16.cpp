@@ -258,22 +258,23 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
   const int64_t D = p.D, ld_k = round_up(p.Lk, 16);
   const uint32_t* Kp = scratch<uint32_t>(kKp, D / 2 * ld_k);
   const uint32_t* Vp = scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D);
-  uint16_t* Q = scratch<uint16_t>(kQ, kQueryTile * D);
-  float* S = scratch<float>(kS, kQueryTile * kKeyTile);
-  float* O = scratch<float>(kO, kQueryTile * D);
-  uint16_t* P = scratch<uint16_t>(kP, kQueryTile * kKeyTile);
-  float m[kQueryTile], l[kQueryTile];
-  for (int64_t i0 = row_begin; i0 < row_end; i0 += kQueryTile) {
-    const int64_t rows = std::min(kQueryTile, row_end - i0);
+  uint16_t* Q = scratch<uint16_t>(kQ, kBf16QueryTile * D);
+  float* S = scratch<float>(kS, kBf16QueryTile * kBf16KeyTile);
+  float* O = scratch<float>(kO, kBf16QueryTile * D);
+  uint16_t* P = scratch<uint16_t>(kP, kBf16QueryTile * kBf16KeyTile);
+  float m[kBf16QueryTile], l[kBf16QueryTile];
+  for (int64_t i0 = row_begin; i0 < row_end; i0 += kBf16QueryTile) {
+    const int64_t rows = std::min(kBf16QueryTile, row_end - i0);
     for (int64_t r = 0; r < rows; ++r) std::memcpy(Q + r * D, row_ptr(p, p.q, p.sq, bh, i0 + r), D * sizeof(uint16_t));
     std::fill(O, O + rows * D, 0.0f);
     std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
     std::fill(l, l + rows, 0.0f);
-    for (int64_t j0 = 0; j0 < p.Lk; j0 += kKeyTile) {
-      const int64_t keys = std::min(kKeyTile, p.Lk - j0);
-      gemm_bf16(rows, round_up(keys, 16), D / 2, words(Q), D / 2, Kp + j0, ld_k, S, kKeyTile, false);  // q k^T
-      online_softmax_step_bf16(rows, keys, p.scale * kLog2e, S, kKeyTile, P, kKeyTile, m, l, O, D);
-      gemm_bf16(rows, D, round_up(keys, 2) / 2, words(P), kKeyTile / 2, Vp + j0 / 2 * D, D, O, D, true);  // O += P v
+    for (int64_t j0 = 0; j0 < p.Lk; j0 += kBf16KeyTile) {
+      const int64_t keys = std::min(kBf16KeyTile, p.Lk - j0);
+      gemm_bf16(rows, round_up(keys, 16), D / 2, words(Q), D / 2, Kp + j0, ld_k, S, kBf16KeyTile, false);  // q k^T
+      online_softmax_step_bf16(rows, keys, p.scale * kLog2e, S, kBf16KeyTile, P, kBf16KeyTile, m, l, O, D);
+      gemm_bf16(rows, D, round_up(keys, 2) / 2, words(P), kBf16KeyTile / 2, Vp + j0 / 2 * D, D, O, D,
+                true);  // O += P v
     }
     for (int64_t r = 0; r < rows; ++r) {
       store_row_bf16(static_cast<uint16_t*>(o) + head_offset(p, so, bh, i0 + r), O + r * D, D, 1.0f / l[r]);
@@ -287,7 +288,7 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
 void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
                         const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
   const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk, ld_k = round_up(Lk, 16), Lq2 = (Lq + 1) / 2;
-  constexpr int64_t kTq = kBwdQueryTile, kTk = kBwdKeyTile;
+  constexpr int64_t kTq = kBf16BwdQueryTile, kTk = kBf16BwdKeyTile;
   uint16_t* Qrows = scratch<uint16_t>(kQrows, std::max(Lq, Lk) * D);
   uint16_t* dOrows = scratch<uint16_t>(kDOrows, Lq * D);
   uint32_t* Qtp = scratch<uint32_t>(kQtp, D * Lq2);
