@@ -25,6 +25,11 @@ inline bool cpu_has_avx512() {
   return has;
 }
 
+// The lanes of a 16-wide block that `remaining` elements fill (all 16 when at least 16 remain).
+UPLVSM_ROW_AVX512 inline __mmask16 tail_mask(int64_t remaining) {
+  return remaining >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << remaining) - 1);
+}
+
 template <typename T>
 UPLVSM_ROW_AVX512 inline __m512 load16(const T* p) {
   if constexpr (std::is_same_v<T, float>) {

@@ -21,6 +21,7 @@
 namespace uplvsm::model::flash::detail {
 
 using row_simd::exp_ps;
+using row_simd::tail_mask;
 
 constexpr int64_t kRows = 6;        // micro-kernel rows: 6 x 4 accumulators + 4 B vectors fit 32 zmm registers
 constexpr int64_t kQueryTile = 48;  // forward: query rows per online-softmax step
@@ -60,10 +61,6 @@ UPLVSM_AVX512 inline __m512 exp2_ps(__m512 t) {
 }
 
 constexpr float kLog2e = 1.44269504088896341f;
-
-UPLVSM_AVX512 inline __mmask16 tail_mask(int64_t remaining) {
-  return remaining >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << remaining) - 1);
-}
 
 // Per-thread scratch, grown on demand and reused across calls; slots keep simultaneously live buffers apart.
 template <typename T>

@@ -38,8 +38,6 @@ UPLVSM_ROW_AVX512 inline void store_tail(BF16* p, __m512 v, __mmask16 mask) {
   _mm256_mask_storeu_epi16(p, mask, row_simd::to_bf16_bits(v));
 }
 
-UPLVSM_ROW_AVX512 inline __mmask16 mask_of(int64_t remaining) { return __mmask16((1u << remaining) - 1); }
-
 // The normal distribution function Phi(x) = (1 + erf(x / sqrt 2)) / 2 through A&S 7.1.28 with z = |x| / sqrt 2:
 // 1 - erf(z) = (1 + a1 z + ... + a6 z^6)^-16. Infinite q gives 0 and 1 in the tails; NaN stays NaN.
 UPLVSM_ROW_AVX512 inline __m512 normal_cdf(__m512 x) {
@@ -73,7 +71,10 @@ UPLVSM_ROW_AVX512 inline __m512 gelu_backward16(__m512 x, __m512 g) {
 UPLVSM_ROW_AVX512 void forward_range(const BF16* x, int64_t begin, int64_t end, BF16* y) {
   int64_t i = begin;
   for (; i + 16 <= end; i += 16) row_simd::store16(y + i, gelu16(row_simd::load16(x + i)));
-  if (i < end) store_tail(y + i, gelu16(load_tail(x + i, mask_of(end - i))), mask_of(end - i));
+  if (i < end) {
+    const __mmask16 mask = row_simd::tail_mask(end - i);
+    store_tail(y + i, gelu16(load_tail(x + i, mask)), mask);
+  }
 }
 
 UPLVSM_ROW_AVX512 void backward_range(const BF16* x, const BF16* g, int64_t begin, int64_t end, BF16* gx) {
@@ -81,7 +82,7 @@ UPLVSM_ROW_AVX512 void backward_range(const BF16* x, const BF16* g, int64_t begi
   for (; i + 16 <= end; i += 16)
     row_simd::store16(gx + i, gelu_backward16(row_simd::load16(x + i), row_simd::load16(g + i)));
   if (i < end) {
-    const __mmask16 mask = mask_of(end - i);
+    const __mmask16 mask = row_simd::tail_mask(end - i);
     store_tail(gx + i, gelu_backward16(load_tail(x + i, mask), load_tail(g + i, mask)), mask);
   }
 }

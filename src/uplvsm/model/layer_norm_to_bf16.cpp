@@ -51,11 +51,11 @@ void forward_rows(const float* x, const B* branch, float* h, const float* w, con
 }
 
 // Per row, with x_hat = (x - mean) rstd and h = g w: g_x = rstd (h - mean(h) - x_hat mean(h x_hat)), plus the
-// gradient g_res that reaches x past the norm (a residual stream's) when given, also written rounded to the
-// branch's dtype when g_branch is given; the weight and bias gradients add g x_hat and g.
-template <typename G, typename B>
+// gradient g_res that reaches x past the norm (a residual stream's) when given, also written rounded to bf16 when
+// g_branch (a bf16 residual branch's gradient) is given; the weight and bias gradients add g x_hat and g.
+template <typename G>
 void backward_rows(const float* x, const float* w, const float* mean, const float* rstd, const G* g, const float* g_res,
-                   int64_t D, int64_t begin, int64_t end, float* gx, B* g_branch, float* gw, float* gb) {
+                   int64_t D, int64_t begin, int64_t end, float* gx, BF16* g_branch, float* gw, float* gb) {
   for (int64_t row = begin; row < end; ++row) {
     const float *xr = x + row * D, m = mean[row], r = rstd[row];
     const G* gr = g + row * D;
@@ -72,7 +72,7 @@ void backward_rows(const float* x, const float* w, const float* mean, const floa
       float v = r * (static_cast<float>(gr[j]) * w[j] - a - x_hat * c);
       if (g_res) v += g_res[row * D + j];
       gx[row * D + j] = v;
-      if (g_branch) g_branch[row * D + j] = static_cast<B>(v);
+      if (g_branch) g_branch[row * D + j] = static_cast<BF16>(v);
     }
   }
 }
@@ -117,10 +117,10 @@ UPLVSM_ROW_AVX512 void forward_rows_avx512(const float* x, const B* branch, floa
   }
 }
 
-template <typename G, typename B>
+template <typename G>
 UPLVSM_ROW_AVX512 void backward_rows_avx512(const float* x, const float* w, const float* mean, const float* rstd,
                                             const G* g, const float* g_res, int64_t D, int64_t begin, int64_t end,
-                                            float* gx, B* g_branch, float* gw, float* gb) {
+                                            float* gx, BF16* g_branch, float* gw, float* gb) {
   for (int64_t row = begin; row < end; ++row) {
     const float* xr = x + row * D;
     const G* gr = g + row * D;
@@ -212,7 +212,7 @@ NormGradients normalise_backward(const torch::Tensor& x, const torch::Tensor& we
   auto gb_partial = torch::zeros({bias_grad ? blocks : 0, D}, weight.options());
   auto run = [&](auto* g_tag) {
     using G = std::remove_pointer_t<decltype(g_tag)>;
-    const auto rows_kernel = vectorised(D) ? backward_rows_avx512<G, BF16> : backward_rows<G, BF16>;
+    const auto rows_kernel = vectorised(D) ? backward_rows_avx512<G> : backward_rows<G>;
     at::parallel_for(0, blocks, 1, [&](int64_t block_begin, int64_t block_end) {
       for (int64_t b = block_begin; b < block_end; ++b)
         rows_kernel(x.data_ptr<float>(), weight.data_ptr<float>(), mean.data_ptr<float>(), rstd.data_ptr<float>(),

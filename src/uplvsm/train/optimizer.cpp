@@ -96,7 +96,7 @@ UPLVSM_ROW_AVX512 __attribute__((optimize("fp-contract=off"))) void adamw_update
   const __m512 sqrt_bc2 = _mm512_set1_ps(k.sqrt_bias_correction2), eps = _mm512_set1_ps(k.eps);
   const __m512 minus_step_size = _mm512_set1_ps(k.minus_step_size);
   for (int64_t i = begin; i < end; i += 16) {
-    const __mmask16 lanes = end - i >= 16 ? __mmask16(0xFFFF) : __mmask16((1u << (end - i)) - 1);
+    const __mmask16 lanes = model::row_simd::tail_mask(end - i);
     const __m512 gi = _mm512_maskz_loadu_ps(lanes, g + i);
     const __m512 pi = _mm512_mul_ps(_mm512_maskz_loadu_ps(lanes, p + i), decay);
     const __m512 mi = _mm512_fmadd_ps(gi, one_minus_beta1, _mm512_mul_ps(_mm512_maskz_loadu_ps(lanes, m + i), beta1));
