@@ -75,6 +75,30 @@ TEST(QKNorm, WeightGradientDoesNotDependOnTheThreadCount) {
   EXPECT_TRUE(torch::equal(one.grad_x, several.grad_x));
 }
 
+// The kernels take the rows' sums sixteen at a time; a row's output and gradient must not depend on its group.
+TEST(QKNorm, EachRowComesOutAsIfNormalisedAlone) {
+  for (auto dtype : {torch::kFloat32, torch::kBFloat16})
+    for (int64_t D : {32, 64}) {
+      torch::manual_seed(5);
+      auto projection = (torch::randn({1, 37, 3 * 2 * D}) * 2).to(dtype).requires_grad_(true);
+      auto weight = (1 + 0.3 * torch::randn({D})).requires_grad_(true);
+      auto x = projection.chunk(3, -1)[0].view({1, 37, 2, D});
+      auto upstream = torch::randn({1, 37, 2, D}).to(dtype);
+      auto y = qk_norm(x, weight, 1e-3, dtype);
+      y.backward(upstream);
+      auto grad_all = projection.grad().chunk(3, -1)[0].view({1, 37, 2, D}).clone();
+      for (int64_t l = 0; l < 37; l += 5) {
+        projection.mutable_grad() = torch::Tensor();
+        auto row = x.narrow(1, l, 1);
+        auto y_row = qk_norm(row, weight, 1e-3, dtype);
+        y_row.backward(upstream.narrow(1, l, 1));
+        auto grad_row = projection.grad().chunk(3, -1)[0].view({1, 37, 2, D}).narrow(1, l, 1);
+        EXPECT_TRUE(torch::equal(y_row, y.narrow(1, l, 1))) << "row " << l << ", D " << D << ", " << dtype;
+        EXPECT_TRUE(torch::equal(grad_row, grad_all.narrow(1, l, 1))) << "row " << l << ", D " << D << ", " << dtype;
+      }
+    }
+}
+
 TEST(QKNorm, NonFiniteRowsStayNonFiniteAndOthersUntouched) {
   auto x = torch::randn({4, 32});
   x[1][5] = std::numeric_limits<float>::infinity();

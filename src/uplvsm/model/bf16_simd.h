@@ -40,14 +40,40 @@ UPLVSM_ROW_AVX512 inline __m512 load16(const T* p) {
   }
 }
 
-// fp32 -> bf16 bits as c10::BFloat16 rounds: to nearest even, NaN to 0x7FC0 (denormals kept, unlike vcvtneps2bf16).
-UPLVSM_ROW_AVX512 inline __m256i to_bf16_bits(__m512 v) {
+// Whether this CPU has AVX-512 BF16's vcvtneps2bf16 (one instruction for the rounding below, where it agrees).
+inline const bool cpu_has_avx512_bf16 = [] {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512bf16") != 0;
+}();
+
+// fp32 -> fp32 bits rounded to bf16's as c10::BFloat16 rounds (to nearest even, NaN to 0x7FC0), low half zero.
+UPLVSM_ROW_AVX512 inline __m512i rounded_bits(__m512 v) {
   const __m512i bits = _mm512_castps_si512(v);
   const __m512i lsb = _mm512_and_si512(_mm512_srli_epi32(bits, 16), _mm512_set1_epi32(1));
-  __m512i rounded = _mm512_srli_epi32(_mm512_add_epi32(bits, _mm512_add_epi32(lsb, _mm512_set1_epi32(0x7FFF))), 16);
+  const __m512i rounded = _mm512_and_si512(_mm512_add_epi32(bits, _mm512_add_epi32(lsb, _mm512_set1_epi32(0x7FFF))),
+                                           _mm512_set1_epi32(static_cast<int>(0xFFFF0000u)));
   const __mmask16 nan = _mm512_cmp_ps_mask(v, v, _CMP_UNORD_Q);
-  rounded = _mm512_mask_mov_epi32(rounded, nan, _mm512_set1_epi32(0x7FC0));
-  return _mm512_cvtepi32_epi16(rounded);
+  return _mm512_mask_mov_epi32(rounded, nan, _mm512_set1_epi32(0x7FC00000));
+}
+
+// fp32 -> bf16 bits as c10::BFloat16 rounds, with integer instructions only.
+UPLVSM_ROW_AVX512 inline __m256i to_bf16_bits_integer(__m512 v) {
+  return _mm512_cvtepi32_epi16(_mm512_srli_epi32(rounded_bits(v), 16));
+}
+
+// fp32 -> bf16 bits as c10::BFloat16 rounds: to nearest even, NaN to 0x7FC0, denormals kept. vcvtneps2bf16 rounds
+// the same way but flushes denormals and keeps a NaN's sign and payload, so it serves only blocks without either
+// (one vfpclassps decides); the integer rounding serves the rest and CPUs without AVX-512 BF16. The instruction is
+// written as assembly so that these helpers keep their AVX-512F target (GCC will not inline a function of a wider
+// target into them).
+UPLVSM_ROW_AVX512 inline __m256i to_bf16_bits(__m512 v) {
+  constexpr int kNanOrDenormal = 0x01 | 0x20 | 0x80;  // vfpclassps classes: quiet NaN, denormal, signalling NaN
+  if (cpu_has_avx512_bf16 && _mm512_fpclass_ps_mask(v, kNanOrDenormal) == 0) {
+    __m256i bits;
+    asm("vcvtneps2bf16 %g1, %t0" : "=v"(bits) : "v"(v));
+    return bits;
+  }
+  return to_bf16_bits_integer(v);
 }
 
 // v rounded to T and back to fp32.
@@ -56,7 +82,7 @@ UPLVSM_ROW_AVX512 inline __m512 round16(__m512 v) {
   if constexpr (std::is_same_v<T, float>) {
     return v;
   } else {
-    return _mm512_castsi512_ps(_mm512_slli_epi32(_mm512_cvtepu16_epi32(to_bf16_bits(v)), 16));
+    return _mm512_castsi512_ps(rounded_bits(v));
   }
 }
 

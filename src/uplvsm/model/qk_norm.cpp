@@ -28,24 +28,37 @@ bool forced_unfused() {
   return unfused;
 }
 
-// Element offset of each row of x viewed as [rows, D] (x's last dimension contiguous, any outer strides), walked
-// as an odometer: a division per row and dimension would cost as much as the row's arithmetic.
-std::vector<int64_t> row_offsets(const torch::Tensor& x) {
-  const int64_t outer = x.dim() - 1;
-  std::vector<int64_t> offsets(static_cast<size_t>(x.numel() / x.size(-1)));
-  std::vector<int64_t> index(static_cast<size_t>(outer), 0);
-  int64_t offset = 0;
-  for (auto& o : offsets) {
-    o = offset;
-    for (int64_t d = outer - 1; d >= 0; --d) {
-      offset += x.stride(d);
-      if (++index[d] < x.size(d)) break;
-      offset -= index[d] * x.stride(d);
-      index[d] = 0;
+// Element offsets of x's rows viewed as [rows, D] (x's last dimension contiguous, any outer strides), walked as an
+// odometer from any row: a division per row and dimension would cost as much as the row's arithmetic.
+class RowWalker {
+ public:
+  static constexpr int64_t kMaxOuterDims = 8;
+
+  RowWalker(const torch::Tensor& x, int64_t row) : dims_(x.dim() - 1) {
+    for (int64_t d = dims_ - 1; d >= 0; --d) {
+      size_[d] = x.size(d), stride_[d] = x.stride(d);
+      index_[d] = row % size_[d], row /= size_[d];
+      offset_ += index_[d] * stride_[d];
     }
   }
-  return offsets;
-}
+
+  // This row's offset; moves to the next row.
+  int64_t next() {
+    const int64_t current = offset_;
+    for (int64_t d = dims_ - 1; d >= 0; --d) {
+      offset_ += stride_[d];
+      if (++index_[d] < size_[d]) break;
+      offset_ -= index_[d] * stride_[d];
+      index_[d] = 0;
+    }
+    return current;
+  }
+
+ private:
+  int64_t dims_;
+  int64_t size_[kMaxOuterDims] = {}, stride_[kMaxOuterDims] = {}, index_[kMaxOuterDims] = {};
+  int64_t offset_ = 0;
+};
 
 template <typename T>
 T round_to(float v) {
@@ -54,10 +67,10 @@ T round_to(float v) {
 
 // out = ((x * r) rounded to T) * w rounded to TOut, r = 1 / sqrt(mean(x^2) + eps), per row; r kept for backward.
 template <typename T, typename TOut>
-void forward_rows(const T* x, const int64_t* offsets, const float* w, float eps, int64_t D, int64_t begin, int64_t end,
+void forward_rows(const T* x, RowWalker walk, const float* w, float eps, int64_t D, int64_t begin, int64_t end,
                   TOut* out, float* r) {
   for (int64_t row = begin; row < end; ++row) {
-    const T* xr = x + offsets[row];
+    const T* xr = x + walk.next();
     float sum_sq = 0.0f;
     for (int64_t j = 0; j < D; ++j) sum_sq += static_cast<float>(xr[j]) * static_cast<float>(xr[j]);
     const float rr = 1.0f / std::sqrt(sum_sq / static_cast<float>(D) + eps);
@@ -71,10 +84,10 @@ void forward_rows(const T* x, const int64_t* offsets, const float* w, float eps,
 // The autograd chain of the unfused forward, per row: g_y = (g_out * w) rounded to T; g_x = g_y r + x (2 / D)
 // (-0.5 g_r r^3) with g_r = sum(g_y x), rounded to T; the weight gradient adds g_out * y (y rounded to T).
 template <typename T, typename TOut>
-void backward_rows(const T* x, const int64_t* offsets, const float* w, const float* r, const TOut* gout, int64_t D,
+void backward_rows(const T* x, RowWalker walk, const float* w, const float* r, const TOut* gout, int64_t D,
                    int64_t begin, int64_t end, T* gx, float* gw) {
   for (int64_t row = begin; row < end; ++row) {
-    const T* xr = x + offsets[row];
+    const T* xr = x + walk.next();
     const TOut* g = gout + row * D;
     const float rr = r[row];
     float g_r = 0.0f;
@@ -99,48 +112,111 @@ using row_simd::load16;
 using row_simd::round16;
 using row_simd::store16;
 
+// Lane i of the result is the sum of v[i]'s lanes, in one fixed tree (lanes i and i + 8, then i and i + 4, then
+// (0 + 2) + (1 + 3), as GCC's _mm512_reduce_add_ps): sixteen rows' horizontal sums as one transposition, and a row's
+// sum does not depend on the rows beside it.
+UPLVSM_ROW_AVX512 inline __m512 reduce_rows(const __m512 v[16]) {
+  __m512 t8[8], t4[4], t2[2];
+  for (int k = 0; k < 8; ++k)  // rows 2k, 2k + 1: lanes i + (i + 8), in 256-bit halves
+    t8[k] = _mm512_add_ps(_mm512_shuffle_f32x4(v[2 * k], v[2 * k + 1], 0x44),
+                          _mm512_shuffle_f32x4(v[2 * k], v[2 * k + 1], 0xEE));
+  for (int k = 0; k < 4; ++k)  // rows 4k .. 4k + 3: lanes i + (i + 4), one row per 128-bit lane
+    t4[k] = _mm512_add_ps(_mm512_shuffle_f32x4(t8[2 * k], t8[2 * k + 1], 0x88),
+                          _mm512_shuffle_f32x4(t8[2 * k], t8[2 * k + 1], 0xDD));
+  for (int k = 0; k < 2; ++k)  // 0 + 2 and 1 + 3 within each row
+    t2[k] = _mm512_add_ps(_mm512_shuffle_ps(t4[2 * k], t4[2 * k + 1], _MM_SHUFFLE(1, 0, 1, 0)),
+                          _mm512_shuffle_ps(t4[2 * k], t4[2 * k + 1], _MM_SHUFFLE(3, 2, 3, 2)));
+  const __m512 sums = _mm512_add_ps(_mm512_shuffle_ps(t2[0], t2[1], _MM_SHUFFLE(2, 0, 2, 0)),
+                                    _mm512_shuffle_ps(t2[0], t2[1], _MM_SHUFFLE(3, 1, 3, 1)));
+  // Lane 4 l + t now holds row l + 4 t.
+  return _mm512_permutexvar_ps(_mm512_setr_epi32(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15), sums);
+}
+
+constexpr int64_t kGroup = 16;  // rows whose horizontal sums are taken together
+
+// Rows in groups of 16: the sums of squares of a group's rows, their r in one vector, then each row's output.
 template <typename T, typename TOut>
-UPLVSM_ROW_AVX512 void forward_rows_avx512(const T* x, const int64_t* offsets, const float* w, float eps, int64_t D,
+UPLVSM_ROW_AVX512 void forward_rows_avx512(const T* x, RowWalker walk, const float* w, float eps, int64_t D,
                                            int64_t begin, int64_t end, TOut* out, float* r) {
-  for (int64_t row = begin; row < end; ++row) {
-    const T* xr = x + offsets[row];
-    __m512 acc = _mm512_setzero_ps();
-    for (int64_t j = 0; j < D; j += 16) {
-      const __m512 xv = load16(xr + j);
-      acc = _mm512_fmadd_ps(xv, xv, acc);
+  for (int64_t row0 = begin; row0 < end; row0 += kGroup) {
+    const int64_t n = std::min(kGroup, end - row0);
+    const T* xr[kGroup];
+    __m512 acc[kGroup];
+    for (int64_t i = 0; i < kGroup; ++i) {
+      acc[i] = _mm512_setzero_ps();
+      if (i >= n) continue;
+      xr[i] = x + walk.next();
+      for (int64_t j = 0; j < D; j += 16) {
+        const __m512 xv = load16(xr[i] + j);
+        acc[i] = _mm512_fmadd_ps(xv, xv, acc[i]);
+      }
     }
-    const float rr = 1.0f / std::sqrt(_mm512_reduce_add_ps(acc) / static_cast<float>(D) + eps);
-    r[row] = rr;
-    const __m512 rv = _mm512_set1_ps(rr);
-    for (int64_t j = 0; j < D; j += 16)
-      store16(out + row * D + j, _mm512_mul_ps(round16<T>(_mm512_mul_ps(load16(xr + j), rv)), _mm512_loadu_ps(w + j)));
+    const __m512 mean = _mm512_div_ps(reduce_rows(acc), _mm512_set1_ps(static_cast<float>(D)));
+    const __m512 rr = _mm512_div_ps(_mm512_set1_ps(1.0f), _mm512_sqrt_ps(_mm512_add_ps(mean, _mm512_set1_ps(eps))));
+    alignas(64) float rs[kGroup];
+    _mm512_store_ps(rs, rr);
+    for (int64_t i = 0; i < n; ++i) {
+      r[row0 + i] = rs[i];
+      const __m512 rv = _mm512_set1_ps(rs[i]);
+      TOut* o = out + (row0 + i) * D;
+      for (int64_t j = 0; j < D; j += 16)
+        store16(o + j, _mm512_mul_ps(round16<T>(_mm512_mul_ps(load16(xr[i] + j), rv)), _mm512_loadu_ps(w + j)));
+    }
   }
 }
 
+// The weight gradient's running sum stays in registers up to this width (the paper's d_head is 64).
+constexpr int64_t kMaxRegisterWidth = 128;
+
+// Rows in groups of 16 as the forward; the weight gradient adds the rows in order, as the one-row loop did.
 template <typename T, typename TOut>
-UPLVSM_ROW_AVX512 void backward_rows_avx512(const T* x, const int64_t* offsets, const float* w, const float* r,
+UPLVSM_ROW_AVX512 void backward_rows_avx512(const T* x, RowWalker walk, const float* w, const float* r,
                                             const TOut* gout, int64_t D, int64_t begin, int64_t end, T* gx, float* gw) {
-  for (int64_t row = begin; row < end; ++row) {
-    const T* xr = x + offsets[row];
-    const TOut* g = gout + row * D;
-    const __m512 rv = _mm512_set1_ps(r[row]);
-    __m512 acc = _mm512_setzero_ps();
-    for (int64_t j = 0; j < D; j += 16) {
-      const __m512 xv = load16(xr + j), gv = load16(g + j);
-      acc = _mm512_fmadd_ps(round16<T>(_mm512_mul_ps(gv, _mm512_loadu_ps(w + j))), xv, acc);
-      if (gw) {
+  __m512 gw_acc[kMaxRegisterWidth / 16];
+  const bool gw_in_registers = gw && D <= kMaxRegisterWidth;
+  if (gw_in_registers)
+    for (int64_t j = 0; j < D; j += 16) gw_acc[j / 16] = _mm512_loadu_ps(gw + j);
+  for (int64_t row0 = begin; row0 < end; row0 += kGroup) {
+    const int64_t n = std::min(kGroup, end - row0);
+    const T* xr[kGroup];
+    __m512 acc[kGroup];
+    for (int64_t i = 0; i < kGroup; ++i) {
+      acc[i] = _mm512_setzero_ps();
+      if (i >= n) continue;
+      xr[i] = x + walk.next();
+      const TOut* g = gout + (row0 + i) * D;
+      const __m512 rv = _mm512_set1_ps(r[row0 + i]);
+      for (int64_t j = 0; j < D; j += 16) {
+        const __m512 xv = load16(xr[i] + j), gv = load16(g + j);
+        acc[i] = _mm512_fmadd_ps(round16<T>(_mm512_mul_ps(gv, _mm512_loadu_ps(w + j))), xv, acc[i]);
+        if (!gw) continue;
         const __m512 y = round16<T>(_mm512_mul_ps(xv, rv));
-        _mm512_storeu_ps(gw + j, _mm512_fmadd_ps(gv, y, _mm512_loadu_ps(gw + j)));
+        if (gw_in_registers)
+          gw_acc[j / 16] = _mm512_fmadd_ps(gv, y, gw_acc[j / 16]);
+        else
+          _mm512_storeu_ps(gw + j, _mm512_fmadd_ps(gv, y, _mm512_loadu_ps(gw + j)));
       }
     }
-    const float rr = r[row];
-    const __m512 g_sq2 =
-        _mm512_set1_ps(2.0f * (-0.5f * _mm512_reduce_add_ps(acc) * (rr * rr * rr) / static_cast<float>(D)));
-    for (int64_t j = 0; j < D; j += 16) {
-      const __m512 gy = round16<T>(_mm512_mul_ps(load16(g + j), _mm512_loadu_ps(w + j)));
-      store16(gx + row * D + j, _mm512_fmadd_ps(g_sq2, load16(xr + j), _mm512_mul_ps(gy, rv)));
+    // g_sq2 = 2 (-0.5 g_r r^3 / D), in the one-row loop's order of operations.
+    alignas(64) float rs[kGroup] = {};
+    std::memcpy(rs, r + row0, static_cast<size_t>(n) * sizeof(float));
+    const __m512 rv = _mm512_load_ps(rs);
+    const __m512 t =
+        _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(-0.5f), reduce_rows(acc)), _mm512_mul_ps(_mm512_mul_ps(rv, rv), rv));
+    alignas(64) float g_sq2[kGroup];
+    _mm512_store_ps(g_sq2,
+                    _mm512_mul_ps(_mm512_set1_ps(2.0f), _mm512_div_ps(t, _mm512_set1_ps(static_cast<float>(D)))));
+    for (int64_t i = 0; i < n; ++i) {
+      const TOut* g = gout + (row0 + i) * D;
+      const __m512 rvi = _mm512_set1_ps(rs[i]), g_sq2v = _mm512_set1_ps(g_sq2[i]);
+      for (int64_t j = 0; j < D; j += 16) {
+        const __m512 gy = round16<T>(_mm512_mul_ps(load16(g + j), _mm512_loadu_ps(w + j)));
+        store16(gx + (row0 + i) * D + j, _mm512_fmadd_ps(g_sq2v, load16(xr[i] + j), _mm512_mul_ps(gy, rvi)));
+      }
     }
   }
+  if (gw_in_registers)
+    for (int64_t j = 0; j < D; j += 16) _mm512_storeu_ps(gw + j, gw_acc[j / 16]);
 }
 
 // Calls f with (T*)-typed null pointers selecting x's and the output's element types.
@@ -162,14 +238,13 @@ struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
     const auto out_type = static_cast<torch::ScalarType>(out_dtype);
     auto out = torch::empty(x.sizes(), x.options().dtype(out_type));
     auto r = torch::empty({rows}, x.options().dtype(torch::kFloat32));
-    const auto offsets = row_offsets(x);
     dispatch_types(x.scalar_type(), out_type, [&](auto* in_tag, auto* out_tag) {
       using T = std::remove_pointer_t<decltype(in_tag)>;
       using TOut = std::remove_pointer_t<decltype(out_tag)>;
       at::parallel_for(0, rows, 64, [&](int64_t begin, int64_t end) {
         const auto rows_kernel = D % 16 == 0 && cpu_has_avx512() ? forward_rows_avx512<T, TOut> : forward_rows<T, TOut>;
-        rows_kernel(x.data_ptr<T>(), offsets.data(), weight.data_ptr<float>(), static_cast<float>(eps), D, begin, end,
-                    out.data_ptr<TOut>(), r.data_ptr<float>());
+        rows_kernel(x.data_ptr<T>(), RowWalker(x, begin), weight.data_ptr<float>(), static_cast<float>(eps), D, begin,
+                    end, out.data_ptr<TOut>(), r.data_ptr<float>());
       });
     });
     ctx->save_for_backward({x, weight, r});
@@ -185,14 +260,13 @@ struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
     const bool weight_grad = ctx->needs_input_grad(1);
     auto gx = torch::empty(x.sizes(), x.options().memory_format(torch::MemoryFormat::Contiguous));
     auto partial = torch::zeros({weight_grad ? blocks : 0, D}, weight.options());
-    const auto offsets = row_offsets(x);
     dispatch_types(x.scalar_type(), gout.scalar_type(), [&](auto* in_tag, auto* out_tag) {
       using T = std::remove_pointer_t<decltype(in_tag)>;
       using TOut = std::remove_pointer_t<decltype(out_tag)>;
       const auto rows_kernel = D % 16 == 0 && cpu_has_avx512() ? backward_rows_avx512<T, TOut> : backward_rows<T, TOut>;
       at::parallel_for(0, blocks, 1, [&](int64_t block_begin, int64_t block_end) {
         for (int64_t b = block_begin; b < block_end; ++b)
-          rows_kernel(x.data_ptr<T>(), offsets.data(), weight.data_ptr<float>(), r.data_ptr<float>(),
+          rows_kernel(x.data_ptr<T>(), RowWalker(x, b * kRowsPerBlock), weight.data_ptr<float>(), r.data_ptr<float>(),
                       gout.data_ptr<TOut>(), D, b * kRowsPerBlock, std::min(rows, (b + 1) * kRowsPerBlock),
                       gx.data_ptr<T>(), weight_grad ? partial.data_ptr<float>() + b * D : nullptr);
       });
@@ -214,8 +288,9 @@ struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
 bool qk_norm_fuses(const torch::Tensor& x, const torch::Tensor& weight) {
   const auto t = x.scalar_type();
   return !forced_unfused() && x.device().is_cpu() && (t == torch::kFloat32 || t == torch::kBFloat16) && x.dim() >= 1 &&
-         x.size(-1) > 0 && x.stride(-1) == 1 && weight.scalar_type() == torch::kFloat32 && weight.is_contiguous() &&
-         weight.dim() == 1 && weight.size(0) == x.size(-1) && weight.device().is_cpu();
+         x.dim() <= RowWalker::kMaxOuterDims + 1 && x.size(-1) > 0 && x.stride(-1) == 1 &&
+         weight.scalar_type() == torch::kFloat32 && weight.is_contiguous() && weight.dim() == 1 &&
+         weight.size(0) == x.size(-1) && weight.device().is_cpu();
 }
 
 torch::Tensor qk_norm_unfused(const torch::Tensor& x, const torch::Tensor& weight, double eps,
