@@ -133,6 +133,35 @@ TEST(FlashAttention, Bf16GradientsAtTheDemoHeadWidthAndSeveralKeyTiles) {
   }
 }
 
+// The bf16 kernels pack K, V, q and dO straight from their strided rows and read q and dO in place where rows start
+// on whole 32-bit words (else from a copy): rows an odd number of elements apart (every other row half-word
+// aligned) must give exactly what the contiguous copies give, at head widths of one, two and three 16-lane blocks of
+// words' halves (16, 32, 48: a partial block of words in the transposed packing) and odd lengths.
+TEST(FlashAttention, Bf16PackingOfOddStridesEqualsContiguousOperandsBitForBit) {
+  if (!fused_available(torch::kBFloat16, 16)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  torch::manual_seed(9);
+  const int64_t B = 2, H = 2;
+  for (int64_t D : {16, 32, 48})
+    for (auto [Lq, Lk] : {std::pair<int64_t, int64_t>{37, 29}, {5, 70}}) {
+      // [B, L, H D + 1] narrowed to [B, L, H, D] and viewed as [B, H, L, D]: row stride H D + 1, odd.
+      auto odd_view = [&](int64_t L, double scale) {
+        auto full = (torch::randn({B, L, H * D + 1}) * scale).to(torch::kBFloat16);
+        return full.narrow(2, 0, H * D).view({B, L, H, D}).transpose(1, 2);
+      };
+      auto q = odd_view(Lq, 2), k = odd_view(Lk, 2), v = odd_view(Lk, 1);
+      ASSERT_EQ(q.stride(2) % 2, 1);
+      auto w = torch::randn({B, H, Lq, D}, torch::kFloat64);
+      auto strided = run(model::fused_attention, q, k, v, w);
+      auto packed = run(model::fused_attention, q.contiguous(), k.contiguous(), v.contiguous(), w);
+      SCOPED_TRACE(testing::Message() << "D " << D << ", Lq " << Lq << ", Lk " << Lk);
+      EXPECT_TRUE(torch::equal(strided.o, packed.o));
+      EXPECT_TRUE(torch::equal(strided.dq, packed.dq));
+      EXPECT_TRUE(torch::equal(strided.dk, packed.dk));
+      EXPECT_TRUE(torch::equal(strided.dv, packed.dv));
+      expect_close(packed, run(reference_attention, q, k, v, w), 2e-2, true);
+    }
+}
+
 TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsewhere) {
   if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no AVX-512 on this CPU";
   torch::manual_seed(6);

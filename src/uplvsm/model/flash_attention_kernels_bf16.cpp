@@ -83,35 +83,6 @@ const uint16_t* row_ptr(const Problem& p, const void* base, Strides s, int64_t b
   return static_cast<const uint16_t*>(base) + head_offset(p, s, bh, row);
 }
 
-// Rows [0, L) as a contiguous [L x D] bf16 matrix: an A operand with pairs along D.
-void copy_rows(const Problem& p, const void* base, Strides s, int64_t bh, int64_t L, uint16_t* dst) {
-  for (int64_t i = 0; i < L; ++i) std::memcpy(dst + i * p.D, row_ptr(p, base, s, bh, i), p.D * sizeof(uint16_t));
-}
-
-uint32_t pair(uint16_t low, uint16_t high) { return static_cast<uint32_t>(low) | static_cast<uint32_t>(high) << 16; }
-
-// B = X^T with pairs along D: word (d2, j) = (X[j][2 d2], X[j][2 d2 + 1]); [D/2 x ld], columns >= L zero.
-void pack_transposed(const uint16_t* rows, int64_t L, int64_t D, int64_t ld, uint32_t* dst) {
-  std::fill(dst, dst + D / 2 * ld, 0u);
-  for (int64_t j = 0; j < L; ++j)
-    for (int64_t d2 = 0; d2 < D / 2; ++d2) dst[d2 * ld + j] = pair(rows[j * D + 2 * d2], rows[j * D + 2 * d2 + 1]);
-}
-
-// B = X with pairs along rows: word (i2, d) = (X[2 i2][d], X[2 i2 + 1][d]); [ceil(L/2) x D], a missing row zero.
-void pack_row_pairs(const uint16_t* rows, int64_t L, int64_t D, uint32_t* dst) {
-  for (int64_t i2 = 0; i2 < (L + 1) / 2; ++i2)
-    for (int64_t d = 0; d < D; ++d)
-      dst[i2 * D + d] = pair(rows[2 * i2 * D + d], 2 * i2 + 1 < L ? rows[(2 * i2 + 1) * D + d] : uint16_t(0));
-}
-
-// A = X^T with pairs along rows: word (d, i2) = (X[2 i2][d], X[2 i2 + 1][d]); [D x ceil(L/2)].
-void pack_transposed_row_pairs(const uint16_t* rows, int64_t L, int64_t D, uint32_t* dst) {
-  const int64_t L2 = (L + 1) / 2;
-  for (int64_t i2 = 0; i2 < L2; ++i2)
-    for (int64_t d = 0; d < D; ++d)
-      dst[d * L2 + i2] = pair(rows[2 * i2 * D + d], 2 * i2 + 1 < L ? rows[(2 * i2 + 1) * D + d] : uint16_t(0));
-}
-
 // ---- fp32 tiles -> bf16 operands ----
 
 // One online-softmax step of the bf16 forward, in base 2: scores S (rows x keys, fp32, unscaled) -> P = 2^(c S - m)
@@ -242,15 +213,96 @@ UPLVSM_AVX512 void store_transposed(const Problem& p, void* base, Strides s, int
 
 const uint32_t* words(const uint16_t* x) { return reinterpret_cast<const uint32_t*>(x); }
 
+// ---- packing one head's operand straight from its strided rows (AVX-512) ----
+
+// Rows of one head's bf16 operand: row i at first + i * stride.
+struct HeadRows {
+  const uint16_t* first;
+  int64_t stride;
+};
+
+HeadRows head_rows(const Problem& p, const void* base, Strides s, int64_t bh) {
+  return {row_ptr(p, base, s, bh, 0), s.l};
+}
+
+// Rows [row, row + count) as an A operand with pairs along D: the operand itself where its rows start on whole
+// words, else a copy into scratch `slot`.
+struct RowOperand {
+  const uint32_t* words;
+  int64_t ld;
+};
+
+RowOperand row_operand(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row, int64_t count,
+                       int slot) {
+  const uint16_t* first = row_ptr(p, base, s, bh, row);
+  if (s.l % 2 == 0 && reinterpret_cast<uintptr_t>(first) % 4 == 0) return {words(first), s.l / 2};
+  uint16_t* rows = scratch<uint16_t>(slot, count * p.D);
+  for (int64_t i = 0; i < count; ++i) std::memcpy(rows + i * p.D, first + i * s.l, p.D * sizeof(uint16_t));
+  return {words(rows), p.D / 2};
+}
+
+// Words (X[lo][d] | X[hi][d] << 16) for 16 columns d; hi null gives zero high halves (a missing odd row).
+UPLVSM_AVX512 inline __m512i pair_words(const uint16_t* lo, const uint16_t* hi) {
+  const __m512i low = _mm512_cvtepu16_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(lo)));
+  if (!hi) return low;
+  return _mm512_or_si512(
+      low, _mm512_slli_epi32(_mm512_cvtepu16_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(hi))), 16));
+}
+
+// B = X^T with pairs along D: word (d2, j) = (X[j][2 d2], X[j][2 d2 + 1]); [D/2 x ld], ld = round_up(L, 16),
+// columns >= L zero. 16 x 16 blocks of words transposed in registers.
+UPLVSM_AVX512 void pack_transposed(HeadRows x, int64_t L, int64_t D, int64_t ld, uint32_t* dst) {
+  const int64_t W = D / 2;
+  for (int64_t j0 = 0; j0 < ld; j0 += 16)
+    for (int64_t w0 = 0; w0 < W; w0 += 16) {
+      const int64_t width = std::min<int64_t>(16, W - w0);
+      __m512 block[16];
+      for (int64_t i = 0; i < 16; ++i) {
+        const uint16_t* src = x.first + (j0 + i) * x.stride + 2 * w0;
+        block[i] = j0 + i >= L   ? _mm512_setzero_ps()
+                   : width == 16 ? _mm512_loadu_ps(src)
+                                 : _mm512_castsi512_ps(_mm512_maskz_loadu_epi32(tail_mask(width), src));
+      }
+      transpose_16x16(block);
+      for (int64_t k = 0; k < width; ++k)
+        _mm512_storeu_ps(reinterpret_cast<float*>(dst + (w0 + k) * ld + j0), block[k]);
+    }
+}
+
+// B = X with pairs along rows: word (i2, d) = (X[2 i2][d], X[2 i2 + 1][d]); [ceil(L/2) x D], a missing row zero.
+UPLVSM_AVX512 void pack_row_pairs(HeadRows x, int64_t L, int64_t D, uint32_t* dst) {
+  for (int64_t i2 = 0; i2 < (L + 1) / 2; ++i2) {
+    const uint16_t* lo = x.first + 2 * i2 * x.stride;
+    const uint16_t* hi = 2 * i2 + 1 < L ? lo + x.stride : nullptr;
+    for (int64_t d = 0; d < D; d += 16)
+      _mm512_storeu_si512(dst + i2 * D + d, pair_words(lo + d, hi ? hi + d : nullptr));
+  }
+}
+
+// A = X^T with pairs along rows: word (d, i2) = (X[2 i2][d], X[2 i2 + 1][d]); [D x ld2], ld2 = round_up(ceil(L/2),
+// 16), columns past ceil(L/2) zero.
+UPLVSM_AVX512 void pack_transposed_row_pairs(HeadRows x, int64_t L, int64_t D, int64_t ld2, uint32_t* dst) {
+  const int64_t L2 = (L + 1) / 2;
+  for (int64_t i20 = 0; i20 < ld2; i20 += 16)
+    for (int64_t d0 = 0; d0 < D; d0 += 16) {
+      __m512 block[16];
+      for (int64_t i = 0; i < 16; ++i) {
+        const int64_t i2 = i20 + i;
+        const uint16_t* lo = x.first + 2 * i2 * x.stride + d0;
+        block[i] = i2 >= L2 ? _mm512_setzero_ps()
+                            : _mm512_castsi512_ps(pair_words(lo, 2 * i2 + 1 < L ? lo + x.stride : nullptr));
+      }
+      transpose_16x16(block);
+      for (int64_t k = 0; k < 16; ++k) _mm512_storeu_ps(reinterpret_cast<float*>(dst + (d0 + k) * ld2 + i20), block[k]);
+    }
+}
+
 }  // namespace
 
 void pack_head_bf16(const Problem& p, int64_t bh) {
   const int64_t D = p.D, ld_k = round_up(p.Lk, 16);
-  uint16_t* rows = scratch<uint16_t>(kQrows, p.Lk * D);
-  copy_rows(p, p.k, p.sk, bh, p.Lk, rows);
-  pack_transposed(rows, p.Lk, D, ld_k, scratch<uint32_t>(kKp, D / 2 * ld_k));
-  copy_rows(p, p.v, p.sv, bh, p.Lk, rows);
-  pack_row_pairs(rows, p.Lk, D, scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D));
+  pack_transposed(head_rows(p, p.k, p.sk, bh), p.Lk, D, ld_k, scratch<uint32_t>(kKp, D / 2 * ld_k));
+  pack_row_pairs(head_rows(p, p.v, p.sv, bh), p.Lk, D, scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D));
 }
 
 void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t row_end, void* o, Strides so,
@@ -258,20 +310,19 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
   const int64_t D = p.D, ld_k = round_up(p.Lk, 16);
   const uint32_t* Kp = scratch<uint32_t>(kKp, D / 2 * ld_k);
   const uint32_t* Vp = scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D);
-  uint16_t* Q = scratch<uint16_t>(kQ, kBf16QueryTile * D);
   float* S = scratch<float>(kS, kBf16QueryTile * kBf16KeyTile);
   float* O = scratch<float>(kO, kBf16QueryTile * D);
   uint16_t* P = scratch<uint16_t>(kP, kBf16QueryTile * kBf16KeyTile);
   float m[kBf16QueryTile], l[kBf16QueryTile];
   for (int64_t i0 = row_begin; i0 < row_end; i0 += kBf16QueryTile) {
     const int64_t rows = std::min(kBf16QueryTile, row_end - i0);
-    for (int64_t r = 0; r < rows; ++r) std::memcpy(Q + r * D, row_ptr(p, p.q, p.sq, bh, i0 + r), D * sizeof(uint16_t));
+    const RowOperand Q = row_operand(p, p.q, p.sq, bh, i0, rows, kQ);
     std::fill(O, O + rows * D, 0.0f);
     std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
     std::fill(l, l + rows, 0.0f);
     for (int64_t j0 = 0; j0 < p.Lk; j0 += kBf16KeyTile) {
       const int64_t keys = std::min(kBf16KeyTile, p.Lk - j0);
-      gemm_bf16(rows, round_up(keys, 16), D / 2, words(Q), D / 2, Kp + j0, ld_k, S, kBf16KeyTile, false);  // q k^T
+      gemm_bf16(rows, round_up(keys, 16), D / 2, Q.words, Q.ld, Kp + j0, ld_k, S, kBf16KeyTile, false);  // q k^T
       online_softmax_step_bf16(rows, keys, p.scale * kLog2e, S, kBf16KeyTile, P, kBf16KeyTile, m, l, O, D);
       gemm_bf16(rows, D, round_up(keys, 2) / 2, words(P), kBf16KeyTile / 2, Vp + j0 / 2 * D, D, O, D,
                 true);  // O += P v
@@ -287,12 +338,10 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
 // pairs, so no tile is ever transposed; dQ += dS K uses dS row-major. Gradients of the scaled scores carry `scale`.
 void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
                         const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
-  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk, ld_k = round_up(Lk, 16), Lq2 = (Lq + 1) / 2;
+  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk, ld_k = round_up(Lk, 16), ld_q2 = round_up((Lq + 1) / 2, 16);
   constexpr int64_t kTq = kBf16BwdQueryTile, kTk = kBf16BwdKeyTile;
-  uint16_t* Qrows = scratch<uint16_t>(kQrows, std::max(Lq, Lk) * D);
-  uint16_t* dOrows = scratch<uint16_t>(kDOrows, Lq * D);
-  uint32_t* Qtp = scratch<uint32_t>(kQtp, D * Lq2);
-  uint32_t* dOtp = scratch<uint32_t>(kDOtp, D * Lq2);
+  uint32_t* Qtp = scratch<uint32_t>(kQtp, D * ld_q2);
+  uint32_t* dOtp = scratch<uint32_t>(kDOtp, D * ld_q2);
   uint32_t* Kp = scratch<uint32_t>(kKp, D / 2 * ld_k);
   uint32_t* Vtp = scratch<uint32_t>(kVtp, D / 2 * ld_k);
   uint32_t* Krp = scratch<uint32_t>(kKrp, (Lk + 1) / 2 * D);
@@ -305,15 +354,13 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
   float* dKt = scratch<float>(kDKt, D * kTk);
   float* dVt = scratch<float>(kDVt, D * kTk);
 
-  copy_rows(p, p.v, p.sv, bh, Lk, Qrows);  // Qrows is a staging buffer until q itself is copied
-  pack_transposed(Qrows, Lk, D, ld_k, Vtp);
-  copy_rows(p, p.k, p.sk, bh, Lk, Qrows);
-  pack_transposed(Qrows, Lk, D, ld_k, Kp);
-  pack_row_pairs(Qrows, Lk, D, Krp);
-  copy_rows(p, p.q, p.sq, bh, Lq, Qrows);
-  pack_transposed_row_pairs(Qrows, Lq, D, Qtp);
-  copy_rows(p, dout, sdo, bh, Lq, dOrows);
-  pack_transposed_row_pairs(dOrows, Lq, D, dOtp);
+  pack_transposed(head_rows(p, p.v, p.sv, bh), Lk, D, ld_k, Vtp);
+  pack_transposed(head_rows(p, p.k, p.sk, bh), Lk, D, ld_k, Kp);
+  pack_row_pairs(head_rows(p, p.k, p.sk, bh), Lk, D, Krp);
+  pack_transposed_row_pairs(head_rows(p, p.q, p.sq, bh), Lq, D, ld_q2, Qtp);
+  pack_transposed_row_pairs(head_rows(p, dout, sdo, bh), Lq, D, ld_q2, dOtp);
+  const RowOperand Qrows = row_operand(p, p.q, p.sq, bh, 0, Lq, kQrows);
+  const RowOperand dOrows = row_operand(p, dout, sdo, bh, 0, Lq, kDOrows);
   std::fill(dQ, dQ + Lq * D, 0.0f);
   const float* lse_h = lse + bh * Lq;
   const float* delta_h = delta + bh * Lq;
@@ -323,12 +370,13 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
     std::fill(dVt, dVt + D * kTk, 0.0f);
     for (int64_t i0 = 0; i0 < Lq; i0 += kTq) {
       const int64_t rows = std::min(kTq, Lq - i0), row_pairs = (rows + 1) / 2;
-      gemm_bf16(rows, key_pad, D / 2, words(Qrows + i0 * D), D / 2, Kp + j0, ld_k, S, kTk, false);     // q k^T
-      gemm_bf16(rows, key_pad, D / 2, words(dOrows + i0 * D), D / 2, Vtp + j0, ld_k, dP, kTk, false);  // dO v^T
+      gemm_bf16(rows, key_pad, D / 2, Qrows.words + i0 * Qrows.ld, Qrows.ld, Kp + j0, ld_k, S, kTk, false);  // q k^T
+      gemm_bf16(rows, key_pad, D / 2, dOrows.words + i0 * dOrows.ld, dOrows.ld, Vtp + j0, ld_k, dP, kTk,
+                false);  // dO v^T
       softmax_backward_to_bf16(rows, keys, key_pad, p.scale, S, dP, kTk, lse_h + i0, delta_h + i0, Ppairs, dSpairs,
                                dSrows);
-      gemm_bf16(D, key_pad, row_pairs, dOtp + i0 / 2, Lq2, Ppairs, kTk, dVt, kTk, true);  // dV^T += dO^T P
-      gemm_bf16(D, key_pad, row_pairs, Qtp + i0 / 2, Lq2, dSpairs, kTk, dKt, kTk, true);  // dK^T += q^T dS
+      gemm_bf16(D, key_pad, row_pairs, dOtp + i0 / 2, ld_q2, Ppairs, kTk, dVt, kTk, true);  // dV^T += dO^T P
+      gemm_bf16(D, key_pad, row_pairs, Qtp + i0 / 2, ld_q2, dSpairs, kTk, dKt, kTk, true);  // dK^T += q^T dS
       gemm_bf16(rows, D, round_up(keys, 2) / 2, words(dSrows), kTk / 2, Krp + j0 / 2 * D, D, dQ + i0 * D, D,
                 true);  // dQ += dS k
     }
