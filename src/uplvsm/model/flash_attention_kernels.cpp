@@ -121,11 +121,17 @@ void load_rows(const Problem& p, const void* base, Strides s, int64_t bh, int64_
   for (int64_t i = 0; i < L; ++i) load_row(p, base, s, bh, i, mul, dst + i * p.D);
 }
 
-// The transpose [D x ld] of a row-major [L x D] matrix, columns L..ld zero (so key tiles can be padded to 16).
-void transpose_rows(const float* rows, int64_t L, int64_t D, int64_t ld, float* dst) {
-  std::fill(dst, dst + D * ld, 0.0f);
-  for (int64_t i = 0; i < L; ++i)
-    for (int64_t d = 0; d < D; ++d) dst[d * ld + i] = rows[i * D + d];
+// The transpose [D x ld] of a row-major [L x D] matrix (ld = round_up(L, 16)), columns L..ld zero (so key tiles can
+// be padded to 16), 16 x 16 blocks at a time in registers.
+UPLVSM_AVX512 void transpose_rows(const float* rows, int64_t L, int64_t D, int64_t ld, float* dst) {
+  for (int64_t j0 = 0; j0 < ld; j0 += 16)
+    for (int64_t d0 = 0; d0 < D; d0 += 16) {
+      __m512 block[16];
+      for (int64_t i = 0; i < 16; ++i)
+        block[i] = j0 + i < L ? _mm512_loadu_ps(rows + (j0 + i) * D + d0) : _mm512_setzero_ps();
+      transpose_16x16(block);
+      for (int64_t k = 0; k < 16; ++k) _mm512_storeu_ps(dst + (d0 + k) * ld + j0, block[k]);
+    }
 }
 
 // fp32 forward, per thread: K^T (scratch 1) and V (scratch 0) of the head being worked on.

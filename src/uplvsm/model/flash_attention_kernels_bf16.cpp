@@ -168,33 +168,6 @@ UPLVSM_AVX512 void store_row_bf16(uint16_t* dst, const float* src, int64_t D, fl
   for (int64_t d = 0; d < D; d += 16) row_simd::store16(dst + d, _mm512_mul_ps(_mm512_loadu_ps(src + d), vmul));
 }
 
-// In-register transpose of 16 rows of 16 floats: afterwards r[k][i] is the old r[i][k].
-UPLVSM_AVX512 void transpose_16x16(__m512 r[16]) {
-  __m512 t[16];
-  for (int i = 0; i < 8; ++i) {  // interleave row pairs: 2x2 blocks
-    t[2 * i] = _mm512_unpacklo_ps(r[2 * i], r[2 * i + 1]);
-    t[2 * i + 1] = _mm512_unpackhi_ps(r[2 * i], r[2 * i + 1]);
-  }
-  for (int i = 0; i < 4; ++i) {  // 4x4 blocks within each 128-bit lane
-    r[4 * i] = _mm512_shuffle_ps(t[4 * i], t[4 * i + 2], 0x44);
-    r[4 * i + 1] = _mm512_shuffle_ps(t[4 * i], t[4 * i + 2], 0xEE);
-    r[4 * i + 2] = _mm512_shuffle_ps(t[4 * i + 1], t[4 * i + 3], 0x44);
-    r[4 * i + 3] = _mm512_shuffle_ps(t[4 * i + 1], t[4 * i + 3], 0xEE);
-  }
-  for (int i = 0; i < 4; ++i) {  // 128-bit lanes across row groups 0/1 and 2/3
-    t[i] = _mm512_shuffle_f32x4(r[i], r[4 + i], 0x88);
-    t[4 + i] = _mm512_shuffle_f32x4(r[i], r[4 + i], 0xDD);
-    t[8 + i] = _mm512_shuffle_f32x4(r[8 + i], r[12 + i], 0x88);
-    t[12 + i] = _mm512_shuffle_f32x4(r[8 + i], r[12 + i], 0xDD);
-  }
-  for (int i = 0; i < 4; ++i) {
-    r[i] = _mm512_shuffle_f32x4(t[i], t[8 + i], 0x88);
-    r[8 + i] = _mm512_shuffle_f32x4(t[i], t[8 + i], 0xDD);
-    r[4 + i] = _mm512_shuffle_f32x4(t[4 + i], t[12 + i], 0x88);
-    r[12 + i] = _mm512_shuffle_f32x4(t[4 + i], t[12 + i], 0xDD);
-  }
-}
-
 // Stores rows [j0, j0 + keys) of a gradient kept transposed ([D x ld] fp32), times `mul`, 16 x 16 blocks at a time.
 UPLVSM_AVX512 void store_transposed(const Problem& p, void* base, Strides s, int64_t bh, int64_t j0, int64_t keys,
                                     const float* t, int64_t ld, float mul) {
