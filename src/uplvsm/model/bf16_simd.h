@@ -8,9 +8,10 @@
 
 #include <type_traits>
 
-// GCC 12's AVX-512 intrinsics (reductions, extracts, masked forms) start from _mm512_undefined_*, which
-// -Wmaybe-uninitialized misreads in every file using these helpers.
+// GCC 12's AVX-512 intrinsics (reductions, extracts, shuffles, masked forms) start from _mm512_undefined_*, which
+// -Wmaybe-uninitialized (and, once inlined into loops, -Wuninitialized) misreads in every file using these helpers.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 
 #define UPLVSM_ROW_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
 

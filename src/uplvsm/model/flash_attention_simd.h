@@ -12,10 +12,8 @@
 #include "uplvsm/model/exp_simd.h"
 #include "uplvsm/model/flash_attention_kernels.h"
 
-// GCC 12's AVX-512 reduction and shuffle intrinsics start from _mm512_undefined_ps, which -Wmaybe-uninitialized and
-// (once inlined into the packing loops) -Wuninitialized misread.
+// GCC 12's AVX-512 reduction intrinsics start from _mm512_undefined_ps, which -Wmaybe-uninitialized misreads.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#pragma GCC diagnostic ignored "-Wuninitialized"
 
 #define UPLVSM_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
 #define UPLVSM_AVX512_BF16 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16")))

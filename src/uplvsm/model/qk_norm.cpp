@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/model/qk_norm_rows.h"
 
 namespace uplvsm::model {
 namespace {
@@ -108,115 +109,32 @@ void backward_rows(const T* x, RowWalker walk, const float* w, const float* r, c
 // ---- AVX-512 rows (D a multiple of 16): the same arithmetic, 16 features at a time ----
 
 using row_simd::cpu_has_avx512;
-using row_simd::load16;
-using row_simd::round16;
-using row_simd::store16;
 
-// Lane i of the result is the sum of v[i]'s lanes, in one fixed tree (lanes i and i + 8, then i and i + 4, then
-// (0 + 2) + (1 + 3), as GCC's _mm512_reduce_add_ps): sixteen rows' horizontal sums as one transposition, and a row's
-// sum does not depend on the rows beside it.
-UPLVSM_ROW_AVX512 inline __m512 reduce_rows(const __m512 v[16]) {
-  __m512 t8[8], t4[4], t2[2];
-  for (int k = 0; k < 8; ++k)  // rows 2k, 2k + 1: lanes i + (i + 8), in 256-bit halves
-    t8[k] = _mm512_add_ps(_mm512_shuffle_f32x4(v[2 * k], v[2 * k + 1], 0x44),
-                          _mm512_shuffle_f32x4(v[2 * k], v[2 * k + 1], 0xEE));
-  for (int k = 0; k < 4; ++k)  // rows 4k .. 4k + 3: lanes i + (i + 4), one row per 128-bit lane
-    t4[k] = _mm512_add_ps(_mm512_shuffle_f32x4(t8[2 * k], t8[2 * k + 1], 0x88),
-                          _mm512_shuffle_f32x4(t8[2 * k], t8[2 * k + 1], 0xDD));
-  for (int k = 0; k < 2; ++k)  // 0 + 2 and 1 + 3 within each row
-    t2[k] = _mm512_add_ps(_mm512_shuffle_ps(t4[2 * k], t4[2 * k + 1], _MM_SHUFFLE(1, 0, 1, 0)),
-                          _mm512_shuffle_ps(t4[2 * k], t4[2 * k + 1], _MM_SHUFFLE(3, 2, 3, 2)));
-  const __m512 sums = _mm512_add_ps(_mm512_shuffle_ps(t2[0], t2[1], _MM_SHUFFLE(2, 0, 2, 0)),
-                                    _mm512_shuffle_ps(t2[0], t2[1], _MM_SHUFFLE(3, 1, 3, 1)));
-  // Lane 4 l + t now holds row l + 4 t.
-  return _mm512_permutexvar_ps(_mm512_setr_epi32(0, 4, 8, 12, 1, 5, 9, 13, 2, 6, 10, 14, 3, 7, 11, 15), sums);
-}
+using qk_norm_rows::kGroup;
 
-constexpr int64_t kGroup = 16;  // rows whose horizontal sums are taken together
-
-// Rows in groups of 16: the sums of squares of a group's rows, their r in one vector, then each row's output.
 template <typename T, typename TOut>
 UPLVSM_ROW_AVX512 void forward_rows_avx512(const T* x, RowWalker walk, const float* w, float eps, int64_t D,
                                            int64_t begin, int64_t end, TOut* out, float* r) {
   for (int64_t row0 = begin; row0 < end; row0 += kGroup) {
     const int64_t n = std::min(kGroup, end - row0);
-    const T* xr[kGroup];
-    __m512 acc[kGroup];
-    for (int64_t i = 0; i < kGroup; ++i) {
-      acc[i] = _mm512_setzero_ps();
-      if (i >= n) continue;
-      xr[i] = x + walk.next();
-      for (int64_t j = 0; j < D; j += 16) {
-        const __m512 xv = load16(xr[i] + j);
-        acc[i] = _mm512_fmadd_ps(xv, xv, acc[i]);
-      }
-    }
-    const __m512 mean = _mm512_div_ps(reduce_rows(acc), _mm512_set1_ps(static_cast<float>(D)));
-    const __m512 rr = _mm512_div_ps(_mm512_set1_ps(1.0f), _mm512_sqrt_ps(_mm512_add_ps(mean, _mm512_set1_ps(eps))));
-    alignas(64) float rs[kGroup];
-    _mm512_store_ps(rs, rr);
-    for (int64_t i = 0; i < n; ++i) {
-      r[row0 + i] = rs[i];
-      const __m512 rv = _mm512_set1_ps(rs[i]);
-      TOut* o = out + (row0 + i) * D;
-      for (int64_t j = 0; j < D; j += 16)
-        store16(o + j, _mm512_mul_ps(round16<T>(_mm512_mul_ps(load16(xr[i] + j), rv)), _mm512_loadu_ps(w + j)));
-    }
+    const T* xr[kGroup] = {};
+    TOut* o[kGroup] = {};
+    for (int64_t i = 0; i < n; ++i) xr[i] = x + walk.next(), o[i] = out + (row0 + i) * D;
+    qk_norm_rows::forward_group<T, TOut>(xr, n, w, eps, D, o, r + row0);
   }
 }
 
-// The weight gradient's running sum stays in registers up to this width (the paper's d_head is 64).
-constexpr int64_t kMaxRegisterWidth = 128;
-
-// Rows in groups of 16 as the forward; the weight gradient adds the rows in order, as the one-row loop did.
 template <typename T, typename TOut>
 UPLVSM_ROW_AVX512 void backward_rows_avx512(const T* x, RowWalker walk, const float* w, const float* r,
                                             const TOut* gout, int64_t D, int64_t begin, int64_t end, T* gx, float* gw) {
-  __m512 gw_acc[kMaxRegisterWidth / 16];
-  const bool gw_in_registers = gw && D <= kMaxRegisterWidth;
-  if (gw_in_registers)
-    for (int64_t j = 0; j < D; j += 16) gw_acc[j / 16] = _mm512_loadu_ps(gw + j);
   for (int64_t row0 = begin; row0 < end; row0 += kGroup) {
     const int64_t n = std::min(kGroup, end - row0);
-    const T* xr[kGroup];
-    __m512 acc[kGroup];
-    for (int64_t i = 0; i < kGroup; ++i) {
-      acc[i] = _mm512_setzero_ps();
-      if (i >= n) continue;
-      xr[i] = x + walk.next();
-      const TOut* g = gout + (row0 + i) * D;
-      const __m512 rv = _mm512_set1_ps(r[row0 + i]);
-      for (int64_t j = 0; j < D; j += 16) {
-        const __m512 xv = load16(xr[i] + j), gv = load16(g + j);
-        acc[i] = _mm512_fmadd_ps(round16<T>(_mm512_mul_ps(gv, _mm512_loadu_ps(w + j))), xv, acc[i]);
-        if (!gw) continue;
-        const __m512 y = round16<T>(_mm512_mul_ps(xv, rv));
-        if (gw_in_registers)
-          gw_acc[j / 16] = _mm512_fmadd_ps(gv, y, gw_acc[j / 16]);
-        else
-          _mm512_storeu_ps(gw + j, _mm512_fmadd_ps(gv, y, _mm512_loadu_ps(gw + j)));
-      }
-    }
-    // g_sq2 = 2 (-0.5 g_r r^3 / D), in the one-row loop's order of operations.
-    alignas(64) float rs[kGroup] = {};
-    std::memcpy(rs, r + row0, static_cast<size_t>(n) * sizeof(float));
-    const __m512 rv = _mm512_load_ps(rs);
-    const __m512 t =
-        _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(-0.5f), reduce_rows(acc)), _mm512_mul_ps(_mm512_mul_ps(rv, rv), rv));
-    alignas(64) float g_sq2[kGroup];
-    _mm512_store_ps(g_sq2,
-                    _mm512_mul_ps(_mm512_set1_ps(2.0f), _mm512_div_ps(t, _mm512_set1_ps(static_cast<float>(D)))));
-    for (int64_t i = 0; i < n; ++i) {
-      const TOut* g = gout + (row0 + i) * D;
-      const __m512 rvi = _mm512_set1_ps(rs[i]), g_sq2v = _mm512_set1_ps(g_sq2[i]);
-      for (int64_t j = 0; j < D; j += 16) {
-        const __m512 gy = round16<T>(_mm512_mul_ps(load16(g + j), _mm512_loadu_ps(w + j)));
-        store16(gx + (row0 + i) * D + j, _mm512_fmadd_ps(g_sq2v, load16(xr[i] + j), _mm512_mul_ps(gy, rvi)));
-      }
-    }
+    const T* xr[kGroup] = {};
+    const TOut* g[kGroup] = {};
+    T* gxr[kGroup] = {};
+    for (int64_t i = 0; i < n; ++i) xr[i] = x + walk.next(), g[i] = gout + (row0 + i) * D, gxr[i] = gx + (row0 + i) * D;
+    qk_norm_rows::backward_group<T, TOut>(xr, g, n, w, r + row0, D, gxr, gw);
   }
-  if (gw_in_registers)
-    for (int64_t j = 0; j < D; j += 16) _mm512_storeu_ps(gw + j, gw_acc[j / 16]);
 }
 
 // Calls f with (T*)-typed null pointers selecting x's and the output's element types.
