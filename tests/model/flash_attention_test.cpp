@@ -1,11 +1,14 @@
 #include <gtest/gtest.h>
 
+#include <ATen/Parallel.h>
+
 #include <limits>
 
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/flash_attention.h"
 #include "uplvsm/model/flash_attention_simd.h"  // internal: the kernels' exp2
+#include "uplvsm/model/qk_norm.h"
 #include "uplvsm/model/transformer.h"
 
 using namespace uplvsm;
@@ -160,6 +163,80 @@ TEST(FlashAttention, Bf16PackingOfOddStridesEqualsContiguousOperandsBitForBit) {
       EXPECT_TRUE(torch::equal(strided.dv, packed.dv));
       expect_close(packed, run(reference_attention, q, k, v, w), 2e-2, true);
     }
+}
+
+namespace {
+
+struct QkvGrads {
+  torch::Tensor o, dqkv, dwq, dwk;
+};
+
+// o and the gradients of sum(o * w) through QK-Norm and attention from one projection: fused, or the composition it
+// replaces (the two qk_norm nodes, then fused_attention, as QKNormAttentionImpl::project builds it).
+QkvGrads qkv_attention(bool fused, const torch::Tensor& qkv_in, int64_t H, const torch::Tensor& wq_in,
+                       const torch::Tensor& wk_in, int64_t start, int64_t count, const torch::Tensor& w) {
+  auto qkv = qkv_in.detach().requires_grad_(true);
+  auto wq = wq_in.detach().requires_grad_(true), wk = wk_in.detach().requires_grad_(true);
+  const int64_t B = qkv.size(0), L = qkv.size(1), D = qkv.size(2) / 3 / H;
+  torch::Tensor o;
+  if (fused) {
+    o = model::fused_qk_norm_attention(qkv, H, wq, wk, 1e-3, start, count);
+  } else {
+    auto parts = qkv.chunk(3, -1);
+    auto split = [&](const torch::Tensor& t) { return t.view({B, L, H, D}); };
+    auto q = model::qk_norm(split(parts[0]).narrow(1, start, count), wq, 1e-3, torch::kBFloat16).transpose(1, 2);
+    auto k = model::qk_norm(split(parts[1]), wk, 1e-3, torch::kBFloat16).transpose(1, 2);
+    o = model::fused_attention(q, k, split(parts[2]).transpose(1, 2));
+  }
+  (o.to(torch::kFloat64) * w).sum().backward();
+  return {o.detach(), qkv.grad(), wq.grad(), wk.grad()};
+}
+
+}  // namespace
+
+// The norm applied as the kernels read q and k, and qkv's gradient written as one tensor, give the composition's
+// bits: outputs and qkv gradients equal; the weights' gradients, summed per head instead of per block of rows, within
+// fp32 rounding. Head widths 16 / 32 / 64, odd lengths (several groups of 16 rows and backward key tiles), all
+// queries or a range, and a projection whose rows are an odd number of elements apart.
+TEST(FlashAttention, QKNormOnReadEqualsQKNormThenAttentionBitForBit) {
+  if (!fused_available(torch::kBFloat16, 16)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  torch::manual_seed(13);
+  const int64_t B = 2, H = 3;
+  for (int64_t D : {16, 32, 64})
+    for (int64_t L : {37, 150})
+      for (bool odd_rows : {false, true})
+        for (auto [start, count] : {std::pair<int64_t, int64_t>{0, L}, {5, 20}}) {
+          const int64_t width = 3 * H * D;
+          auto qkv = (torch::randn({B, L, width + (odd_rows ? 1 : 0)}) * 2).to(torch::kBFloat16).narrow(2, 0, width);
+          auto wq = 1 + 0.3 * torch::randn({D}), wk = 1 + 0.3 * torch::randn({D});
+          auto w = torch::randn({B, H, count, D}, torch::kFloat64);
+          SCOPED_TRACE(testing::Message() << "D " << D << ", L " << L << ", odd rows " << odd_rows << ", queries "
+                                          << start << " + " << count);
+          ASSERT_TRUE(model::fused_qk_norm_attention_applies(qkv, wq, D));
+          auto fused = qkv_attention(true, qkv, H, wq, wk, start, count, w);
+          auto composed = qkv_attention(false, qkv, H, wq, wk, start, count, w);
+          EXPECT_TRUE(torch::equal(fused.o, composed.o));
+          EXPECT_TRUE(torch::equal(fused.dqkv, composed.dqkv));
+          EXPECT_LE(test::max_abs_diff(fused.dwq, composed.dwq), 1e-5 * composed.dwq.abs().max().item<double>());
+          EXPECT_LE(test::max_abs_diff(fused.dwk, composed.dwk), 1e-5 * composed.dwk.abs().max().item<double>());
+        }
+}
+
+TEST(FlashAttention, QKNormOnReadWeightGradientsDoNotDependOnTheThreadCount) {
+  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  torch::manual_seed(17);
+  auto qkv = torch::randn({3, 41, 3 * 4 * 32}).to(torch::kBFloat16);
+  auto wq = 1 + 0.3 * torch::randn({32}), wk = 1 + 0.3 * torch::randn({32});
+  auto w = torch::randn({3, 4, 41, 32}, torch::kFloat64);
+  const int threads = at::get_num_threads();
+  at::set_num_threads(1);
+  auto one = qkv_attention(true, qkv, 4, wq, wk, 0, 41, w);
+  at::set_num_threads(std::max(2, threads));
+  auto several = qkv_attention(true, qkv, 4, wq, wk, 0, 41, w);
+  at::set_num_threads(threads);
+  EXPECT_TRUE(torch::equal(one.dwq, several.dwq));
+  EXPECT_TRUE(torch::equal(one.dwk, several.dwk));
+  EXPECT_TRUE(torch::equal(one.dqkv, several.dqkv));
 }
 
 TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsewhere) {

@@ -1,5 +1,7 @@
 #include "uplvsm/model/dinov2.h"
 
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/model/flash_attention.h"
 #include "uplvsm/model/gelu.h"
 #include "uplvsm/model/gradient_checkpoint.h"
 #include "uplvsm/model/qk_norm.h"
@@ -21,9 +23,15 @@ DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, 
 
 torch::Tensor DinoAttentionImpl::forward(const torch::Tensor& x) {
   const int64_t B = x.size(0), N = x.size(1), C = x.size(2);
+  auto projected = qkv(x);
+  if (q_norm && autocast_active(x.device()) && fused_qk_norm_attention_applies(projected, q_norm->weight, C / heads)) {
+    // The same bits as the path below under autocast, in one node (flash_attention.h).
+    auto o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps, 0, N);
+    return proj(o.transpose(1, 2).reshape({B, N, C}));
+  }
   // unbind, not three selects: its backward stacks the three gradients in one pass instead of zero-filling and
   // copying into the whole qkv gradient three times.
-  auto qkv_ = qkv(x).view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4}).unbind(0);
+  auto qkv_ = projected.view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4}).unbind(0);
   auto q = qkv_[0], k = qkv_[1], v = qkv_[2];
   if (q_norm) {
     const auto dtype = qk_norm_output_dtype(q, C / heads);

@@ -9,6 +9,7 @@
 #include <cstring>
 
 #include "uplvsm/model/flash_attention_kernels.h"
+#include "uplvsm/model/qk_norm.h"
 
 namespace uplvsm::model {
 namespace {
@@ -84,6 +85,74 @@ struct FusedAttentionFunction : torch::autograd::Function<FusedAttentionFunction
   }
 };
 
+// The attention problem of a qkv projection [B, L, 3 H D]: q rows [q_start, q_start + q_count), k and v all rows.
+flash::Problem qkv_problem(const torch::Tensor& qkv, int64_t H, int64_t q_start, int64_t q_count) {
+  flash::Problem p;
+  const int64_t HD = qkv.size(2) / 3;
+  p.B = qkv.size(0), p.H = H, p.Lq = q_count, p.Lk = qkv.size(1), p.D = HD / H;
+  p.scale = static_cast<float>(1.0 / std::sqrt(static_cast<double>(p.D)));
+  p.precision = flash::Precision::Bf16;
+  const auto* base = static_cast<const c10::BFloat16*>(qkv.data_ptr());
+  p.q = base + q_start * qkv.stride(1), p.k = base + HD, p.v = base + 2 * HD;
+  p.sq = p.sk = p.sv = {qkv.stride(0), p.D, qkv.stride(1)};
+  return p;
+}
+
+// sum over the rows of a [rows, D] partial-sum matrix, in row order (the same bits for any thread count).
+torch::Tensor sum_rows_in_order(const torch::Tensor& partial) {
+  auto sum = torch::zeros({partial.size(1)}, partial.options());
+  const float* p = partial.data_ptr<float>();
+  float* s = sum.data_ptr<float>();
+  for (int64_t r = 0; r < partial.size(0); ++r)
+    for (int64_t j = 0; j < partial.size(1); ++j) s[j] += p[r * partial.size(1) + j];
+  return sum;
+}
+
+struct FusedQKNormAttentionFunction : torch::autograd::Function<FusedQKNormAttentionFunction> {
+  static torch::Tensor forward(AutogradContext* ctx, torch::Tensor qkv, torch::Tensor q_weight, torch::Tensor k_weight,
+                               double eps, int64_t heads, int64_t q_start, int64_t q_count) {
+    RECORD_FUNCTION("uplvsm::fused_qk_norm_attention", std::vector<c10::IValue>());
+    auto p = qkv_problem(qkv, heads, q_start, q_count);
+    p.norm = {q_weight.data_ptr<float>(), k_weight.data_ptr<float>(), static_cast<float>(eps)};
+    auto o = empty_heads_view(p.B, p.H, p.Lq, p.D, qkv.options());
+    auto lse = torch::empty({p.B, p.H, p.Lq}, qkv.options().dtype(torch::kFloat32));
+    at::parallel_for(0, flash::forward_task_count(p), 1, [&](int64_t begin, int64_t end) {
+      flash::forward_tasks(p, begin, end, o.data_ptr(), strides_of(o), lse.data_ptr<float>());
+    });
+    ctx->save_for_backward({qkv, q_weight, k_weight, o, lse});
+    ctx->saved_data["eps"] = eps, ctx->saved_data["heads"] = heads;
+    ctx->saved_data["q_start"] = q_start, ctx->saved_data["q_count"] = q_count;
+    return o;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grad_outputs) {
+    RECORD_FUNCTION("uplvsm::fused_qk_norm_attention_backward", std::vector<c10::IValue>());
+    auto saved = ctx->get_saved_variables();
+    const auto &qkv = saved[0], &q_weight = saved[1], &k_weight = saved[2], &o = saved[3], &lse = saved[4];
+    const int64_t q_start = ctx->saved_data["q_start"].toInt(), q_count = ctx->saved_data["q_count"].toInt();
+    auto dout = last_dim_contiguous(grad_outputs[0].to(torch::kBFloat16));
+    auto p = qkv_problem(qkv, ctx->saved_data["heads"].toInt(), q_start, q_count);
+    // Rows of q outside the queries get no gradient; every row of k and v does.
+    auto dqkv = q_count == p.Lk ? torch::empty(qkv.sizes(), qkv.options()) : torch::zeros(qkv.sizes(), qkv.options());
+    auto q_weight_grad = torch::zeros({p.B * p.H, p.D}, q_weight.options());
+    auto k_weight_grad = torch::zeros({p.B * p.H, p.D}, k_weight.options());
+    p.norm = {q_weight.data_ptr<float>(), k_weight.data_ptr<float>(),
+              static_cast<float>(ctx->saved_data["eps"].toDouble()), q_weight_grad.data_ptr<float>(),
+              k_weight_grad.data_ptr<float>()};
+    auto* d = static_cast<c10::BFloat16*>(dqkv.data_ptr());
+    const flash::Strides sd{dqkv.stride(0), p.D, dqkv.stride(1)};
+    const int64_t HD = p.H * p.D;
+    auto delta = torch::empty_like(lse);
+    at::parallel_for(0, p.B * p.H, 1, [&](int64_t begin, int64_t end) {
+      flash::backward_delta(p, o.data_ptr(), strides_of(o), dout.data_ptr(), strides_of(dout), begin, end,
+                            delta.data_ptr<float>());
+      flash::backward_tasks(p, dout.data_ptr(), strides_of(dout), lse.data_ptr<float>(), delta.data_ptr<float>(), begin,
+                            end, d + q_start * dqkv.stride(1), sd, d + HD, sd, d + 2 * HD, sd);
+    });
+    return {dqkv, sum_rows_in_order(q_weight_grad), sum_rows_in_order(k_weight_grad), {}, {}, {}, {}};
+  }
+};
+
 }  // namespace
 
 void set_attention_kernel(AttentionKernel kernel) { kernel_choice() = kernel; }
@@ -107,6 +176,26 @@ torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, co
               "fused_attention: needs CPU fp32/bf16 tensors, d_head a multiple of 16 (got ", q.size(3),
               ") and a CPU with AVX-512 (bf16: AVX-512 BF16); attention() falls back to LibTorch otherwise");
   return FusedAttentionFunction::apply(q, k, v);
+}
+
+bool fused_qk_norm_attention_applies(const torch::Tensor& qkv, const torch::Tensor& q_weight, int64_t d_head) {
+  if (qkv.dim() != 3 || qkv.scalar_type() != torch::kBFloat16 || qkv.stride(-1) != 1 || d_head <= 0) return false;
+  if (qkv.size(2) % (3 * d_head) != 0 || !fused_attention_applies(qkv.device(), torch::kBFloat16, d_head)) return false;
+  return qk_norm_fuses(qkv.narrow(2, 0, d_head), q_weight);
+}
+
+torch::Tensor fused_qk_norm_attention(const torch::Tensor& qkv, int64_t heads, const torch::Tensor& q_weight,
+                                      const torch::Tensor& k_weight, double eps, int64_t q_start, int64_t q_count) {
+  TORCH_CHECK(heads > 0 && qkv.dim() == 3 && qkv.size(2) % (3 * heads) == 0,
+              "fused_qk_norm_attention: qkv must be [B, L, 3 H D] for ", heads, " heads, got ", qkv.sizes());
+  const int64_t d_head = qkv.size(2) / 3 / heads;
+  TORCH_CHECK(
+      fused_qk_norm_attention_applies(qkv, q_weight, d_head) && qk_norm_fuses(qkv.narrow(2, 0, d_head), k_weight),
+      "fused_qk_norm_attention: needs bf16 qkv on a CPU with AVX-512 BF16, d_head a multiple of 16 (got ", d_head,
+      ") and fp32 weights of size d_head");
+  TORCH_CHECK(q_start >= 0 && q_count > 0 && q_start + q_count <= qkv.size(1), "fused_qk_norm_attention: query rows [",
+              q_start, ", ", q_start + q_count, ") outside the ", qkv.size(1), " rows");
+  return FusedQKNormAttentionFunction::apply(qkv, q_weight, k_weight, eps, heads, q_start, q_count);
 }
 
 }  // namespace uplvsm::model

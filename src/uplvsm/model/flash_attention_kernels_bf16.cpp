@@ -3,6 +3,7 @@
 // packed per head into pair layouts (O(L d) work) so that the micro-kernel only streams.
 #include "uplvsm/model/bf16_simd.h"
 #include "uplvsm/model/flash_attention_simd.h"
+#include "uplvsm/model/qk_norm_rows.h"
 
 namespace uplvsm::model::flash::detail {
 namespace {
@@ -27,7 +28,12 @@ enum Slot : int {
   kDSpairs,
   kDSrows,
   kDKt,
-  kDVt
+  kDVt,
+  kQnorm,
+  kKnorm,
+  kRq,
+  kRk,
+  kGrows
 };
 
 // C[R x 16*NV] (+)= A[R x 2*K2] B[2*K2 x 16*NV]: A rows are bf16 pairs (one uint32 each) lda words apart; B is
@@ -168,19 +174,18 @@ UPLVSM_AVX512 void store_row_bf16(uint16_t* dst, const float* src, int64_t D, fl
   for (int64_t d = 0; d < D; d += 16) row_simd::store16(dst + d, _mm512_mul_ps(_mm512_loadu_ps(src + d), vmul));
 }
 
-// Stores rows [j0, j0 + keys) of a gradient kept transposed ([D x ld] fp32), times `mul`, 16 x 16 blocks at a time.
-UPLVSM_AVX512 void store_transposed(const Problem& p, void* base, Strides s, int64_t bh, int64_t j0, int64_t keys,
-                                    const float* t, int64_t ld, float mul) {
+// Stores rows [0, keys) of a gradient kept transposed ([D x ld] fp32), times `mul`, as bf16 rows at row_ptr(k),
+// 16 x 16 blocks at a time.
+template <typename RowPtr>
+UPLVSM_AVX512 void store_transposed(const float* t, int64_t ld, int64_t keys, int64_t D, float mul, RowPtr row_ptr) {
   const __m512 vmul = _mm512_set1_ps(mul);
   for (int64_t jb = 0; jb < keys; jb += 16)
-    for (int64_t d0 = 0; d0 < p.D; d0 += 16) {
+    for (int64_t d0 = 0; d0 < D; d0 += 16) {
       __m512 block[16];
       for (int i = 0; i < 16; ++i) block[i] = _mm512_loadu_ps(t + (d0 + i) * ld + jb);  // ld >= round_up(keys, 16)
       transpose_16x16(block);
-      for (int64_t k = 0; k < std::min<int64_t>(16, keys - jb); ++k) {
-        uint16_t* dst = static_cast<uint16_t*>(base) + head_offset(p, s, bh, j0 + jb + k) + d0;
-        row_simd::store16(dst, _mm512_mul_ps(block[k], vmul));
-      }
+      for (int64_t k = 0; k < std::min<int64_t>(16, keys - jb); ++k)
+        row_simd::store16(row_ptr(jb + k) + d0, _mm512_mul_ps(block[k], vmul));
     }
 }
 
@@ -205,13 +210,12 @@ struct RowOperand {
   int64_t ld;
 };
 
-RowOperand row_operand(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row, int64_t count,
-                       int slot) {
-  const uint16_t* first = row_ptr(p, base, s, bh, row);
-  if (s.l % 2 == 0 && reinterpret_cast<uintptr_t>(first) % 4 == 0) return {words(first), s.l / 2};
-  uint16_t* rows = scratch<uint16_t>(slot, count * p.D);
-  for (int64_t i = 0; i < count; ++i) std::memcpy(rows + i * p.D, first + i * s.l, p.D * sizeof(uint16_t));
-  return {words(rows), p.D / 2};
+RowOperand row_operand(HeadRows x, int64_t row, int64_t count, int64_t D, int slot) {
+  const uint16_t* first = x.first + row * x.stride;
+  if (x.stride % 2 == 0 && reinterpret_cast<uintptr_t>(first) % 4 == 0) return {words(first), x.stride / 2};
+  uint16_t* rows = scratch<uint16_t>(slot, count * D);
+  for (int64_t i = 0; i < count; ++i) std::memcpy(rows + i * D, first + i * x.stride, D * sizeof(uint16_t));
+  return {words(rows), D / 2};
 }
 
 // Words (X[lo][d] | X[hi][d] << 16) for 16 columns d; hi null gives zero high halves (a missing odd row).
@@ -270,11 +274,61 @@ UPLVSM_AVX512 void pack_transposed_row_pairs(HeadRows x, int64_t L, int64_t D, i
     }
 }
 
+// ---- QK-Norm as q and k are read (Problem::norm), in qk_norm_rows.h's arithmetic ----
+
+using BF16 = c10::BFloat16;
+using qk_norm_rows::kGroup;
+
+const BF16* bf16_ptr(const uint16_t* x) { return reinterpret_cast<const BF16*>(x); }
+BF16* bf16_ptr(uint16_t* x) { return reinterpret_cast<BF16*>(x); }
+
+// Rows [row, row + count) of x normalised into dst ([count x D]); their r into r[0, count) unless r is null.
+UPLVSM_AVX512 void normalize_rows(HeadRows x, int64_t row, int64_t count, int64_t D, const float* w, float eps,
+                                  uint16_t* dst, float* r) {
+  float group_r[kGroup];
+  for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
+    const int64_t n = std::min(kGroup, count - i0);
+    const BF16* xs[kGroup] = {};
+    BF16* out[kGroup] = {};
+    for (int64_t i = 0; i < n; ++i)
+      xs[i] = bf16_ptr(x.first + (row + i0 + i) * x.stride), out[i] = bf16_ptr(dst + (i0 + i) * D);
+    qk_norm_rows::forward_group<BF16, BF16>(xs, n, w, eps, D, out, r ? r + i0 : group_r);
+  }
+}
+
+// A head's q or k (L rows) as the kernels read it: normalised into scratch `slot` when the norm is on (r into r),
+// else itself.
+HeadRows read_through_norm(const Problem& p, HeadRows x, int64_t L, const float* w, int slot, float* r) {
+  if (!p.norm.active()) return x;
+  uint16_t* dst = scratch<uint16_t>(slot, L * p.D);
+  normalize_rows(x, 0, L, p.D, w, p.norm.eps, dst, r);
+  return {dst, p.D};
+}
+
+// g ([count x D] bf16, the gradient of normalised rows [row, row + count) of the raw x, whose r is r[row, ...))
+// taken back through the norm: the raw rows' gradient into the head's gradient dx (strides s), the weight's
+// gradient added into gw.
+UPLVSM_AVX512 void norm_backward_rows(const Problem& p, int64_t bh, HeadRows x, const float* r, const float* w,
+                                      const uint16_t* g, int64_t row, int64_t count, void* dx, Strides s, float* gw) {
+  for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
+    const int64_t n = std::min(kGroup, count - i0);
+    const BF16 *xs[kGroup] = {}, *gs[kGroup] = {};
+    BF16* gx[kGroup] = {};
+    for (int64_t i = 0; i < n; ++i) {
+      xs[i] = bf16_ptr(x.first + (row + i0 + i) * x.stride);
+      gs[i] = bf16_ptr(g + (i0 + i) * p.D);
+      gx[i] = bf16_ptr(static_cast<uint16_t*>(dx) + head_offset(p, s, bh, row + i0 + i));
+    }
+    qk_norm_rows::backward_group<BF16, BF16>(xs, gs, n, w, r + row + i0, p.D, gx, gw);
+  }
+}
+
 }  // namespace
 
 void pack_head_bf16(const Problem& p, int64_t bh) {
   const int64_t D = p.D, ld_k = round_up(p.Lk, 16);
-  pack_transposed(head_rows(p, p.k, p.sk, bh), p.Lk, D, ld_k, scratch<uint32_t>(kKp, D / 2 * ld_k));
+  const HeadRows k = read_through_norm(p, head_rows(p, p.k, p.sk, bh), p.Lk, p.norm.k_weight, kKnorm, nullptr);
+  pack_transposed(k, p.Lk, D, ld_k, scratch<uint32_t>(kKp, D / 2 * ld_k));
   pack_row_pairs(head_rows(p, p.v, p.sv, bh), p.Lk, D, scratch<uint32_t>(kVp, (p.Lk + 1) / 2 * D));
 }
 
@@ -289,7 +343,14 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
   float m[kBf16QueryTile], l[kBf16QueryTile];
   for (int64_t i0 = row_begin; i0 < row_end; i0 += kBf16QueryTile) {
     const int64_t rows = std::min(kBf16QueryTile, row_end - i0);
-    const RowOperand Q = row_operand(p, p.q, p.sq, bh, i0, rows, kQ);
+    RowOperand Q;
+    if (p.norm.active()) {
+      uint16_t* normalized = scratch<uint16_t>(kQ, kBf16QueryTile * D);
+      normalize_rows(head_rows(p, p.q, p.sq, bh), i0, rows, D, p.norm.q_weight, p.norm.eps, normalized, nullptr);
+      Q = {words(normalized), D / 2};
+    } else {
+      Q = row_operand(head_rows(p, p.q, p.sq, bh), i0, rows, D, kQ);
+    }
     std::fill(O, O + rows * D, 0.0f);
     std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
     std::fill(l, l + rows, 0.0f);
@@ -327,13 +388,22 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
   float* dKt = scratch<float>(kDKt, D * kTk);
   float* dVt = scratch<float>(kDVt, D * kTk);
 
+  const bool norm = p.norm.active();
+  const HeadRows q_raw = head_rows(p, p.q, p.sq, bh), k_raw = head_rows(p, p.k, p.sk, bh);
+  float* r_q = norm ? scratch<float>(kRq, Lq) : nullptr;
+  float* r_k = norm ? scratch<float>(kRk, Lk) : nullptr;
+  const HeadRows q = read_through_norm(p, q_raw, Lq, p.norm.q_weight, kQnorm, r_q);
+  const HeadRows k = read_through_norm(p, k_raw, Lk, p.norm.k_weight, kKnorm, r_k);
   pack_transposed(head_rows(p, p.v, p.sv, bh), Lk, D, ld_k, Vtp);
-  pack_transposed(head_rows(p, p.k, p.sk, bh), Lk, D, ld_k, Kp);
-  pack_row_pairs(head_rows(p, p.k, p.sk, bh), Lk, D, Krp);
-  pack_transposed_row_pairs(head_rows(p, p.q, p.sq, bh), Lq, D, ld_q2, Qtp);
+  pack_transposed(k, Lk, D, ld_k, Kp);
+  pack_row_pairs(k, Lk, D, Krp);
+  pack_transposed_row_pairs(q, Lq, D, ld_q2, Qtp);
   pack_transposed_row_pairs(head_rows(p, dout, sdo, bh), Lq, D, ld_q2, dOtp);
-  const RowOperand Qrows = row_operand(p, p.q, p.sq, bh, 0, Lq, kQrows);
-  const RowOperand dOrows = row_operand(p, dout, sdo, bh, 0, Lq, kDOrows);
+  const RowOperand Qrows = row_operand(q, 0, Lq, D, kQrows);
+  const RowOperand dOrows = row_operand(head_rows(p, dout, sdo, bh), 0, Lq, D, kDOrows);
+  auto head_row = [&](void* base, Strides s, int64_t row) {
+    return static_cast<uint16_t*>(base) + head_offset(p, s, bh, row);
+  };
   std::fill(dQ, dQ + Lq * D, 0.0f);
   const float* lse_h = lse + bh * Lq;
   const float* delta_h = delta + bh * Lq;
@@ -353,11 +423,22 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
       gemm_bf16(rows, D, round_up(keys, 2) / 2, words(dSrows), kTk / 2, Krp + j0 / 2 * D, D, dQ + i0 * D, D,
                 true);  // dQ += dS k
     }
-    store_transposed(p, dk, sdk, bh, j0, keys, dKt, kTk, p.scale);
-    store_transposed(p, dv, sdv, bh, j0, keys, dVt, kTk, 1.0f);
+    if (norm) {  // dk of the normalised keys, then back through the norm into the raw keys' gradient
+      uint16_t* g = scratch<uint16_t>(kGrows, std::max(Lq, kTk) * D);
+      store_transposed(dKt, kTk, keys, D, p.scale, [&](int64_t j) { return g + j * D; });
+      norm_backward_rows(p, bh, k_raw, r_k, p.norm.k_weight, g, j0, keys, dk, sdk, p.norm.k_weight_grad + bh * D);
+    } else {
+      store_transposed(dKt, kTk, keys, D, p.scale, [&](int64_t j) { return head_row(dk, sdk, j0 + j); });
+    }
+    store_transposed(dVt, kTk, keys, D, 1.0f, [&](int64_t j) { return head_row(dv, sdv, j0 + j); });
   }
-  for (int64_t i = 0; i < Lq; ++i)
-    store_row_bf16(static_cast<uint16_t*>(dq) + head_offset(p, sdq, bh, i), dQ + i * D, D, p.scale);
+  if (norm) {
+    uint16_t* g = scratch<uint16_t>(kGrows, std::max(Lq, kTk) * D);
+    for (int64_t i = 0; i < Lq; ++i) store_row_bf16(g + i * D, dQ + i * D, D, p.scale);
+    norm_backward_rows(p, bh, q_raw, r_q, p.norm.q_weight, g, 0, Lq, dq, sdq, p.norm.q_weight_grad + bh * D);
+  } else {
+    for (int64_t i = 0; i < Lq; ++i) store_row_bf16(head_row(dq, sdq, i), dQ + i * D, D, p.scale);
+  }
 }
 
 }  // namespace uplvsm::model::flash::detail

@@ -92,7 +92,7 @@ constexpr float kLog2e = 1.44269504088896341f;
 // Per-thread scratch, grown on demand and reused across calls; slots keep simultaneously live buffers apart.
 template <typename T>
 T* scratch(int slot, int64_t count) {
-  thread_local std::vector<uint32_t> buffers[32];
+  thread_local std::vector<uint32_t> buffers[40];
   auto& b = buffers[slot];
   const size_t words = (static_cast<size_t>(count) * sizeof(T) + 3) / 4;
   if (b.size() < words) b.resize(words);

@@ -69,10 +69,10 @@ QKNormAttentionImpl::QKNormAttentionImpl(int64_t d, int64_t d_head_, double eps)
   k_norm = register_module("k_norm", RMSNorm(d_head, eps));
 }
 
-std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::project(const torch::Tensor& x,
+std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::project(const torch::Tensor& projected,
                                                                                      OutputRows rows) {
-  const int64_t B = x.size(0), L = x.size(1);
-  auto qkv = to_qkv(x).chunk(3, -1);  // q | k | v, each head-major (heads, d_head)
+  const int64_t B = projected.size(0), L = projected.size(1);
+  auto qkv = projected.chunk(3, -1);  // q | k | v, each head-major (heads, d_head)
   auto split = [&](const torch::Tensor& t) { return t.view({B, L, heads, d_head}); };
   const auto dtype = qk_norm_output_dtype(qkv[0], d_head);
   auto queries = rows.all(L) ? split(qkv[0]) : split(qkv[0]).narrow(1, rows.start, rows.count);
@@ -83,13 +83,23 @@ std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::pro
 }
 
 torch::Tensor QKNormAttentionImpl::forward(const torch::Tensor& x, OutputRows rows) {
-  auto [q, k, v] = project(x, rows);
-  auto o = attention(q, k, v);  // [B, heads, rows, d_head]
-  return fc(o.transpose(1, 2).reshape({x.size(0), q.size(2), heads * d_head}));
+  auto projected = to_qkv(x);
+  torch::Tensor o;  // [B, heads, rows, d_head]
+  if (autocast_active(x.device()) && fused_qk_norm_attention_applies(projected, q_norm->weight, d_head)) {
+    // The same bits as the path below under autocast, in one node that stores neither q and k normalised nor three
+    // separate gradients.
+    const int64_t L = x.size(1);
+    o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps,
+                                rows.all(L) ? 0 : rows.start, rows.all(L) ? L : rows.count);
+  } else {
+    auto [q, k, v] = project(projected, rows);
+    o = attention(q, k, v);
+  }
+  return fc(o.transpose(1, 2).reshape({x.size(0), o.size(2), heads * d_head}));
 }
 
 torch::Tensor QKNormAttentionImpl::attention_map(const torch::Tensor& x) {
-  auto [q, k, v] = project(x, {});
+  auto [q, k, v] = project(to_qkv(x), {});
   auto scores = torch::matmul(q, k.transpose(-2, -1)) / std::sqrt(static_cast<double>(d_head));
   return torch::softmax(scores.to(torch::kFloat32), -1).mean(1);
 }

@@ -61,7 +61,8 @@ struct QKNormAttentionImpl : torch::nn::Module {
   int64_t heads, d_head;
 
  private:
-  std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> project(const torch::Tensor& x, OutputRows rows);
+  // q, k (normalised) and v [B, heads, L or rows, d_head] of the projection to_qkv(x).
+  std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> project(const torch::Tensor& projected, OutputRows rows);
 };
 TORCH_MODULE(QKNormAttention);
 
