@@ -2,11 +2,13 @@
 // accumulation (twice the fp32 FMA rate); softmax, running max/sum and gradients accumulate in fp32. Operands are
 // packed per head into pair layouts (O(L d) work) so that the micro-kernel only streams.
 #include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/model/flash_attention_packing_bf16.h"
 #include "uplvsm/model/flash_attention_simd.h"
-#include "uplvsm/model/qk_norm_rows.h"
 
 namespace uplvsm::model::flash::detail {
 namespace {
+
+using namespace bf16_packing;
 
 // Scratch slots (fp32 kernels use 0..9).
 enum Slot : int {
@@ -81,12 +83,6 @@ void gemm_bf16(int64_t M, int64_t N, int64_t K2, const uint32_t* A, int64_t lda,
       table[nv - 1][std::min(kRows, M - m0) - 1](K2, A + m0 * lda, lda, B + n0, ldb, C + m0 * ldc + n0, ldc,
                                                  accumulate);
   }
-}
-
-// ---- packing one head's operand (rows of length D, bf16) ----
-
-const uint16_t* row_ptr(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row) {
-  return static_cast<const uint16_t*>(base) + head_offset(p, s, bh, row);
 }
 
 // ---- fp32 tiles -> bf16 operands ----
@@ -189,140 +185,6 @@ UPLVSM_AVX512 void store_transposed(const float* t, int64_t ld, int64_t keys, in
     }
 }
 
-const uint32_t* words(const uint16_t* x) { return reinterpret_cast<const uint32_t*>(x); }
-
-// ---- packing one head's operand straight from its strided rows (AVX-512) ----
-
-// Rows of one head's bf16 operand: row i at first + i * stride.
-struct HeadRows {
-  const uint16_t* first;
-  int64_t stride;
-};
-
-HeadRows head_rows(const Problem& p, const void* base, Strides s, int64_t bh) {
-  return {row_ptr(p, base, s, bh, 0), s.l};
-}
-
-// Rows [row, row + count) as an A operand with pairs along D: the operand itself where its rows start on whole
-// words, else a copy into scratch `slot`.
-struct RowOperand {
-  const uint32_t* words;
-  int64_t ld;
-};
-
-RowOperand row_operand(HeadRows x, int64_t row, int64_t count, int64_t D, int slot) {
-  const uint16_t* first = x.first + row * x.stride;
-  if (x.stride % 2 == 0 && reinterpret_cast<uintptr_t>(first) % 4 == 0) return {words(first), x.stride / 2};
-  uint16_t* rows = scratch<uint16_t>(slot, count * D);
-  for (int64_t i = 0; i < count; ++i) std::memcpy(rows + i * D, first + i * x.stride, D * sizeof(uint16_t));
-  return {words(rows), D / 2};
-}
-
-// Words (X[lo][d] | X[hi][d] << 16) for 16 columns d; hi null gives zero high halves (a missing odd row).
-UPLVSM_AVX512 inline __m512i pair_words(const uint16_t* lo, const uint16_t* hi) {
-  const __m512i low = _mm512_cvtepu16_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(lo)));
-  if (!hi) return low;
-  return _mm512_or_si512(
-      low, _mm512_slli_epi32(_mm512_cvtepu16_epi32(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(hi))), 16));
-}
-
-// B = X^T with pairs along D: word (d2, j) = (X[j][2 d2], X[j][2 d2 + 1]); [D/2 x ld], ld = round_up(L, 16),
-// columns >= L zero. 16 x 16 blocks of words transposed in registers.
-UPLVSM_AVX512 void pack_transposed(HeadRows x, int64_t L, int64_t D, int64_t ld, uint32_t* dst) {
-  const int64_t W = D / 2;
-  for (int64_t j0 = 0; j0 < ld; j0 += 16)
-    for (int64_t w0 = 0; w0 < W; w0 += 16) {
-      const int64_t width = std::min<int64_t>(16, W - w0);
-      __m512 block[16];
-      for (int64_t i = 0; i < 16; ++i) {
-        const uint16_t* src = x.first + (j0 + i) * x.stride + 2 * w0;
-        block[i] = j0 + i >= L   ? _mm512_setzero_ps()
-                   : width == 16 ? _mm512_loadu_ps(src)
-                                 : _mm512_castsi512_ps(_mm512_maskz_loadu_epi32(tail_mask(width), src));
-      }
-      transpose_16x16(block);
-      for (int64_t k = 0; k < width; ++k)
-        _mm512_storeu_ps(reinterpret_cast<float*>(dst + (w0 + k) * ld + j0), block[k]);
-    }
-}
-
-// B = X with pairs along rows: word (i2, d) = (X[2 i2][d], X[2 i2 + 1][d]); [ceil(L/2) x D], a missing row zero.
-UPLVSM_AVX512 void pack_row_pairs(HeadRows x, int64_t L, int64_t D, uint32_t* dst) {
-  for (int64_t i2 = 0; i2 < (L + 1) / 2; ++i2) {
-    const uint16_t* lo = x.first + 2 * i2 * x.stride;
-    const uint16_t* hi = 2 * i2 + 1 < L ? lo + x.stride : nullptr;
-    for (int64_t d = 0; d < D; d += 16)
-      _mm512_storeu_si512(dst + i2 * D + d, pair_words(lo + d, hi ? hi + d : nullptr));
-  }
-}
-
-// A = X^T with pairs along rows: word (d, i2) = (X[2 i2][d], X[2 i2 + 1][d]); [D x ld2], ld2 = round_up(ceil(L/2),
-// 16), columns past ceil(L/2) zero.
-UPLVSM_AVX512 void pack_transposed_row_pairs(HeadRows x, int64_t L, int64_t D, int64_t ld2, uint32_t* dst) {
-  const int64_t L2 = (L + 1) / 2;
-  for (int64_t i20 = 0; i20 < ld2; i20 += 16)
-    for (int64_t d0 = 0; d0 < D; d0 += 16) {
-      __m512 block[16];
-      for (int64_t i = 0; i < 16; ++i) {
-        const int64_t i2 = i20 + i;
-        const uint16_t* lo = x.first + 2 * i2 * x.stride + d0;
-        block[i] = i2 >= L2 ? _mm512_setzero_ps()
-                            : _mm512_castsi512_ps(pair_words(lo, 2 * i2 + 1 < L ? lo + x.stride : nullptr));
-      }
-      transpose_16x16(block);
-      for (int64_t k = 0; k < 16; ++k) _mm512_storeu_ps(reinterpret_cast<float*>(dst + (d0 + k) * ld2 + i20), block[k]);
-    }
-}
-
-// ---- QK-Norm as q and k are read (Problem::norm), in qk_norm_rows.h's arithmetic ----
-
-using BF16 = c10::BFloat16;
-using qk_norm_rows::kGroup;
-
-const BF16* bf16_ptr(const uint16_t* x) { return reinterpret_cast<const BF16*>(x); }
-BF16* bf16_ptr(uint16_t* x) { return reinterpret_cast<BF16*>(x); }
-
-// Rows [row, row + count) of x normalised into dst ([count x D]); their r into r[0, count) unless r is null.
-UPLVSM_AVX512 void normalize_rows(HeadRows x, int64_t row, int64_t count, int64_t D, const float* w, float eps,
-                                  uint16_t* dst, float* r) {
-  float group_r[kGroup];
-  for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
-    const int64_t n = std::min(kGroup, count - i0);
-    const BF16* xs[kGroup] = {};
-    BF16* out[kGroup] = {};
-    for (int64_t i = 0; i < n; ++i)
-      xs[i] = bf16_ptr(x.first + (row + i0 + i) * x.stride), out[i] = bf16_ptr(dst + (i0 + i) * D);
-    qk_norm_rows::forward_group<BF16, BF16>(xs, n, w, eps, D, out, r ? r + i0 : group_r);
-  }
-}
-
-// A head's q or k (L rows) as the kernels read it: normalised into scratch `slot` when the norm is on (r into r),
-// else itself.
-HeadRows read_through_norm(const Problem& p, HeadRows x, int64_t L, const float* w, int slot, float* r) {
-  if (!p.norm.active()) return x;
-  uint16_t* dst = scratch<uint16_t>(slot, L * p.D);
-  normalize_rows(x, 0, L, p.D, w, p.norm.eps, dst, r);
-  return {dst, p.D};
-}
-
-// g ([count x D] bf16, the gradient of normalised rows [row, row + count) of the raw x, whose r is r[row, ...))
-// taken back through the norm: the raw rows' gradient into the head's gradient dx (strides s), the weight's
-// gradient added into gw.
-UPLVSM_AVX512 void norm_backward_rows(const Problem& p, int64_t bh, HeadRows x, const float* r, const float* w,
-                                      const uint16_t* g, int64_t row, int64_t count, void* dx, Strides s, float* gw) {
-  for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
-    const int64_t n = std::min(kGroup, count - i0);
-    const BF16 *xs[kGroup] = {}, *gs[kGroup] = {};
-    BF16* gx[kGroup] = {};
-    for (int64_t i = 0; i < n; ++i) {
-      xs[i] = bf16_ptr(x.first + (row + i0 + i) * x.stride);
-      gs[i] = bf16_ptr(g + (i0 + i) * p.D);
-      gx[i] = bf16_ptr(static_cast<uint16_t*>(dx) + head_offset(p, s, bh, row + i0 + i));
-    }
-    qk_norm_rows::backward_group<BF16, BF16>(xs, gs, n, w, r + row + i0, p.D, gx, gw);
-  }
-}
-
 }  // namespace
 
 void pack_head_bf16(const Problem& p, int64_t bh) {
@@ -368,17 +230,76 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
   }
 }
 
+namespace {
+
+// One head's operands of the backward, packed: q and k read through the norm when it is on (their raw rows and r
+// kept for the gradient's way back through it), K and V transposed, K in row pairs, q and dO transposed in row pairs
+// and as rows.
+struct BackwardOperands {
+  int64_t ld_k, ld_q2;
+  HeadRows q_raw, k_raw;
+  float *r_q = nullptr, *r_k = nullptr;
+  uint32_t *Qtp, *dOtp, *Kp, *Vtp, *Krp;
+  RowOperand Qrows, dOrows;
+};
+
+BackwardOperands pack_backward_operands(const Problem& p, int64_t bh, const void* dout, Strides sdo) {
+  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk;
+  BackwardOperands b;
+  b.ld_k = round_up(Lk, 16), b.ld_q2 = round_up((Lq + 1) / 2, 16);
+  b.q_raw = head_rows(p, p.q, p.sq, bh), b.k_raw = head_rows(p, p.k, p.sk, bh);
+  if (p.norm.active()) b.r_q = scratch<float>(kRq, Lq), b.r_k = scratch<float>(kRk, Lk);
+  const HeadRows q = read_through_norm(p, b.q_raw, Lq, p.norm.q_weight, kQnorm, b.r_q);
+  const HeadRows k = read_through_norm(p, b.k_raw, Lk, p.norm.k_weight, kKnorm, b.r_k);
+  pack_transposed(head_rows(p, p.v, p.sv, bh), Lk, D, b.ld_k, b.Vtp = scratch<uint32_t>(kVtp, D / 2 * b.ld_k));
+  pack_transposed(k, Lk, D, b.ld_k, b.Kp = scratch<uint32_t>(kKp, D / 2 * b.ld_k));
+  pack_row_pairs(k, Lk, D, b.Krp = scratch<uint32_t>(kKrp, (Lk + 1) / 2 * D));
+  pack_transposed_row_pairs(q, Lq, D, b.ld_q2, b.Qtp = scratch<uint32_t>(kQtp, D * b.ld_q2));
+  pack_transposed_row_pairs(head_rows(p, dout, sdo, bh), Lq, D, b.ld_q2,
+                            b.dOtp = scratch<uint32_t>(kDOtp, D * b.ld_q2));
+  b.Qrows = row_operand(q, 0, Lq, D, kQrows);
+  b.dOrows = row_operand(head_rows(p, dout, sdo, bh), 0, Lq, D, kDOrows);
+  return b;
+}
+
+uint16_t* head_row(const Problem& p, void* base, Strides s, int64_t bh, int64_t row) {
+  return static_cast<uint16_t*>(base) + head_offset(p, s, bh, row);
+}
+
+// dK for keys [j0, j0 + keys) from its transposed tile (times scale), back through the norm when it is on.
+void store_key_gradient(const Problem& p, int64_t bh, const BackwardOperands& b, int64_t j0, int64_t keys,
+                        const float* dKt, int64_t ld, void* dk, Strides sdk) {
+  if (!p.norm.active()) {
+    store_transposed(dKt, ld, keys, p.D, p.scale, [&](int64_t j) { return head_row(p, dk, sdk, bh, j0 + j); });
+    return;
+  }
+  uint16_t* g = scratch<uint16_t>(kGrows, std::max(p.Lq, ld) * p.D);  // the normalised keys' gradient
+  store_transposed(dKt, ld, keys, p.D, p.scale, [&](int64_t j) { return g + j * p.D; });
+  norm_backward_rows(p, bh, b.k_raw, b.r_k, p.norm.k_weight, g, j0, keys, dk, sdk, p.norm.k_weight_grad + bh * p.D);
+}
+
+// dq from its fp32 rows (times scale), back through the norm when it is on.
+void store_query_gradient(const Problem& p, int64_t bh, const BackwardOperands& b, const float* dQ, void* dq,
+                          Strides sdq) {
+  const int64_t D = p.D;
+  if (!p.norm.active()) {
+    for (int64_t i = 0; i < p.Lq; ++i) store_row_bf16(head_row(p, dq, sdq, bh, i), dQ + i * D, D, p.scale);
+    return;
+  }
+  uint16_t* g = scratch<uint16_t>(kGrows, std::max(p.Lq, kBf16BwdKeyTile) * D);
+  for (int64_t i = 0; i < p.Lq; ++i) store_row_bf16(g + i * D, dQ + i * D, D, p.scale);
+  norm_backward_rows(p, bh, b.q_raw, b.r_q, p.norm.q_weight, g, 0, p.Lq, dq, sdq, p.norm.q_weight_grad + bh * D);
+}
+
+}  // namespace
+
 // dV^T and dK^T (D x keys) accumulate as A = dO^T / Q^T (pairs along query rows) times B = P / dS packed in row
 // pairs, so no tile is ever transposed; dQ += dS K uses dS row-major. Gradients of the scaled scores carry `scale`.
 void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
                         const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
-  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk, ld_k = round_up(Lk, 16), ld_q2 = round_up((Lq + 1) / 2, 16);
+  const int64_t D = p.D, Lq = p.Lq, Lk = p.Lk;
   constexpr int64_t kTq = kBf16BwdQueryTile, kTk = kBf16BwdKeyTile;
-  uint32_t* Qtp = scratch<uint32_t>(kQtp, D * ld_q2);
-  uint32_t* dOtp = scratch<uint32_t>(kDOtp, D * ld_q2);
-  uint32_t* Kp = scratch<uint32_t>(kKp, D / 2 * ld_k);
-  uint32_t* Vtp = scratch<uint32_t>(kVtp, D / 2 * ld_k);
-  uint32_t* Krp = scratch<uint32_t>(kKrp, (Lk + 1) / 2 * D);
+  const BackwardOperands b = pack_backward_operands(p, bh, dout, sdo);
   float* dQ = scratch<float>(kDQ, Lq * D);
   float* S = scratch<float>(kS, kTq * kTk);
   float* dP = scratch<float>(kDP, kTq * kTk);
@@ -387,23 +308,6 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
   uint16_t* dSrows = scratch<uint16_t>(kDSrows, kTq * kTk);
   float* dKt = scratch<float>(kDKt, D * kTk);
   float* dVt = scratch<float>(kDVt, D * kTk);
-
-  const bool norm = p.norm.active();
-  const HeadRows q_raw = head_rows(p, p.q, p.sq, bh), k_raw = head_rows(p, p.k, p.sk, bh);
-  float* r_q = norm ? scratch<float>(kRq, Lq) : nullptr;
-  float* r_k = norm ? scratch<float>(kRk, Lk) : nullptr;
-  const HeadRows q = read_through_norm(p, q_raw, Lq, p.norm.q_weight, kQnorm, r_q);
-  const HeadRows k = read_through_norm(p, k_raw, Lk, p.norm.k_weight, kKnorm, r_k);
-  pack_transposed(head_rows(p, p.v, p.sv, bh), Lk, D, ld_k, Vtp);
-  pack_transposed(k, Lk, D, ld_k, Kp);
-  pack_row_pairs(k, Lk, D, Krp);
-  pack_transposed_row_pairs(q, Lq, D, ld_q2, Qtp);
-  pack_transposed_row_pairs(head_rows(p, dout, sdo, bh), Lq, D, ld_q2, dOtp);
-  const RowOperand Qrows = row_operand(q, 0, Lq, D, kQrows);
-  const RowOperand dOrows = row_operand(head_rows(p, dout, sdo, bh), 0, Lq, D, kDOrows);
-  auto head_row = [&](void* base, Strides s, int64_t row) {
-    return static_cast<uint16_t*>(base) + head_offset(p, s, bh, row);
-  };
   std::fill(dQ, dQ + Lq * D, 0.0f);
   const float* lse_h = lse + bh * Lq;
   const float* delta_h = delta + bh * Lq;
@@ -413,32 +317,20 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
     std::fill(dVt, dVt + D * kTk, 0.0f);
     for (int64_t i0 = 0; i0 < Lq; i0 += kTq) {
       const int64_t rows = std::min(kTq, Lq - i0), row_pairs = (rows + 1) / 2;
-      gemm_bf16(rows, key_pad, D / 2, Qrows.words + i0 * Qrows.ld, Qrows.ld, Kp + j0, ld_k, S, kTk, false);  // q k^T
-      gemm_bf16(rows, key_pad, D / 2, dOrows.words + i0 * dOrows.ld, dOrows.ld, Vtp + j0, ld_k, dP, kTk,
-                false);  // dO v^T
+      const RowOperand &q = b.Qrows, &dO = b.dOrows;
+      gemm_bf16(rows, key_pad, D / 2, q.words + i0 * q.ld, q.ld, b.Kp + j0, b.ld_k, S, kTk, false);       // q k^T
+      gemm_bf16(rows, key_pad, D / 2, dO.words + i0 * dO.ld, dO.ld, b.Vtp + j0, b.ld_k, dP, kTk, false);  // dO v^T
       softmax_backward_to_bf16(rows, keys, key_pad, p.scale, S, dP, kTk, lse_h + i0, delta_h + i0, Ppairs, dSpairs,
                                dSrows);
-      gemm_bf16(D, key_pad, row_pairs, dOtp + i0 / 2, ld_q2, Ppairs, kTk, dVt, kTk, true);  // dV^T += dO^T P
-      gemm_bf16(D, key_pad, row_pairs, Qtp + i0 / 2, ld_q2, dSpairs, kTk, dKt, kTk, true);  // dK^T += q^T dS
-      gemm_bf16(rows, D, round_up(keys, 2) / 2, words(dSrows), kTk / 2, Krp + j0 / 2 * D, D, dQ + i0 * D, D,
+      gemm_bf16(D, key_pad, row_pairs, b.dOtp + i0 / 2, b.ld_q2, Ppairs, kTk, dVt, kTk, true);  // dV^T += dO^T P
+      gemm_bf16(D, key_pad, row_pairs, b.Qtp + i0 / 2, b.ld_q2, dSpairs, kTk, dKt, kTk, true);  // dK^T += q^T dS
+      gemm_bf16(rows, D, round_up(keys, 2) / 2, words(dSrows), kTk / 2, b.Krp + j0 / 2 * D, D, dQ + i0 * D, D,
                 true);  // dQ += dS k
     }
-    if (norm) {  // dk of the normalised keys, then back through the norm into the raw keys' gradient
-      uint16_t* g = scratch<uint16_t>(kGrows, std::max(Lq, kTk) * D);
-      store_transposed(dKt, kTk, keys, D, p.scale, [&](int64_t j) { return g + j * D; });
-      norm_backward_rows(p, bh, k_raw, r_k, p.norm.k_weight, g, j0, keys, dk, sdk, p.norm.k_weight_grad + bh * D);
-    } else {
-      store_transposed(dKt, kTk, keys, D, p.scale, [&](int64_t j) { return head_row(dk, sdk, j0 + j); });
-    }
-    store_transposed(dVt, kTk, keys, D, 1.0f, [&](int64_t j) { return head_row(dv, sdv, j0 + j); });
+    store_key_gradient(p, bh, b, j0, keys, dKt, kTk, dk, sdk);
+    store_transposed(dVt, kTk, keys, D, 1.0f, [&](int64_t j) { return head_row(p, dv, sdv, bh, j0 + j); });
   }
-  if (norm) {
-    uint16_t* g = scratch<uint16_t>(kGrows, std::max(Lq, kTk) * D);
-    for (int64_t i = 0; i < Lq; ++i) store_row_bf16(g + i * D, dQ + i * D, D, p.scale);
-    norm_backward_rows(p, bh, q_raw, r_q, p.norm.q_weight, g, 0, Lq, dq, sdq, p.norm.q_weight_grad + bh * D);
-  } else {
-    for (int64_t i = 0; i < Lq; ++i) store_row_bf16(head_row(dq, sdq, i), dQ + i * D, D, p.scale);
-  }
+  store_query_gradient(p, bh, b, dQ, dq, sdq);
 }
 
 }  // namespace uplvsm::model::flash::detail
