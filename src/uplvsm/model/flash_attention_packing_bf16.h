@@ -107,12 +107,21 @@ using qk_norm_rows::kGroup;
 inline const BF16* bf16_ptr(const uint16_t* x) { return reinterpret_cast<const BF16*>(x); }
 inline BF16* bf16_ptr(uint16_t* x) { return reinterpret_cast<BF16*>(x); }
 
+// Asks for rows [begin, end) of x (D elements each) ahead of use. The norm is the first to read a head's q and k
+// rows, a cache line or two each and a projection's width apart: fetched as they are needed, those reads stall.
+inline void prefetch_rows(HeadRows x, int64_t begin, int64_t end, int64_t D) {
+  for (int64_t i = begin; i < end; ++i)
+    for (int64_t d = 0; d < D; d += 32)
+      _mm_prefetch(reinterpret_cast<const char*>(x.first + i * x.stride + d), _MM_HINT_T0);
+}
+
 // Rows [row, row + count) of x normalised into dst ([count x D]); their r into r[0, count) unless r is null.
 UPLVSM_AVX512 inline void normalize_rows(HeadRows x, int64_t row, int64_t count, int64_t D, const float* w, float eps,
                                          uint16_t* dst, float* r) {
   float group_r[kGroup];
   for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
     const int64_t n = std::min(kGroup, count - i0);
+    prefetch_rows(x, row + i0 + kGroup, row + std::min(count, i0 + 2 * kGroup), D);
     const BF16* xs[kGroup] = {};
     BF16* out[kGroup] = {};
     for (int64_t i = 0; i < n; ++i)
