@@ -50,6 +50,21 @@ flash::Problem make_problem(const torch::Tensor& q, const torch::Tensor& k, cons
   return p;
 }
 
+// The backward over every (batch, head), each head's delta = rowsum(dout * o) computed right before its gradients,
+// so the rows of dout it reads are still in cache when the head's operands are packed from them.
+void run_backward(const flash::Problem& p, const torch::Tensor& o, const torch::Tensor& dout, const torch::Tensor& lse,
+                  void* dq, flash::Strides sdq, void* dk, flash::Strides sdk, void* dv, flash::Strides sdv) {
+  auto delta = torch::empty_like(lse);
+  at::parallel_for(0, p.B * p.H, 1, [&](int64_t begin, int64_t end) {
+    for (int64_t bh = begin; bh < end; ++bh) {
+      flash::backward_delta(p, o.data_ptr(), strides_of(o), dout.data_ptr(), strides_of(dout), bh, bh + 1,
+                            delta.data_ptr<float>());
+      flash::backward_tasks(p, dout.data_ptr(), strides_of(dout), lse.data_ptr<float>(), delta.data_ptr<float>(), bh,
+                            bh + 1, dq, sdq, dk, sdk, dv, sdv);
+    }
+  });
+}
+
 struct FusedAttentionFunction : torch::autograd::Function<FusedAttentionFunction> {
   static torch::Tensor forward(AutogradContext* ctx, torch::Tensor q, torch::Tensor k, torch::Tensor v) {
     RECORD_FUNCTION("uplvsm::fused_attention", std::vector<c10::IValue>());
@@ -70,17 +85,11 @@ struct FusedAttentionFunction : torch::autograd::Function<FusedAttentionFunction
     const auto &q = saved[0], &k = saved[1], &v = saved[2], &o = saved[3], &lse = saved[4];
     auto dout = last_dim_contiguous(grad_outputs[0].to(q.scalar_type()));
     const auto p = make_problem(q, k, v);
-    auto delta = torch::empty_like(lse);
     auto dq = empty_heads_view(p.B, p.H, p.Lq, p.D, q.options());
     auto dk = empty_heads_view(p.B, p.H, p.Lk, p.D, k.options());
     auto dv = empty_heads_view(p.B, p.H, p.Lk, p.D, v.options());
-    at::parallel_for(0, p.B * p.H, 1, [&](int64_t begin, int64_t end) {
-      flash::backward_delta(p, o.data_ptr(), strides_of(o), dout.data_ptr(), strides_of(dout), begin, end,
-                            delta.data_ptr<float>());
-      flash::backward_tasks(p, dout.data_ptr(), strides_of(dout), lse.data_ptr<float>(), delta.data_ptr<float>(), begin,
-                            end, dq.data_ptr(), strides_of(dq), dk.data_ptr(), strides_of(dk), dv.data_ptr(),
-                            strides_of(dv));
-    });
+    run_backward(p, o, dout, lse, dq.data_ptr(), strides_of(dq), dk.data_ptr(), strides_of(dk), dv.data_ptr(),
+                 strides_of(dv));
     return {dq, dk, dv};
   }
 };
@@ -142,13 +151,7 @@ struct FusedQKNormAttentionFunction : torch::autograd::Function<FusedQKNormAtten
     auto* d = static_cast<c10::BFloat16*>(dqkv.data_ptr());
     const flash::Strides sd{dqkv.stride(0), p.D, dqkv.stride(1)};
     const int64_t HD = p.H * p.D;
-    auto delta = torch::empty_like(lse);
-    at::parallel_for(0, p.B * p.H, 1, [&](int64_t begin, int64_t end) {
-      flash::backward_delta(p, o.data_ptr(), strides_of(o), dout.data_ptr(), strides_of(dout), begin, end,
-                            delta.data_ptr<float>());
-      flash::backward_tasks(p, dout.data_ptr(), strides_of(dout), lse.data_ptr<float>(), delta.data_ptr<float>(), begin,
-                            end, d + q_start * dqkv.stride(1), sd, d + HD, sd, d + 2 * HD, sd);
-    });
+    run_backward(p, o, dout, lse, d + q_start * dqkv.stride(1), sd, d + HD, sd, d + 2 * HD, sd);
     return {dqkv, sum_rows_in_order(q_weight_grad), sum_rows_in_order(k_weight_grad), {}, {}, {}, {}};
   }
 };
