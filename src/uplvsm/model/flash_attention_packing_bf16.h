@@ -119,11 +119,11 @@ inline void prefetch_rows(HeadRows x, int64_t begin, int64_t end, int64_t D) {
 UPLVSM_AVX512 inline void normalize_rows(HeadRows x, int64_t row, int64_t count, int64_t D, const float* w, float eps,
                                          uint16_t* dst, float* r) {
   float group_r[kGroup];
+  const BF16* xs[kGroup];  // entries [0, n) of each group are set and read
+  BF16* out[kGroup];
   for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
     const int64_t n = std::min(kGroup, count - i0);
     prefetch_rows(x, row + i0 + kGroup, row + std::min(count, i0 + 2 * kGroup), D);
-    const BF16* xs[kGroup] = {};
-    BF16* out[kGroup] = {};
     for (int64_t i = 0; i < n; ++i)
       xs[i] = bf16_ptr(x.first + (row + i0 + i) * x.stride), out[i] = bf16_ptr(dst + (i0 + i) * D);
     qk_norm_rows::forward_group<BF16, BF16>(xs, n, w, eps, D, out, r ? r + i0 : group_r);
@@ -145,10 +145,10 @@ inline HeadRows read_through_norm(const Problem& p, HeadRows x, int64_t L, const
 UPLVSM_AVX512 inline void norm_backward_rows(const Problem& p, int64_t bh, HeadRows x, const float* r, const float* w,
                                              const uint16_t* g, int64_t row, int64_t count, void* dx, Strides s,
                                              float* gw) {
+  const BF16 *xs[kGroup], *gs[kGroup];  // entries [0, n) of each group are set and read
+  BF16* gx[kGroup];
   for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
     const int64_t n = std::min(kGroup, count - i0);
-    const BF16 *xs[kGroup] = {}, *gs[kGroup] = {};
-    BF16* gx[kGroup] = {};
     for (int64_t i = 0; i < n; ++i) {
       xs[i] = bf16_ptr(x.first + (row + i0 + i) * x.stride);
       gs[i] = bf16_ptr(g + (i0 + i) * p.D);

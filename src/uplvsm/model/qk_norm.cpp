@@ -115,10 +115,10 @@ using qk_norm_rows::kGroup;
 template <typename T, typename TOut>
 UPLVSM_ROW_AVX512 void forward_rows_avx512(const T* x, RowWalker walk, const float* w, float eps, int64_t D,
                                            int64_t begin, int64_t end, TOut* out, float* r) {
+  const T* xr[kGroup];  // entries [0, n) of each group are set and read
+  TOut* o[kGroup];
   for (int64_t row0 = begin; row0 < end; row0 += kGroup) {
     const int64_t n = std::min(kGroup, end - row0);
-    const T* xr[kGroup] = {};
-    TOut* o[kGroup] = {};
     for (int64_t i = 0; i < n; ++i) xr[i] = x + walk.next(), o[i] = out + (row0 + i) * D;
     qk_norm_rows::forward_group<T, TOut>(xr, n, w, eps, D, o, r + row0);
   }
@@ -127,11 +127,11 @@ UPLVSM_ROW_AVX512 void forward_rows_avx512(const T* x, RowWalker walk, const flo
 template <typename T, typename TOut>
 UPLVSM_ROW_AVX512 void backward_rows_avx512(const T* x, RowWalker walk, const float* w, const float* r,
                                             const TOut* gout, int64_t D, int64_t begin, int64_t end, T* gx, float* gw) {
+  const T* xr[kGroup];  // entries [0, n) of each group are set and read
+  const TOut* g[kGroup];
+  T* gxr[kGroup];
   for (int64_t row0 = begin; row0 < end; row0 += kGroup) {
     const int64_t n = std::min(kGroup, end - row0);
-    const T* xr[kGroup] = {};
-    const TOut* g[kGroup] = {};
-    T* gxr[kGroup] = {};
     for (int64_t i = 0; i < n; ++i) xr[i] = x + walk.next(), g[i] = gout + (row0 + i) * D, gxr[i] = gx + (row0 + i) * D;
     qk_norm_rows::backward_group<T, TOut>(xr, g, n, w, r + row0, D, gxr, gw);
   }

@@ -62,33 +62,52 @@ UPLVSM_ROW_AVX512 inline void forward_group(const T* const x[kGroup], int64_t n,
 
 // The backward of forward_group for upstream gradients g[i]: gx[i] = g_y r + x (2 / D) (-0.5 g_r r^3) with
 // g_y = (g w) rounded to T and g_r = sum(g_y x), rounded to T; when gw is not null, the weight gradient g * y (y
-// rounded to T) is added into it row by row, in order.
+// rounded to T) is added into it row by row, in order — in registers over the group up to 128 features.
 template <typename T, typename TOut>
 UPLVSM_ROW_AVX512 inline void backward_group(const T* const x[kGroup], const TOut* const g[kGroup], int64_t n,
                                              const float* w, const float r[kGroup], int64_t D, T* const gx[kGroup],
                                              float* gw) {
   using namespace row_simd;
+  constexpr int kMaxVectors = 8;
+  const bool gw_in_registers = gw && D <= 16 * kMaxVectors;
+  __m512 gw_acc[kMaxVectors];
+#pragma GCC unroll 8
+  for (int v = 0; v < kMaxVectors; ++v)
+    gw_acc[v] = gw_in_registers && 16 * v < D ? _mm512_loadu_ps(gw + 16 * v) : _mm512_setzero_ps();
   __m512 acc[kGroup];
   for (int64_t i = 0; i < kGroup; ++i) {
     acc[i] = _mm512_setzero_ps();
     if (i >= n) continue;
     const __m512 rv = _mm512_set1_ps(r[i]);
+    if (gw_in_registers) {
+#pragma GCC unroll 8
+      for (int v = 0; v < kMaxVectors; ++v) {
+        if (16 * v >= D) break;
+        const __m512 xv = load16(x[i] + 16 * v), gv = load16(g[i] + 16 * v);
+        acc[i] = _mm512_fmadd_ps(round16<T>(_mm512_mul_ps(gv, _mm512_loadu_ps(w + 16 * v))), xv, acc[i]);
+        gw_acc[v] = _mm512_fmadd_ps(gv, round16<T>(_mm512_mul_ps(xv, rv)), gw_acc[v]);
+      }
+      continue;
+    }
     for (int64_t j = 0; j < D; j += 16) {
       const __m512 xv = load16(x[i] + j), gv = load16(g[i] + j);
       acc[i] = _mm512_fmadd_ps(round16<T>(_mm512_mul_ps(gv, _mm512_loadu_ps(w + j))), xv, acc[i]);
       if (gw) _mm512_storeu_ps(gw + j, _mm512_fmadd_ps(gv, round16<T>(_mm512_mul_ps(xv, rv)), _mm512_loadu_ps(gw + j)));
     }
   }
+  if (gw_in_registers) {
+#pragma GCC unroll 8
+    for (int v = 0; v < kMaxVectors; ++v)
+      if (16 * v < D) _mm512_storeu_ps(gw + 16 * v, gw_acc[v]);
+  }
   // g_sq2 = 2 (-0.5 g_r r^3 / D), in the order of operations of a one-row loop.
-  alignas(64) float rs[kGroup] = {};
-  std::memcpy(rs, r, static_cast<size_t>(n) * sizeof(float));
-  const __m512 rv = _mm512_load_ps(rs);
+  const __m512 rv = _mm512_maskz_loadu_ps(tail_mask(n), r);
   const __m512 t =
       _mm512_mul_ps(_mm512_mul_ps(_mm512_set1_ps(-0.5f), reduce_rows(acc)), _mm512_mul_ps(_mm512_mul_ps(rv, rv), rv));
   alignas(64) float g_sq2[kGroup];
   _mm512_store_ps(g_sq2, _mm512_mul_ps(_mm512_set1_ps(2.0f), _mm512_div_ps(t, _mm512_set1_ps(static_cast<float>(D)))));
   for (int64_t i = 0; i < n; ++i) {
-    const __m512 rvi = _mm512_set1_ps(rs[i]), g_sq2v = _mm512_set1_ps(g_sq2[i]);
+    const __m512 rvi = _mm512_set1_ps(r[i]), g_sq2v = _mm512_set1_ps(g_sq2[i]);
     for (int64_t j = 0; j < D; j += 16) {
       const __m512 gy = round16<T>(_mm512_mul_ps(load16(g[i] + j), _mm512_loadu_ps(w + j)));
       store16(gx[i] + j, _mm512_fmadd_ps(g_sq2v, load16(x[i] + j), _mm512_mul_ps(gy, rvi)));
