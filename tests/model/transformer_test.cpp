@@ -1,8 +1,15 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <set>
+#include <string>
+#include <vector>
+
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/io/safetensors.h"
+#include "uplvsm/model/dinov2.h"
+#include "uplvsm/model/flash_attention.h"
 #include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/transformer.h"
 
@@ -94,6 +101,55 @@ TEST(Transformer, OutputRowsUnderBf16AutocastMatchTheFullStack) {
   EXPECT_LE(test::max_abs_diff(kept.out.to(torch::kFloat32), full.out.narrow(1, 0, 20).to(torch::kFloat32)),
             0.02 * scale);
   EXPECT_LE(test::max_abs_diff(kept.x_grad, full.x_grad), 0.02 * full.x_grad.abs().max().item<double>());
+}
+
+namespace {
+
+// Names of the autograd nodes behind t.
+std::vector<std::string> graph_node_names(const torch::Tensor& t) {
+  std::vector<std::string> names;
+  std::vector<torch::autograd::Node*> stack{t.grad_fn().get()};
+  std::set<torch::autograd::Node*> seen;
+  while (!stack.empty()) {
+    auto* node = stack.back();
+    stack.pop_back();
+    if (!node || !seen.insert(node).second) continue;
+    names.push_back(node->name());
+    for (const auto& edge : node->next_edges()) stack.push_back(edge.function.get());
+  }
+  return names;
+}
+
+bool has_node(const std::vector<std::string>& names, const std::string& part) {
+  return std::any_of(names.begin(), names.end(),
+                     [&](const std::string& n) { return n.find(part) != std::string::npos; });
+}
+
+}  // namespace
+
+// Under bf16 autocast, where the fused kernels run, the QKNorm attention of a block (and DINOv2's) is the single
+// QK-Norm-and-attention node; in fp32 it stays QK-Norm then attention (the official comparisons' path).
+TEST(Transformer, QKNormAttentionUnderAutocastIsOneFusedNode) {
+  if (!model::fused_qk_norm_attention_applies(torch::zeros({1, 1, 96}, torch::kBFloat16), torch::ones({32}), 32))
+    GTEST_SKIP() << "no fused bf16 attention on this CPU";
+  torch::manual_seed(2);
+  model::QKNormAttention layer(64, 32, 1e-3);
+  auto x = torch::randn({2, 19, 64}).requires_grad_(true);
+  torch::Tensor autocast_out;
+  {
+    AutocastGuard autocast(x.device(), true);
+    autocast_out = layer->forward(x, model::OutputRows{3, 9});
+  }
+  const auto fused_names = graph_node_names(autocast_out);
+  EXPECT_TRUE(has_node(fused_names, "FusedQKNormAttention"));
+  EXPECT_FALSE(has_node(fused_names, "QKNormFunction"));
+  EXPECT_EQ(autocast_out.size(1), 9);
+  const auto fp32_names = graph_node_names(layer->forward(x));
+  EXPECT_FALSE(has_node(fp32_names, "FusedQKNormAttention"));
+  EXPECT_TRUE(has_node(fp32_names, "QKNormFunction"));
+  model::DinoAttention dino(64, 2, true, 1e-3);
+  AutocastGuard autocast(x.device(), true);
+  EXPECT_TRUE(has_node(graph_node_names(dino->forward(x)), "FusedQKNormAttention"));
 }
 
 TEST(StateDict, StrictLoadNamesMissingUnexpectedAndMisshapedKeys) {

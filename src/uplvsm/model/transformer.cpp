@@ -85,12 +85,11 @@ std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> QKNormAttentionImpl::pro
 torch::Tensor QKNormAttentionImpl::forward(const torch::Tensor& x, OutputRows rows) {
   auto projected = to_qkv(x);
   torch::Tensor o;  // [B, heads, rows, d_head]
-  if (autocast_active(x.device()) && fused_qk_norm_attention_applies(projected, q_norm->weight, d_head)) {
+  const int64_t L = x.size(1), first = rows.all(L) ? 0 : rows.start, count = rows.all(L) ? L : rows.count;
+  if (count > 0 && autocast_active(x.device()) && fused_qk_norm_attention_applies(projected, q_norm->weight, d_head)) {
     // The same bits as the path below under autocast, in one node that stores neither q and k normalised nor three
     // separate gradients.
-    const int64_t L = x.size(1);
-    o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps,
-                                rows.all(L) ? 0 : rows.start, rows.all(L) ? L : rows.count);
+    o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps, first, count);
   } else {
     auto [q, k, v] = project(projected, rows);
     o = attention(q, k, v);
