@@ -2,7 +2,9 @@
 
 #include <ATen/Parallel.h>
 
+#include <functional>
 #include <limits>
+#include <string>
 
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
@@ -220,6 +222,25 @@ TEST(FlashAttention, QKNormOnReadEqualsQKNormThenAttentionBitForBit) {
           EXPECT_LE(test::max_abs_diff(fused.dwq, composed.dwq), 1e-5 * composed.dwq.abs().max().item<double>());
           EXPECT_LE(test::max_abs_diff(fused.dwk, composed.dwk), 1e-5 * composed.dwk.abs().max().item<double>());
         }
+}
+
+TEST(FlashAttention, QKNormOnReadRejectsWhatItCannotServeByName) {
+  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  auto qkv = torch::randn({1, 8, 3 * 2 * 32}).to(torch::kBFloat16);
+  auto w = torch::ones({32});
+  auto expect_error = [](const std::function<void()>& call, const std::string& part) {
+    try {
+      call();
+      ADD_FAILURE() << "expected an error naming " << part;
+    } catch (const c10::Error& e) {
+      EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
+    }
+  };
+  expect_error([&] { model::fused_qk_norm_attention(qkv, 5, w, w, 1e-3, 0, 8); }, "[B, L, 3 H D] for 5 heads");
+  expect_error([&] { model::fused_qk_norm_attention(qkv.to(torch::kFloat32), 2, w, w, 1e-3, 0, 8); }, "bf16 qkv");
+  expect_error([&] { model::fused_qk_norm_attention(qkv, 2, torch::ones({16}), w, 1e-3, 0, 8); }, "weights of size");
+  expect_error([&] { model::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 4, 5); }, "query rows [4, 9) outside the 8");
+  expect_error([&] { model::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 0, 0); }, "query rows [0, 0)");
 }
 
 TEST(FlashAttention, QKNormOnReadWeightGradientsDoNotDependOnTheThreadCount) {

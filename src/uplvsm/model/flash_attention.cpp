@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "uplvsm/model/block_sums.h"
 #include "uplvsm/model/flash_attention_kernels.h"
 #include "uplvsm/model/qk_norm.h"
 
@@ -107,16 +108,6 @@ flash::Problem qkv_problem(const torch::Tensor& qkv, int64_t H, int64_t q_start,
   return p;
 }
 
-// sum over the rows of a [rows, D] partial-sum matrix, in row order (the same bits for any thread count).
-torch::Tensor sum_rows_in_order(const torch::Tensor& partial) {
-  auto sum = torch::zeros({partial.size(1)}, partial.options());
-  const float* p = partial.data_ptr<float>();
-  float* s = sum.data_ptr<float>();
-  for (int64_t r = 0; r < partial.size(0); ++r)
-    for (int64_t j = 0; j < partial.size(1); ++j) s[j] += p[r * partial.size(1) + j];
-  return sum;
-}
-
 struct FusedQKNormAttentionFunction : torch::autograd::Function<FusedQKNormAttentionFunction> {
   static torch::Tensor forward(AutogradContext* ctx, torch::Tensor qkv, torch::Tensor q_weight, torch::Tensor k_weight,
                                double eps, int64_t heads, int64_t q_start, int64_t q_count) {
@@ -152,7 +143,7 @@ struct FusedQKNormAttentionFunction : torch::autograd::Function<FusedQKNormAtten
     const flash::Strides sd{dqkv.stride(0), p.D, dqkv.stride(1)};
     const int64_t HD = p.H * p.D;
     run_backward(p, o, dout, lse, d + q_start * dqkv.stride(1), sd, d + HD, sd, d + 2 * HD, sd);
-    return {dqkv, sum_rows_in_order(q_weight_grad), sum_rows_in_order(k_weight_grad), {}, {}, {}, {}};
+    return {dqkv, sum_blocks_in_order(q_weight_grad), sum_blocks_in_order(k_weight_grad), {}, {}, {}, {}};
   }
 };
 

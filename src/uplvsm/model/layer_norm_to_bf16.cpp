@@ -8,6 +8,7 @@
 #include <cstring>
 
 #include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/model/block_sums.h"
 
 namespace uplvsm::model {
 namespace {
@@ -152,17 +153,6 @@ bool vectorised(int64_t D) { return D % 16 == 0 && row_simd::cpu_has_avx512(); }
 // An absent bias travels through the autograd function as an empty tensor (it takes no undefined inputs).
 const float* data_or_null(const torch::Tensor& t) { return t.numel() > 0 ? t.data_ptr<float>() : nullptr; }
 
-// Sums the per-block partial gradients [blocks, D] in block order.
-torch::Tensor sum_blocks(const torch::Tensor& partial) {
-  const int64_t blocks = partial.size(0), D = partial.size(1);
-  auto sum = torch::zeros({D}, partial.options());
-  const float* p = partial.data_ptr<float>();
-  float* s = sum.data_ptr<float>();
-  for (int64_t b = 0; b < blocks; ++b)
-    for (int64_t j = 0; j < D; ++j) s[j] += p[b * D + j];
-  return sum;
-}
-
 // The forward of both functions: y, with h = x + branch when a branch is given (else h is x), and each row's
 // mean and rstd.
 struct Normalised {
@@ -228,8 +218,8 @@ NormGradients normalise_backward(const torch::Tensor& x, const torch::Tensor& we
   else
     run(static_cast<float*>(nullptr));
   if (!bf16_branch) out.branch = out.x;  // LibTorch's add hands an fp32 branch the same gradient
-  if (weight_grad) out.weight = sum_blocks(gw_partial);
-  if (bias_grad) out.bias = sum_blocks(gb_partial);
+  if (weight_grad) out.weight = sum_blocks_in_order(gw_partial);
+  if (bias_grad) out.bias = sum_blocks_in_order(gb_partial);
   return out;
 }
 

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/model/block_sums.h"
 #include "uplvsm/model/qk_norm_rows.h"
 
 namespace uplvsm::model {
@@ -189,15 +190,7 @@ struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
                       gx.data_ptr<T>(), weight_grad ? partial.data_ptr<float>() + b * D : nullptr);
       });
     });
-    torch::Tensor gw;
-    if (weight_grad) {
-      gw = torch::zeros({D}, weight.options());
-      const float* p = partial.data_ptr<float>();
-      float* sum = gw.data_ptr<float>();
-      for (int64_t b = 0; b < blocks; ++b)
-        for (int64_t j = 0; j < D; ++j) sum[j] += p[b * D + j];
-    }
-    return {gx, gw, torch::Tensor(), torch::Tensor()};
+    return {gx, weight_grad ? sum_blocks_in_order(partial) : torch::Tensor(), torch::Tensor(), torch::Tensor()};
   }
 };
 
