@@ -28,6 +28,8 @@ void set_dtype_on(bool cuda, at::ScalarType t) {
 
 bool autocast_active(torch::Device device) { return is_enabled_on(device.is_cuda()); }
 
+at::ScalarType autocast_dtype(torch::Device device) { return dtype_on(device.is_cuda()); }
+
 AutocastGuard::AutocastGuard(torch::Device device, bool enabled) {
   if (!enabled) return;
   active_ = true;

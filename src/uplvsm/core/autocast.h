@@ -11,6 +11,9 @@ namespace uplvsm {
 // Whether an autocast region for `device`'s type is open on this thread (recomputations re-enter the same state).
 bool autocast_active(torch::Device device);
 
+// The lower-precision dtype autocast uses on `device`'s type (bf16 in every region AutocastGuard opens).
+at::ScalarType autocast_dtype(torch::Device device);
+
 class AutocastGuard {
  public:
   // Inactive (a no-op) when `enabled` is false.

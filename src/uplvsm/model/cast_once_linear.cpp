@@ -3,7 +3,10 @@
 #include <cstdlib>
 #include <cstring>
 
+#include <ATen/autocast_mode.h>
+
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/model/bf16_linear.h"
 
 namespace uplvsm::model {
 
@@ -43,7 +46,22 @@ std::pair<torch::Tensor, torch::Tensor> CastOnceLinearImpl::bf16_weights() {
   return {weight_bf16_, bias_bf16_};
 }
 
+// Training under CPU bf16 autocast: autocast's own casts (the weight's cached per autocast region, as aten::linear's
+// autocast wrapper caches it), then bf16_linear for its faster weight gradient; nullopt where it does not serve.
+std::optional<torch::Tensor> CastOnceLinearImpl::train_bf16(const torch::Tensor& input) {
+  if (!torch::GradMode::is_enabled() || !input.device().is_cpu() || !autocast_active(input.device()) ||
+      autocast_dtype(input.device()) != torch::kBFloat16 || !input.is_floating_point())
+    return std::nullopt;
+  const auto to_bf16 = [](const torch::Tensor& t) {
+    return t.defined() ? at::autocast::cached_cast(torch::kBFloat16, t, c10::DeviceType::CPU) : t;
+  };
+  auto x = to_bf16(input), w = to_bf16(weight);
+  if (!bf16_linear_applies(x, w)) return std::nullopt;
+  return bf16_linear(x, w, to_bf16(bias));
+}
+
 torch::Tensor CastOnceLinearImpl::forward(const torch::Tensor& input) {
+  if (auto trained = train_bf16(input)) return *trained;
   const bool cast_once = cast_once_enabled() && !torch::GradMode::is_enabled() &&
                          weight.scalar_type() == torch::kFloat32 && autocast_active(weight.device());
   // ATen's linear, as PyTorch's nn.Linear: a bias folds into the matmul (addmm, also for 3-D inputs), where LibTorch

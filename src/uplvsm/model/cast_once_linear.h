@@ -4,11 +4,13 @@
 // the weights change (their version counter, e.g. an optimizer step or a state-dict load) and is never used while
 // gradients are recorded. Every path computes what ATen's linear (PyTorch's nn.Linear) computes: training and fp32
 // inference call it, bf16 inference calls it with the same round-to-nearest-even cast of the same weights. Parameter
-// names stay `weight`/`bias`.
+// names stay `weight`/`bias`. Training under CPU bf16 autocast goes through bf16_linear (the same forward, a faster
+// weight gradient).
 #pragma once
 #include <torch/torch.h>
 
 #include <mutex>
+#include <optional>
 
 namespace uplvsm::model {
 
@@ -17,6 +19,7 @@ struct CastOnceLinearImpl : torch::nn::LinearImpl {
   torch::Tensor forward(const torch::Tensor& input);
 
  private:
+  std::optional<torch::Tensor> train_bf16(const torch::Tensor& input);
   // The bf16 weight (and bias) for the weights as they are now; made on first use and after every change.
   std::pair<torch::Tensor, torch::Tensor> bf16_weights();
   std::mutex mutex_;  // the viewer renders from several threads

@@ -1,6 +1,7 @@
 // The bf16 fused attention kernels: every matmul is an AVX-512 BF16 dot product of bf16 pairs with fp32
 // accumulation (twice the fp32 FMA rate); softmax, running max/sum and gradients accumulate in fp32. Operands are
 // packed per head into pair layouts (O(L d) work) so that the micro-kernel only streams.
+#include "uplvsm/model/bf16_micro_kernel.h"
 #include "uplvsm/model/bf16_simd.h"
 #include "uplvsm/model/flash_attention_packing_bf16.h"
 #include "uplvsm/model/flash_attention_simd.h"
@@ -38,50 +39,15 @@ enum Slot : int {
   kGrows
 };
 
-// C[R x 16*NV] (+)= A[R x 2*K2] B[2*K2 x 16*NV]: A rows are bf16 pairs (one uint32 each) lda words apart; B is
-// packed in pairs, word (p2, n) = (B[2 p2][n], B[2 p2 + 1][n]), rows ldb words apart.
-template <int R, int NV>
-UPLVSM_AVX512_BF16 void micro_kernel_bf16(int64_t K2, const uint32_t* A, int64_t lda, const uint32_t* B, int64_t ldb,
-                                          float* C, int64_t ldc, bool accumulate) {
-  __m512 acc[R][NV];
-#pragma GCC unroll 8
-  for (int r = 0; r < R; ++r)
-#pragma GCC unroll 4
-    for (int v = 0; v < NV; ++v) acc[r][v] = accumulate ? _mm512_loadu_ps(C + r * ldc + 16 * v) : _mm512_setzero_ps();
-  for (int64_t p = 0; p < K2; ++p) {
-    __m512bh b[NV];
-#pragma GCC unroll 4
-    for (int v = 0; v < NV; ++v) b[v] = (__m512bh)_mm512_loadu_si512(B + p * ldb + 16 * v);
-#pragma GCC unroll 8
-    for (int r = 0; r < R; ++r) {
-      const __m512bh a = (__m512bh)_mm512_set1_epi32(static_cast<int>(A[r * lda + p]));
-#pragma GCC unroll 4
-      for (int v = 0; v < NV; ++v) acc[r][v] = _mm512_dpbf16_ps(acc[r][v], a, b[v]);
-    }
-  }
-#pragma GCC unroll 8
-  for (int r = 0; r < R; ++r)
-#pragma GCC unroll 4
-    for (int v = 0; v < NV; ++v) _mm512_storeu_ps(C + r * ldc + 16 * v, acc[r][v]);
-}
-
-using MicroKernelBf16 = void (*)(int64_t, const uint32_t*, int64_t, const uint32_t*, int64_t, float*, int64_t, bool);
-
-template <int NV>
-constexpr MicroKernelBf16 kernels_for_rows[kRows] = {micro_kernel_bf16<1, NV>, micro_kernel_bf16<2, NV>,
-                                                     micro_kernel_bf16<3, NV>, micro_kernel_bf16<4, NV>,
-                                                     micro_kernel_bf16<5, NV>, micro_kernel_bf16<6, NV>};
-
-// C[M x N] (+)= A[M x 2 K2] B[2 K2 x N], N a multiple of 16, in 64-column panels.
+// C[M x N] (+)= A[M x 2 K2] B[2 K2 x N], N a multiple of 16, in 64-column panels: A rows are bf16 pairs (one uint32
+// each) lda words apart; B is packed in pairs, word (p2, n) = (B[2 p2][n], B[2 p2 + 1][n]), rows ldb words apart.
 void gemm_bf16(int64_t M, int64_t N, int64_t K2, const uint32_t* A, int64_t lda, const uint32_t* B, int64_t ldb,
                float* C, int64_t ldc, bool accumulate) {
-  static const MicroKernelBf16* const table[4] = {kernels_for_rows<1>, kernels_for_rows<2>, kernels_for_rows<3>,
-                                                  kernels_for_rows<4>};
   for (int64_t n0 = 0; n0 < N; n0 += 64) {
     const int64_t nv = std::min<int64_t>(4, (N - n0) / 16);
     for (int64_t m0 = 0; m0 < M; m0 += kRows)
-      table[nv - 1][std::min(kRows, M - m0) - 1](K2, A + m0 * lda, lda, B + n0, ldb, C + m0 * ldc + n0, ldc,
-                                                 accumulate);
+      bf16_tile::kernel_for<bf16_tile::ALayout::kRowMajor>(std::min(kRows, M - m0), nv)(
+          K2, A + m0 * lda, lda, B + n0, ldb, C + m0 * ldc + n0, ldc, accumulate);
   }
 }
 
