@@ -140,6 +140,13 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
   EXPECT_NE(message({{"training", {{"latent_translation_weight", -0.5}}}}).find("latent_translation_weight must be"),
             std::string::npos);
   EXPECT_NO_THROW(config_from_json({{"training", {{"turned_view_weight", 0.5}, {"turned_view_degrees", 15}}}}, "ok"));
+  EXPECT_TRUE(config_from_json({{"model", {{"estimator_half_view", true}}}}, "ok").model.estimator_half_view);
+  EXPECT_NE(message({{"model", {{"variant", "lvsm"}, {"estimator_half_view", true}}}})
+                .find("model.estimator_half_view: only the uplvsm variant"),
+            std::string::npos);
+  EXPECT_NE(message({{"model", {{"estimator_half_view", true}}}, {"training", {{"perceptual_loss_weight", 0.5}}}})
+                .find("set training.perceptual_loss_weight to 0"),
+            std::string::npos);
   EXPECT_NE(message({{"model", {{"variant", "lvsm"}}}, {"training", {{"turned_view_weight", 0.1}}}})
                 .find("training.turned_view_weight: only a UP-LVSM"),
             std::string::npos);

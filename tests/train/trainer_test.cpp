@@ -90,19 +90,25 @@ TEST(Trainer, ResumeReproducesTheUninterruptedRunExactly) {
 
 namespace {
 
-// A loss term `config` turns on adds to the loss, and its random draws are keyed to the step: a run stopped after
-// `stop_after` steps and resumed logs the same losses as an uninterrupted one.
-void expect_term_adds_to_the_loss_and_resumes_exactly(const Config& config, const std::string& name,
-                                                      int64_t stop_after) {
+// `config` trained in one go, and again stopped after `stop_after` steps and resumed: both log the same losses (what
+// a training option draws at random is keyed to the step). Returns the uninterrupted run's directory.
+std::string expect_resumes_exactly(const Config& config, const std::string& name, int64_t stop_after) {
   auto straight = test::temp_dir(name).string();
   train::train(config, options(straight));
-  const auto losses = expect_losses_above_mse(straight, static_cast<size_t>(config.training.train_steps));
   auto resumed = test::temp_dir(name + "_resumed").string();
   auto first = options(resumed);
   first.stop_after_steps = stop_after;
   train::train(config, first);
   train::train(config, options(resumed));
-  EXPECT_EQ(logged_losses(resumed), losses);
+  EXPECT_EQ(logged_losses(resumed), logged_losses(straight));
+  return straight;
+}
+
+// A loss term `config` turns on adds to the loss, and a run with it resumes exactly.
+void expect_term_adds_to_the_loss_and_resumes_exactly(const Config& config, const std::string& name,
+                                                      int64_t stop_after) {
+  expect_losses_above_mse(expect_resumes_exactly(config, name, stop_after),
+                          static_cast<size_t>(config.training.train_steps));
 }
 
 }  // namespace
@@ -120,6 +126,19 @@ TEST(Trainer, TurnedViewTermAddsToTheLossAndResumesExactly) {
   config.training.train_steps = 6;
   config.training.turned_view_weight = 1.0;
   expect_term_adds_to_the_loss_and_resumes_exactly(config, "train_turned_view", 2);
+}
+
+// model.estimator_half_view (train/estimator_half_view.h): the estimator shown half of each target, the other half
+// scored. Its draws are keyed to the step (a resumed run logs the same losses), and it changes the run.
+TEST(Trainer, EstimatorHalfViewChangesTheRunAndResumesExactly) {
+  auto config = test::micro_config();
+  config.training.train_steps = 6;
+  auto plain = test::temp_dir("train_plain_view").string();
+  train::train(config, options(plain));
+  config.model.estimator_half_view = true;
+  const auto losses = logged_losses(expect_resumes_exactly(config, "train_half_view", 2));
+  ASSERT_EQ(losses.size(), logged_losses(plain).size());
+  EXPECT_NE(losses, logged_losses(plain));
 }
 
 // The rotation-alignment term (train/rotation_alignment_loss.h).

@@ -122,6 +122,7 @@ void model_fields(C& c, F&& f) {
   f("pose_mapper", c.pose_mapper);
   f("encoder_cameras", c.encoder_cameras);
   f("keep_image_tokens", c.keep_image_tokens);
+  f("estimator_half_view", c.estimator_half_view);
   f("image_size", c.image_size);
   f("patch_size", c.patch_size);
 }
@@ -357,6 +358,11 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
           "training.rotation_alignment_blur needs training.rotation_alignment_weight > 0");
   only_with_estimated_poses(tr.rotation_alignment_weight != 0, "training.rotation_alignment_weight",
                             "latent rotations to align");
+  require(!m.estimator_half_view || m.variant == Variant::UPLVSM, s,
+          "model.estimator_half_view: only the uplvsm variant has an estimator to show half a view");
+  require(!m.estimator_half_view || !estimated_poses || tr.perceptual_loss_weight == 0, s,
+          "model.estimator_half_view: training scores half of each target with the MSE alone; set "
+          "training.perceptual_loss_weight to 0");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
   require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
           "training.latent_translation_weight must be a finite number >= 0");

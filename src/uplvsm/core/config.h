@@ -79,6 +79,11 @@ struct ModelConfig {
   // estimator and the decoder attend to (official: discarded, only the latents are kept). A lever against the latent
   // bottleneck at small scale (docs/demo.md); the weights are the same, so any checkpoint loads either way.
   bool keep_image_tokens = false;
+  // Not in the paper (a partial peek against latent poses that carry the target's content;
+  // train/estimator_half_view.h): uplvsm's estimator reads one half of each target, the other half black — in
+  // training the left or the right, drawn per target, with the rendering loss on the other half only; elsewhere the
+  // left half. false: official.
+  bool estimator_half_view = false;
   int64_t image_size = 224;
   int64_t patch_size = 14;
   TransformerConfig transformer;

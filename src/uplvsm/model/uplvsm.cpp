@@ -63,6 +63,19 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torc
                                          ForwardTrace* trace) {
   TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "estimate_poses: target images must be [b, v, 3, H, W], got ",
               images.sizes());
+  if (config.estimator_half_view) {
+    const int64_t W = images.size(4);
+    auto left = (torch::arange(W, images.options().dtype(torch::kInt64)) < W / 2).to(images.scalar_type());
+    return estimate_poses_seeing(images, left.view({1, 1, 1, 1, W}), scene_latents, trace);
+  }
+  return estimate_poses_seeing(images, {}, scene_latents, trace);
+}
+
+torch::Tensor UPLVSMImpl::estimate_poses_seeing(const torch::Tensor& target_images, const torch::Tensor& seen,
+                                                const torch::Tensor& scene_latents, ForwardTrace* trace) {
+  const auto images = seen.defined() ? target_images * seen : target_images;
+  TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "estimate_poses: target images must be [b, v, 3, H, W], got ",
+              images.sizes());
   TORCH_CHECK(!config.encoder_cameras,
               "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
               "dataset cameras; its pose estimator is never trained");

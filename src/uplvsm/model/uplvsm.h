@@ -32,9 +32,13 @@ struct UPLVSMImpl : NovelViewModelImpl {
   // The scene latents of `inputs` as render() makes them: encode_scene, or with model.encoder_cameras every input
   // view's real camera (its c2w is then required).
   torch::Tensor encode(const Views& inputs, ForwardTrace* trace = nullptr);
-  // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner).
+  // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner); with
+  // model.estimator_half_view, of their left halves.
   torch::Tensor estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                ForwardTrace* trace = nullptr);
+  // The same of the parts `seen` ([b, v_t, 1, H, W], 1 where the estimator sees) of the targets, the rest black.
+  torch::Tensor estimate_poses_seeing(const torch::Tensor& target_images, const torch::Tensor& seen,
+                                      const torch::Tensor& scene_latents, ForwardTrace* trace = nullptr);
   // The scene latents of unposed inputs and the latent poses [b, v_in, 7] the estimator reads from those same
   // inputs: what rendering between (or around) the inputs starts from (render/renderer, serve/viewer_model).
   struct EncodedInputs {

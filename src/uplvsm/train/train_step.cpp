@@ -6,6 +6,7 @@
 #include "uplvsm/geometry/camera_rotation_warp.h"
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/estimator_half_view.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/rotation_alignment_loss.h"
 #include "uplvsm/train/turned_view_loss.h"
@@ -66,6 +67,25 @@ class TranslationWarmup {
   model::LatentPluckerLearnerImpl* estimator_ = nullptr;
 };
 
+// The render and its MSE: the official one, or with model.estimator_half_view (and target poses from the estimator)
+// the estimator shown one half of each target and the other half scored.
+std::pair<model::Rendered, torch::Tensor> render_and_mse(StepContext& ctx, const MicroBatch& batch, int64_t step) {
+  const auto& target = batch.targets.images;
+  if (!ctx.net->config.estimator_half_view || ctx.target_poses != model::TargetPoses::Estimator) {
+    auto out = ctx.net->render(batch.inputs, batch.targets, ctx.target_poses);
+    auto mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
+    return {out, mse};
+  }
+  auto& net = *model::as_uplvsm(*ctx.net);
+  const int64_t b = target.size(0), v = target.size(1), H = target.size(3), W = target.size(4);
+  auto seen = draw_seen_halves(b * v, H, W, ctx.training, step).to(target.device()).view({b, v, 1, H, W});
+  auto latents = net.encode(batch.inputs);
+  auto poses = net.estimate_poses_seeing(target, seen, latents);
+  auto render = net.render_views(latents, poses, batch.targets.fxfycxcy, H, W);
+  auto mse = masked_mse(render, target, 1 - seen);
+  return {model::Rendered{render, poses, latents}, mse};
+}
+
 // Forward and losses under autocast, as the official step; the MSE on fp32 (autocast's policy for losses).
 Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum, int64_t step) {
   const auto& tc = ctx.training;
@@ -74,8 +94,8 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
   torch::Tensor mse, loss;
   {
     AutocastGuard amp(target.device(), ctx.bf16);
-    auto out = ctx.net->render(batch.inputs, batch.targets, ctx.target_poses);
-    mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
+    auto [out, plain_mse] = render_and_mse(ctx, batch, step);
+    mse = plain_mse;
     loss = tc.l2_loss_weight * mse;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
     if (tc.latent_translation_weight > 0)
