@@ -1,9 +1,9 @@
 // A linear layer's training step on bf16 operands (autocast training on CPU), with the weight gradient from our own
 // AVX-512 BF16 product. That gradient, X^T dY over every token of the batch, is a product with a long inner
 // dimension (tens of thousands of rows) and a small output (d x 4d at most at the demo size); oneDNN runs it at
-// 0.4-0.6 of the bf16 peak on the operands as a training step leaves them (out of cache), about half of a demo
-// step's backward matmul time. Here it runs at ~0.8: each slice of rows is interleaved into bf16 pairs while the
-// next slice is prefetched, and the slices' sums are added in a fixed order.
+// 46-63 % of the bf16 peak on the operands as a training step leaves them (out of cache), about half of a demo
+// step's backward matmul time. Here it runs at 69-78 % (`WeightGradient` benchmark): each slice of rows is
+// interleaved into bf16 pairs while the next slice is prefetched, and the slices' sums are added in a fixed order.
 #pragma once
 #include <torch/torch.h>
 
