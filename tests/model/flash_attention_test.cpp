@@ -224,6 +224,33 @@ TEST(FlashAttention, QKNormOnReadEqualsQKNormThenAttentionBitForBit) {
         }
 }
 
+// fp32 without gradients (inference): the norm read by the fp32 kernels gives the bits of qk_norm (fp32) then
+// fused_attention; with gradients on it does not apply (the fp32 backward has no norm), and its backward refuses.
+TEST(FlashAttention, QKNormOnReadInFp32InferenceEqualsQKNormThenAttentionBitForBit) {
+  if (!fused_available(torch::kFloat32, 16)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  torch::manual_seed(19);
+  const int64_t B = 2, H = 3;
+  for (int64_t D : {16, 32, 64})
+    for (int64_t L : {37, 150})
+      for (auto [start, count] : {std::pair<int64_t, int64_t>{0, L}, {5, 20}}) {
+        const int64_t width = 3 * H * D;
+        auto qkv = (torch::randn({B, L, width + 1}) * 2).narrow(2, 0, width);  // rows an odd number apart
+        auto wq = 1 + 0.3 * torch::randn({D}), wk = 1 + 0.3 * torch::randn({D});
+        SCOPED_TRACE(testing::Message() << "D " << D << ", L " << L << ", queries " << start << " + " << count);
+        EXPECT_FALSE(model::fused_qk_norm_attention_applies(qkv, wq, D)) << "gradients on: not served";
+        torch::NoGradGuard no_grad;
+        ASSERT_TRUE(model::fused_qk_norm_attention_applies(qkv, wq, D));
+        auto fused = model::fused_qk_norm_attention(qkv, H, wq, wk, 1e-3, start, count);
+        auto parts = qkv.chunk(3, -1);
+        auto split = [&](const torch::Tensor& t) { return t.view({B, L, H, D}); };
+        auto q = model::qk_norm(split(parts[0]).narrow(1, start, count), wq, 1e-3, torch::kFloat32).transpose(1, 2);
+        auto k = model::qk_norm(split(parts[1]), wk, 1e-3, torch::kFloat32).transpose(1, 2);
+        auto composed = model::fused_attention(q, k, split(parts[2]).transpose(1, 2));
+        ASSERT_EQ(fused.scalar_type(), torch::kFloat32);
+        EXPECT_TRUE(torch::equal(fused, composed));
+      }
+}
+
 TEST(FlashAttention, QKNormOnReadRejectsWhatItCannotServeByName) {
   if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
   auto qkv = torch::randn({1, 8, 3 * 2 * 32}).to(torch::kBFloat16);
@@ -237,7 +264,9 @@ TEST(FlashAttention, QKNormOnReadRejectsWhatItCannotServeByName) {
     }
   };
   expect_error([&] { model::fused_qk_norm_attention(qkv, 5, w, w, 1e-3, 0, 8); }, "[B, L, 3 H D] for 5 heads");
-  expect_error([&] { model::fused_qk_norm_attention(qkv.to(torch::kFloat32), 2, w, w, 1e-3, 0, 8); }, "bf16 qkv");
+  expect_error([&] { model::fused_qk_norm_attention(qkv.to(torch::kFloat32), 2, w, w, 1e-3, 0, 8); },
+               "fp32 qkv with AVX-512, gradients off");
+  expect_error([&] { model::fused_qk_norm_attention(qkv.to(torch::kFloat64), 2, w, w, 1e-3, 0, 8); }, "bf16 qkv");
   expect_error([&] { model::fused_qk_norm_attention(qkv, 2, torch::ones({16}), w, 1e-3, 0, 8); }, "weights of size");
   expect_error([&] { model::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 4, 5); }, "query rows [4, 9) outside the 8");
   expect_error([&] { model::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 0, 0); }, "query rows [0, 0)");

@@ -24,8 +24,9 @@ DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, 
 torch::Tensor DinoAttentionImpl::forward(const torch::Tensor& x) {
   const int64_t B = x.size(0), N = x.size(1), C = x.size(2);
   auto projected = qkv(x);
-  if (q_norm && autocast_active(x.device()) && fused_qk_norm_attention_applies(projected, q_norm->weight, C / heads)) {
-    // The same bits as the path below under autocast, in one node (flash_attention.h).
+  const bool fused_norm_dtype = autocast_active(x.device()) || projected.scalar_type() == torch::kFloat32;
+  if (q_norm && fused_norm_dtype && fused_qk_norm_attention_applies(projected, q_norm->weight, C / heads)) {
+    // The same bits as the path below (under autocast, or fp32 without gradients), in one node (flash_attention.h).
     auto o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps, 0, N);
     return proj(o.transpose(1, 2).reshape({B, N, C}));
   }

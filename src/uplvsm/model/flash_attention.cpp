@@ -101,9 +101,10 @@ flash::Problem qkv_problem(const torch::Tensor& qkv, int64_t H, int64_t q_start,
   const int64_t HD = qkv.size(2) / 3;
   p.B = qkv.size(0), p.H = H, p.Lq = q_count, p.Lk = qkv.size(1), p.D = HD / H;
   p.scale = static_cast<float>(1.0 / std::sqrt(static_cast<double>(p.D)));
-  p.precision = flash::Precision::Bf16;
-  const auto* base = static_cast<const c10::BFloat16*>(qkv.data_ptr());
-  p.q = base + q_start * qkv.stride(1), p.k = base + HD, p.v = base + 2 * HD;
+  p.precision = precision_of(qkv);
+  const auto* base = static_cast<const char*>(qkv.data_ptr());
+  const int64_t bytes = qkv.element_size();
+  p.q = base + q_start * qkv.stride(1) * bytes, p.k = base + HD * bytes, p.v = base + 2 * HD * bytes;
   p.sq = p.sk = p.sv = {qkv.stride(0), p.D, qkv.stride(1)};
   return p;
 }
@@ -128,6 +129,8 @@ struct FusedQKNormAttentionFunction : torch::autograd::Function<FusedQKNormAtten
   static variable_list backward(AutogradContext* ctx, variable_list grad_outputs) {
     RECORD_FUNCTION("uplvsm::fused_qk_norm_attention_backward", std::vector<c10::IValue>());
     auto saved = ctx->get_saved_variables();
+    TORCH_CHECK(saved[0].scalar_type() == torch::kBFloat16,
+                "fused_qk_norm_attention: the fp32 kernels apply QK-Norm in the forward only (inference)");
     const auto &qkv = saved[0], &q_weight = saved[1], &k_weight = saved[2], &o = saved[3], &lse = saved[4];
     const int64_t q_start = ctx->saved_data["q_start"].toInt(), q_count = ctx->saved_data["q_count"].toInt();
     auto dout = last_dim_contiguous(grad_outputs[0].to(torch::kBFloat16));
@@ -173,8 +176,10 @@ torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, co
 }
 
 bool fused_qk_norm_attention_applies(const torch::Tensor& qkv, const torch::Tensor& q_weight, int64_t d_head) {
-  if (qkv.dim() != 3 || qkv.scalar_type() != torch::kBFloat16 || qkv.stride(-1) != 1 || d_head <= 0) return false;
-  if (qkv.size(2) % (3 * d_head) != 0 || !fused_attention_applies(qkv.device(), torch::kBFloat16, d_head)) return false;
+  const auto t = qkv.scalar_type();
+  const bool dtype_served = t == torch::kBFloat16 || (t == torch::kFloat32 && !torch::GradMode::is_enabled());
+  if (qkv.dim() != 3 || !dtype_served || qkv.stride(-1) != 1 || d_head <= 0) return false;
+  if (qkv.size(2) % (3 * d_head) != 0 || !fused_attention_applies(qkv.device(), t, d_head)) return false;
   return qk_norm_fuses(qkv.narrow(2, 0, d_head), q_weight);
 }
 
@@ -185,8 +190,9 @@ torch::Tensor fused_qk_norm_attention(const torch::Tensor& qkv, int64_t heads, c
   const int64_t d_head = qkv.size(2) / 3 / heads;
   TORCH_CHECK(
       fused_qk_norm_attention_applies(qkv, q_weight, d_head) && qk_norm_fuses(qkv.narrow(2, 0, d_head), k_weight),
-      "fused_qk_norm_attention: needs bf16 qkv on a CPU with AVX-512 BF16, d_head a multiple of 16 (got ", d_head,
-      ") and fp32 weights of size d_head");
+      "fused_qk_norm_attention: needs bf16 qkv on a CPU with AVX-512 BF16 (or fp32 qkv with AVX-512, gradients off), "
+      "d_head a multiple of 16 (got ",
+      d_head, ") and fp32 weights of size d_head");
   TORCH_CHECK(q_start >= 0 && q_count > 0 && q_start + q_count <= qkv.size(1), "fused_qk_norm_attention: query rows [",
               q_start, ", ", q_start + q_count, ") outside the ", qkv.size(1), " rows");
   return FusedQKNormAttentionFunction::apply(qkv, q_weight, k_weight, eps, heads, q_start, q_count);

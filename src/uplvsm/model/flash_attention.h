@@ -22,12 +22,13 @@ bool fused_attention_applies(torch::Device device, torch::ScalarType dtype, int6
 torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
 
 // QK-Norm and attention from one projection, as one autograd node: qkv [B, L, 3 H D] (q | k | v, each head-major,
-// bf16, last dimension contiguous), queries rows [q_start, q_start + q_count) of it. Exactly qk_norm(q, q_weight,
-// eps, bf16) and qk_norm(k, k_weight, eps, bf16) (model/qk_norm) followed by fused_attention — the same bits, with
-// the norm applied as the kernels read q and k and a backward that writes qkv's gradient as one tensor, so neither
-// the normalised q and k nor the three separate gradients are ever stored. Returns o [B, H, q_count, D] as
-// fused_attention does. Applies where fused_qk_norm_attention_applies (bf16 fused kernels on this CPU for this head
-// size, fp32 weights of size D, the fused QK-Norm not switched off by UPLVSM_QK_NORM=unfused).
+// bf16, or fp32 without gradients (inference); last dimension contiguous), queries rows [q_start, q_start +
+// q_count) of it. Exactly qk_norm(q, q_weight, eps, qkv's dtype) and qk_norm(k, ...) (model/qk_norm) followed by
+// fused_attention — the same bits, with the norm applied as the kernels read q and k and (bf16) a backward that
+// writes qkv's gradient as one tensor, so neither the normalised q and k nor the three separate gradients are ever
+// stored. Returns o [B, H, q_count, D] as fused_attention does. Applies where fused_qk_norm_attention_applies (fused
+// kernels of that dtype on this CPU for this head size, fp32 weights of size D, the fused QK-Norm not switched off by
+// UPLVSM_QK_NORM=unfused).
 bool fused_qk_norm_attention_applies(const torch::Tensor& qkv, const torch::Tensor& q_weight, int64_t d_head);
 torch::Tensor fused_qk_norm_attention(const torch::Tensor& qkv, int64_t heads, const torch::Tensor& q_weight,
                                       const torch::Tensor& k_weight, double eps, int64_t q_start, int64_t q_count);

@@ -2,6 +2,7 @@
 
 #include "uplvsm/model/bf16_simd.h"
 #include "uplvsm/model/flash_attention_simd.h"
+#include "uplvsm/model/qk_norm_rows.h"
 
 namespace uplvsm::model::flash {
 namespace {
@@ -134,11 +135,33 @@ UPLVSM_AVX512 void transpose_rows(const float* rows, int64_t L, int64_t D, int64
     }
 }
 
+// Rows [row, row + count) of head bh of an fp32 operand through QK-Norm with weight w (Problem::norm: model/qk_norm's
+// fp32 bits, qk_norm_rows.h), times `mul` as load_row multiplies, into dst ([count x D]).
+UPLVSM_AVX512 void load_rows_through_norm(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row,
+                                          int64_t count, const float* w, float mul, float* dst) {
+  using qk_norm_rows::kGroup;
+  const float* x[kGroup];  // entries [0, n) of each group are set and read
+  float* out[kGroup];
+  float r[kGroup];
+  for (int64_t i0 = 0; i0 < count; i0 += kGroup) {
+    const int64_t n = std::min(kGroup, count - i0);
+    for (int64_t i = 0; i < n; ++i) {
+      x[i] = static_cast<const float*>(base) + head_offset(p, s, bh, row + i0 + i);
+      out[i] = dst + (i0 + i) * p.D;
+    }
+    qk_norm_rows::forward_group<float, float>(x, n, w, p.norm.eps, p.D, out, r);
+    for (int64_t e = i0 * p.D; e < (i0 + n) * p.D; ++e) dst[e] *= mul;
+  }
+}
+
 // fp32 forward, per thread: K^T (scratch 1) and V (scratch 0) of the head being worked on.
 void pack_head_fp32(const Problem& p, int64_t bh) {
   const int64_t ld_kt = round_up(p.Lk, 16);
   float* Vf = scratch<float>(0, p.Lk * p.D);
-  load_rows(p, p.k, p.sk, bh, p.Lk, 1.0f, Vf);
+  if (p.norm.active())
+    load_rows_through_norm(p, p.k, p.sk, bh, 0, p.Lk, p.norm.k_weight, 1.0f, Vf);
+  else
+    load_rows(p, p.k, p.sk, bh, p.Lk, 1.0f, Vf);
   transpose_rows(Vf, p.Lk, p.D, ld_kt, scratch<float>(1, p.D * ld_kt));
   load_rows(p, p.v, p.sv, bh, p.Lk, 1.0f, Vf);
 }
@@ -154,7 +177,10 @@ void forward_rows_fp32(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
   float m[kQueryTile], l[kQueryTile];
   for (int64_t i0 = row_begin; i0 < row_end; i0 += kQueryTile) {
     const int64_t rows = std::min(kQueryTile, row_end - i0);
-    for (int64_t r = 0; r < rows; ++r) load_row(p, p.q, p.sq, bh, i0 + r, p.scale, Q + r * D);
+    if (p.norm.active())
+      load_rows_through_norm(p, p.q, p.sq, bh, i0, rows, p.norm.q_weight, p.scale, Q);
+    else
+      for (int64_t r = 0; r < rows; ++r) load_row(p, p.q, p.sq, bh, i0 + r, p.scale, Q + r * D);
     std::fill(O, O + rows * D, 0.0f);
     std::fill(m, m + rows, -std::numeric_limits<float>::infinity());
     std::fill(l, l + rows, 0.0f);

@@ -14,10 +14,11 @@ struct Strides {
 
 enum class Precision { Fp32, Bf16 };
 
-// QK-Norm applied to q and k as the bf16 kernels read them, with model/qk_norm's arithmetic and rounding
+// QK-Norm applied to q and k as the kernels read them, with model/qk_norm's arithmetic and rounding
 // (qk_norm_rows.h): each row of q becomes bf16(bf16(row r) q_weight), r = 1 / sqrt(mean(row^2) + eps), and k
-// likewise. Then the backward's dq and dk are the gradients of the raw q and k, and the weights' gradients are
-// added per (batch, head) into q_weight_grad and k_weight_grad ([B*H, D], zeroed by the caller). Null weights: off.
+// likewise (fp32: (row r) q_weight, unrounded). Then the bf16 backward's dq and dk are the gradients of the raw q
+// and k, and the weights' gradients are added per (batch, head) into q_weight_grad and k_weight_grad ([B*H, D],
+// zeroed by the caller); the fp32 kernels apply the norm in the forward only. Null weights: off.
 struct QKNormOnRead {
   const float *q_weight = nullptr, *k_weight = nullptr;
   float eps = 0.0f;
@@ -27,7 +28,7 @@ struct QKNormOnRead {
 
 // One attention problem: o = softmax(scale q k^T) v per (batch, head). Pointers are float* for Fp32 and
 // uint16_t* (bf16 bit patterns) for Bf16; lse ([B*H*Lq], fp32, contiguous) is the row log-sum-exp of the scaled
-// scores, kept for the backward pass. `norm` (bf16 only) normalises q and k first.
+// scores, kept for the backward pass. `norm` normalises q and k first (fp32: forward only).
 struct Problem {
   int64_t B = 0, H = 0, Lq = 0, Lk = 0, D = 0;
   float scale = 1.0f;

@@ -86,9 +86,10 @@ torch::Tensor QKNormAttentionImpl::forward(const torch::Tensor& x, OutputRows ro
   auto projected = to_qkv(x);
   torch::Tensor o;  // [B, heads, rows, d_head]
   const int64_t L = x.size(1), first = rows.all(L) ? 0 : rows.start, count = rows.all(L) ? L : rows.count;
-  if (count > 0 && autocast_active(x.device()) && fused_qk_norm_attention_applies(projected, q_norm->weight, d_head)) {
-    // The same bits as the path below under autocast, in one node that stores neither q and k normalised nor three
-    // separate gradients.
+  const bool fused_norm_dtype = autocast_active(x.device()) || projected.scalar_type() == torch::kFloat32;
+  if (count > 0 && fused_norm_dtype && fused_qk_norm_attention_applies(projected, q_norm->weight, d_head)) {
+    // The same bits as the path below (under autocast, or fp32 without gradients), in one node that stores neither
+    // q and k normalised nor three separate gradients.
     o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps, first, count);
   } else {
     auto [q, k, v] = project(projected, rows);
