@@ -61,9 +61,7 @@ torch::Tensor UPLVSMImpl::encode_scene_with_rays(const torch::Tensor& images, co
 
 torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torch::Tensor& scene_latents,
                                          ForwardTrace* trace) {
-  TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "estimate_poses: target images must be [b, v, 3, H, W], got ",
-              images.sizes());
-  if (config.estimator_half_view) {
+  if (config.estimator_half_view && images.dim() == 5) {  // estimate_poses_seeing checks the shape
     const int64_t W = images.size(4);
     auto left = (torch::arange(W, images.options().dtype(torch::kInt64)) < W / 2).to(images.scalar_type());
     return estimate_poses_seeing(images, left.view({1, 1, 1, 1, W}), scene_latents, trace);
@@ -73,9 +71,9 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torc
 
 torch::Tensor UPLVSMImpl::estimate_poses_seeing(const torch::Tensor& target_images, const torch::Tensor& seen,
                                                 const torch::Tensor& scene_latents, ForwardTrace* trace) {
+  TORCH_CHECK(target_images.dim() == 5 && target_images.size(2) == 3,
+              "estimate_poses: target images must be [b, v, 3, H, W], got ", target_images.sizes());
   const auto images = seen.defined() ? target_images * seen : target_images;
-  TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "estimate_poses: target images must be [b, v, 3, H, W], got ",
-              images.sizes());
   TORCH_CHECK(!config.encoder_cameras,
               "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
               "dataset cameras; its pose estimator is never trained");

@@ -94,8 +94,8 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
   torch::Tensor mse, loss;
   {
     AutocastGuard amp(target.device(), ctx.bf16);
-    auto [out, plain_mse] = render_and_mse(ctx, batch, step);
-    mse = plain_mse;
+    model::Rendered out;
+    std::tie(out, mse) = render_and_mse(ctx, batch, step);
     loss = tc.l2_loss_weight * mse;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
     if (tc.latent_translation_weight > 0)
