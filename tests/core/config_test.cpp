@@ -141,6 +141,13 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
             std::string::npos);
   EXPECT_NO_THROW(config_from_json({{"training", {{"turned_view_weight", 0.5}, {"turned_view_degrees", 15}}}}, "ok"));
   EXPECT_TRUE(config_from_json({{"model", {{"estimator_half_view", true}}}}, "ok").model.estimator_half_view);
+  EXPECT_TRUE(config_from_json({{"model", {{"encoder_latent_cameras", true}}}}, "ok").model.encoder_latent_cameras);
+  for (const auto& bad : {nlohmann::json{{"variant", "ptlvsm"}, {"encoder_latent_cameras", true}},
+                          nlohmann::json{{"encoder_cameras", true}, {"encoder_latent_cameras", true}}})
+    EXPECT_NE(message({{"model", bad}, {"training", {{"target_poses", "dataset"}}}})
+                  .find("model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras"),
+              std::string::npos)
+        << bad.dump();
   EXPECT_NE(message({{"model", {{"variant", "lvsm"}, {"estimator_half_view", true}}}})
                 .find("model.estimator_half_view: only the uplvsm variant"),
             std::string::npos);

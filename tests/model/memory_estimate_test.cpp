@@ -51,6 +51,10 @@ TEST(MemoryEstimate, TrainingMemoryScalesWithBatchAndCheckpointing) {
   bf16.training.amp = Amp::Bf16;
   EXPECT_DOUBLE_EQ(model::training_memory(bf16).activation_bytes, base.activation_bytes / 2);
 
+  auto two_passes = config;  // the inputs' latent cameras: the encoder twice and the estimator over input view 1
+  two_passes.model.encoder_latent_cameras = true;
+  EXPECT_GT(model::training_memory(two_passes).activation_bytes, base.activation_bytes);
+
   // The unfittable config: d = 100032 needs terabytes for its state alone.
   auto huge = config;
   huge.model.transformer.d = huge.model.dinov2.embed_dim = 100032;

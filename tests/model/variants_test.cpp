@@ -4,8 +4,10 @@
 
 #include "test_util.h"
 #include "train/train_test_util.h"
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
+#include "uplvsm/geometry/plucker.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/posed_lvsm.h"
 #include "uplvsm/model/state_dict.h"
@@ -188,6 +190,58 @@ TEST(Variants, KeepImageTokensExtendsTheSceneLatentsWithTheEncodersImageTokens) 
   auto kept_flops = model::forward_flops(config, 1, 2, 3);
   EXPECT_GT(kept_flops.encoder, plain_flops.encoder);  // the plain encoder's last block skips the image-token rows
   EXPECT_GT(kept_flops.decoder, plain_flops.decoder);
+}
+
+// model.encoder_latent_cameras: the encoder's second pass carries, on input views 1.., the rays of the latent poses
+// the estimator reads from them in the first pass's scene; view 0 keeps the identity marker.
+TEST(Variants, EncoderLatentCamerasGiveTheEncoderTheInputsLatentPoses) {
+  torch::manual_seed(8);
+  auto config = small_config("uplvsm");
+  config.keep_image_tokens = true;
+  model::UPLVSM plain(config);
+  config.encoder_latent_cameras = true;
+  model::UPLVSM two_pass(config);
+  model::load_state_dict(*two_pass, model::state_dict(*plain), "plain");  // no new parameter
+  plain->eval(), two_pass->eval();
+  auto s = random_scene(2, 3, 2);
+  const auto& images = s.inputs.images;
+  const int64_t b = 2, H = 32, W = 32;
+  // The composition by hand: the official scene, the estimator on views 1 and 2 there, the encoder again.
+  auto first = plain->encode_scene(images, s.inputs.fxfycxcy);
+  auto poses = plain->estimate_poses(images.narrow(1, 1, 2), first);
+  auto c2w = torch::cat({geometry::identity_c2w({b, 1}, poses.options()), geometry::pose_encoding_to_c2w(poses)}, 1);
+  auto expected = plain->encode_scene_with_rays(images, geometry::plucker_rays(c2w, s.inputs.fxfycxcy, H, W));
+  model::ForwardTrace trace;  // keeps the second pass, the one the scene comes from
+  auto scene = two_pass->encode_scene(images, s.inputs.fxfycxcy, &trace);
+  EXPECT_LT(test::max_abs_diff(scene, expected), 1e-5);
+  EXPECT_LT(test::max_abs_diff(trace.encoder_output, expected), 1e-5);
+  EXPECT_GT(test::max_abs_diff(scene, first), 1e-4);  // the second pass is not the official scene
+  // Moving a view's latent pose moves the scene: the estimator's weights get a gradient through the encoder alone.
+  two_pass->train();
+  two_pass->encode_scene(images, s.inputs.fxfycxcy).square().sum().backward();
+  double estimator_grad = 0;
+  for (const auto& p : two_pass->estimator->parameters())
+    if (p.grad().defined()) estimator_grad += p.grad().abs().sum().item<double>();
+  EXPECT_GT(estimator_grad, 0.0);
+  {  // in bf16 training, where the estimator's heads may answer in bf16
+    AutocastGuard autocast(torch::kCPU, true);
+    EXPECT_EQ(two_pass->encode_scene(images, s.inputs.fxfycxcy).size(1), scene.size(1));
+  }
+  // One input view has no other view to place: the official scene.
+  torch::NoGradGuard no_grad;
+  two_pass->eval();
+  EXPECT_EQ(test::max_abs_diff(two_pass->encode_scene(images.narrow(1, 0, 1), s.inputs.fxfycxcy.narrow(1, 0, 1)),
+                               plain->encode_scene(images.narrow(1, 0, 1), s.inputs.fxfycxcy.narrow(1, 0, 1))),
+            0.0);
+  // The FLOP count has the second pass and the inputs' poses.
+  auto once = model::forward_flops(small_config("uplvsm"), 1, 3, 2);
+  auto two_pass_config = small_config("uplvsm");
+  two_pass_config.encoder_latent_cameras = true;
+  auto twice = model::forward_flops(two_pass_config, 1, 3, 2);
+  EXPECT_DOUBLE_EQ(twice.encoder, 2 * once.encoder);
+  EXPECT_DOUBLE_EQ(twice.estimator, 2 * once.estimator);  // 2 targets, then the 2 posed inputs
+  EXPECT_GT(twice.other, once.other);
+  EXPECT_DOUBLE_EQ(twice.decoder, once.decoder);
 }
 
 TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {

@@ -123,6 +123,7 @@ void model_fields(C& c, F&& f) {
   f("encoder_cameras", c.encoder_cameras);
   f("keep_image_tokens", c.keep_image_tokens);
   f("estimator_half_view", c.estimator_half_view);
+  f("encoder_latent_cameras", c.encoder_latent_cameras);
   f("image_size", c.image_size);
   f("patch_size", c.patch_size);
 }
@@ -363,6 +364,9 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
   require(!m.estimator_half_view || !estimated_poses || tr.perceptual_loss_weight == 0, s,
           "model.estimator_half_view: training scores half of each target with the MSE alone; set "
           "training.perceptual_loss_weight to 0");
+  require(!m.encoder_latent_cameras || (m.variant == Variant::UPLVSM && !m.encoder_cameras), s,
+          "model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras has latent cameras "
+          "to give its encoder");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
   require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
           "training.latent_translation_weight must be a finite number >= 0");

@@ -84,6 +84,11 @@ struct ModelConfig {
   // training the left or the right, drawn per target, with the rendering loss on the other half only; elsewhere the
   // left half. false: official.
   bool estimator_half_view = false;
+  // Not in the paper (RayZer's design, Jiang et al. 2025: the inputs' predicted cameras feed the scene
+  // reconstruction): uplvsm's encoder runs twice, the second time with input views 1.. carrying the Plücker rays of
+  // the latent poses the estimator reads from them in the first pass's scene (view 0 the identity marker), so one
+  // latent camera must serve both the encoder's fusion of the inputs and the decoder's render. false: official.
+  bool encoder_latent_cameras = false;
   int64_t image_size = 224;
   int64_t patch_size = 14;
   TransformerConfig transformer;

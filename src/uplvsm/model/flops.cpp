@@ -50,8 +50,14 @@ FlopCount uplvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t inpu
   f.encoder = b * transformer_stack_flops(t.encoder_n_layer, L + input_views * n, scene, t.d, 4 * t.d);
   f.estimator = b * vt * transformer_stack_flops(t.estimator_n_layer, n + scene, n, t.d, 4 * t.d);
   f.decoder = b * vt * transformer_stack_flops(t.decoder_n_layer, n + scene, n, t.d, 4 * t.d);
-  const double pose_heads = vt * 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5);
-  f.other = b * (s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head) + pose_heads);  // marker on view 0
+  const double pose_heads = 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5);
+  f.other = b * (s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head + pose_heads));  // marker on view 0
+  if (c.encoder_latent_cameras && input_views > 1) {  // the inputs' latent cameras, then the encoder again
+    const double posed = vi - 1.0;
+    f.encoder *= 2.0;
+    f.estimator += b * posed * transformer_stack_flops(t.estimator_n_layer, n + scene, n, t.d, 4 * t.d);
+    f.other += b * (vi * s.plucker_tokens + posed * pose_heads);
+  }
   return f;
 }
 

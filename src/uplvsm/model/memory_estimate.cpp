@@ -71,9 +71,12 @@ TrainingMemory training_memory(const Config& config) {
       b * (vi + (estimator ? vt : 0)) * (1 + static_cast<double>(c.dinov2.num_register_tokens) + n);
   double values = dino_tokens * kept(c.dinov2.depth, c.dinov2.embed_dim);
   if (c.variant == Variant::UPLVSM) {
-    values += b * (L + vi * n) * kept(t.encoder_n_layer, t.d);
+    // model.encoder_latent_cameras: the estimator over input views 1.., then the encoder a second time.
+    const double posed_inputs = c.encoder_latent_cameras && vi > 1 ? vi - 1 : 0.0;
+    values += (posed_inputs > 0 ? 2.0 : 1.0) * b * (L + vi * n) * kept(t.encoder_n_layer, t.d);
     const double scene = L + (c.keep_image_tokens ? vi * n : 0.0);
     values += b * vt * (n + scene) * ((estimator ? kept(t.estimator_n_layer, t.d) : 0) + kept(t.decoder_n_layer, t.d));
+    values += b * posed_inputs * (n + scene) * kept(t.estimator_n_layer, t.d);
   } else {
     values += b * vt * (vi * n + n) * kept(t.n_layer, t.d);
   }

@@ -36,16 +36,27 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   if (trace)  // every view's identity rays, for the parity fixtures
     keep(trace, {{&ForwardTrace::canonical_plucker,
                   geometry::plucker_rays(geometry::identity_c2w({b, v}, fxfycxcy.options()), fxfycxcy, H, W)}});
-  return encode_scene_with_rays(images, marker_rays, trace);
+  auto tokens = tokenize(images);  // [b, v, n, d]
+  const bool second_pass = config.encoder_latent_cameras && v > 1;
+  auto scene = encode_tokens(tokens, marker_rays, second_pass ? nullptr : trace);
+  if (!second_pass) return scene;
+  // model.encoder_latent_cameras: a second pass (the one a trace keeps) in which every input view carries its latent
+  // camera, view 0 the identity (the marker) and the others what the estimator reads from them in the first scene.
+  // In fp32 like the identity and the intrinsics (autocast may hand the heads' output back in bf16).
+  auto poses = estimate_poses_from_tokens(tokens.narrow(1, 1, v - 1), scene).to(torch::kFloat32);  // [b, v - 1, 7]
+  auto c2w = torch::cat({geometry::identity_c2w({b, 1}, poses.options()), geometry::pose_encoding_to_c2w(poses)}, 1);
+  return encode_tokens(tokens, geometry::plucker_rays(c2w, fxfycxcy, H, W), trace);
 }
 
 torch::Tensor UPLVSMImpl::encode_scene_with_rays(const torch::Tensor& images, const torch::Tensor& rays,
                                                  ForwardTrace* trace) {
   TORCH_CHECK(images.dim() == 5 && images.size(2) == 3, "encode_scene: input images must be [b, v, 3, H, W], got ",
               images.sizes());
-  const int64_t b = images.size(0), v = images.size(1);
-  auto tokens = tokenize(images);  // [b, v, n, d]
-  const int64_t n = tokens.size(2), d = tokens.size(3);
+  return encode_tokens(tokenize(images), rays, trace);
+}
+
+torch::Tensor UPLVSMImpl::encode_tokens(const torch::Tensor& tokens, const torch::Tensor& rays, ForwardTrace* trace) {
+  const int64_t b = tokens.size(0), v = tokens.size(1), n = tokens.size(2), d = tokens.size(3);
   auto x = with_camera_tokens(tokens, rays).reshape({b, v * n, d});
   const int64_t L = n_light_field_latent.size(0);
   auto encoder_input = torch::cat({n_light_field_latent.unsqueeze(0).expand({b, L, d}), x}, 1);  // [b, L + v n, d]
@@ -74,11 +85,15 @@ torch::Tensor UPLVSMImpl::estimate_poses_seeing(const torch::Tensor& target_imag
   TORCH_CHECK(target_images.dim() == 5 && target_images.size(2) == 3,
               "estimate_poses: target images must be [b, v, 3, H, W], got ", target_images.sizes());
   const auto images = seen.defined() ? target_images * seen : target_images;
+  return estimate_poses_from_tokens(tokenize(images), scene_latents, trace);
+}
+
+torch::Tensor UPLVSMImpl::estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
+                                                     ForwardTrace* trace) {
   TORCH_CHECK(!config.encoder_cameras,
               "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
               "dataset cameras; its pose estimator is never trained");
-  const int64_t b = images.size(0), v = images.size(1);
-  auto tokens = tokenize(images);                                                            // [b, v, n, d]
+  const int64_t b = tokens.size(0), v = tokens.size(1);
   auto pooled = estimator->pooled(tokens.flatten(0, 1), repeat_per_view(scene_latents, v));  // [b v, d]
   keep(trace,
        {{&ForwardTrace::target_dino_tokens, tokens}, {&ForwardTrace::estimator_pooled, pooled.view({b, v, -1})}});

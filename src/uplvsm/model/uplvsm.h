@@ -2,6 +2,8 @@
 // the Latent Plücker Learner -> Plücker rays with the target's intrinsics -> decoder -> RGB. Read top to bottom:
 //   T  = DINOv2(inputs); T[view 0] += canonical_pose_tokenizer(Plücker of the identity camera)
 //   S  = Encoder([latents ; T])[:L]                              scene latents
+//        (model.encoder_latent_cameras, not official: T[view i>0] += tokenizer(Plücker(pose(Estimator(T_i, S))))
+//        and S = Encoder([latents ; T])[:L] again: the inputs' latent cameras in the encoder, as RayZer)
 //   e  = Estimator(DINOv2(target), S)                            7-D latent pose per target
 //   Q  = target_pose_tokenizer(Plücker(pose(e), intrinsics))
 //   img = sigmoid(head(Decoder(LN([Q ; S]))[:n]))
@@ -22,13 +24,16 @@ struct UPLVSMImpl : NovelViewModelImpl {
   explicit UPLVSMImpl(const ModelConfig& config);
 
   // Scene latents [b, L, d] from unposed input views and their intrinsics (pixels) [b, v_in, 4]; with
-  // model.keep_image_tokens [b, L + v_in n, d], the encoder's image-token outputs after the latents.
+  // model.keep_image_tokens [b, L + v_in n, d], the encoder's image-token outputs after the latents. With
+  // model.encoder_latent_cameras, the encoder's second pass, whose views 1.. carry their latent cameras.
   torch::Tensor encode_scene(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                              ForwardTrace* trace = nullptr);
   // The same from input views whose first k views carry camera rays [b, k, 6, H, W]: encode_scene passes the
   // identity camera's rays for view 0 (the canonical marker); model.encoder_cameras passes every view's real camera.
   torch::Tensor encode_scene_with_rays(const torch::Tensor& input_images, const torch::Tensor& rays,
                                        ForwardTrace* trace = nullptr);
+  // The same from the input views' DINOv2 tokens [b, v, n, d].
+  torch::Tensor encode_tokens(const torch::Tensor& tokens, const torch::Tensor& rays, ForwardTrace* trace = nullptr);
   // The scene latents of `inputs` as render() makes them: encode_scene, or with model.encoder_cameras every input
   // view's real camera (its c2w is then required).
   torch::Tensor encode(const Views& inputs, ForwardTrace* trace = nullptr);
@@ -39,6 +44,9 @@ struct UPLVSMImpl : NovelViewModelImpl {
   // The same of the parts `seen` ([b, v_t, 1, H, W], 1 where the estimator sees) of the targets, the rest black.
   torch::Tensor estimate_poses_seeing(const torch::Tensor& target_images, const torch::Tensor& seen,
                                       const torch::Tensor& scene_latents, ForwardTrace* trace = nullptr);
+  // The same from the targets' DINOv2 tokens [b, v_t, n, d].
+  torch::Tensor estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
+                                           ForwardTrace* trace = nullptr);
   // The scene latents of unposed inputs and the latent poses [b, v_in, 7] the estimator reads from those same
   // inputs: what rendering between (or around) the inputs starts from (render/renderer, serve/viewer_model).
   struct EncodedInputs {
