@@ -85,3 +85,12 @@ def test_readme_snippets_are_the_tested_examples():
     readme = (REPO / "README.md").read_text()
     for name in ["render_two_photos.py", "CMakeLists.txt", "render_two_photos.cpp"]:
         assert (EXAMPLE / name).read_text() in readme, f"README.md does not quote examples/render_two_photos/{name} exactly"
+
+
+def test_make_demo_report_models_are_key_value_lists():
+    """`make demo`'s report specs (`--model "key=value,key=value"`) split at every comma: one inside a caption stops
+    the main job at its last step."""
+    specs = re.findall(r'--model "([^"]*)"', (REPO / "Makefile").read_text())
+    assert len(specs) >= 4, "the Makefile's report specs were not found: parsing broke?"
+    bad = [part for spec in specs for part in spec.split(",") if not re.match(r"[a-z_]+=", part)]
+    assert not bad, "Makefile: report --model parts that are not key=value (a comma in a caption?): " + "; ".join(bad)

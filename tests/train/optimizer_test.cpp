@@ -114,6 +114,17 @@ void set_same_gradients(AdamWPair& pair, int step) {
     pair.b[i].mutable_grad() = g.clone();
   }
 }
+
+// Bit for bit against the LibTorch the project ships with (Debian's 1.13). PyPI's LibTorch 2.11 (a lent H200 machine,
+// 2026-11-27) rounds one element of a threaded parameter 1.9e-9 apart on the second step: its vector kernels, not
+// the update's formula, so there the two must agree within two fp32 roundings.
+bool same_update(const torch::Tensor& ours, const torch::Tensor& libtorch) {
+#if TORCH_VERSION_MAJOR >= 2
+  return torch::allclose(ours, libtorch, /*rtol=*/2.0 * std::ldexp(1.0, -23), /*atol=*/0.0);
+#else
+  return torch::equal(ours, libtorch);
+#endif
+}
 }  // namespace
 
 // The one-pass step gives LibTorch's AdamW::step bit for bit — weights and both moments, both groups, a learning
@@ -136,8 +147,8 @@ TEST(Optimizer, OnePassAdamWStepIsLibTorchsStepBitForBit) {
     pair.torch_adamw->step();
     train::adamw_step(*pair.fused_adamw);
     for (size_t i = 0; i < pair.a.size(); ++i) {
-      ASSERT_TRUE(torch::equal(pair.a[i], pair.b[i])) << "step " << step << ", parameter " << i << ": max |diff| "
-                                                      << (pair.a[i] - pair.b[i]).abs().max().item<double>();
+      ASSERT_TRUE(same_update(pair.b[i], pair.a[i])) << "step " << step << ", parameter " << i << ": max |diff| "
+                                                     << (pair.a[i] - pair.b[i]).abs().max().item<double>();
       const bool updated = pair.b[i].grad().defined();
       EXPECT_EQ(static_cast<int64_t>(pair.b[i]._version()) > versions[i], updated) << "parameter " << i;
     }
@@ -148,8 +159,8 @@ TEST(Optimizer, OnePassAdamWStepIsLibTorchsStepBitForBit) {
     const auto& s = static_cast<torch::optim::AdamWParamState&>(*ta.at(train::state_key(ta, pair.a[i])));
     const auto& f = static_cast<torch::optim::AdamWParamState&>(*fa.at(train::state_key(fa, pair.b[i])));
     EXPECT_EQ(s.step(), f.step());
-    EXPECT_TRUE(torch::equal(s.exp_avg(), f.exp_avg())) << "parameter " << i;
-    EXPECT_TRUE(torch::equal(s.exp_avg_sq(), f.exp_avg_sq())) << "parameter " << i;
+    EXPECT_TRUE(same_update(f.exp_avg(), s.exp_avg())) << "parameter " << i;
+    EXPECT_TRUE(same_update(f.exp_avg_sq(), s.exp_avg_sq())) << "parameter " << i;
   }
 }
 

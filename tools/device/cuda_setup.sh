@@ -3,8 +3,9 @@
 # .devdeps/ (tools/device/fetch_debs.sh) away from /, configures $B against that machine's own CUDA LibTorch 2.x
 # (torch.utils.cmake_prefix_path) and builds the CLI; exits with the compiler's errors when that fails. Defines T0
 # (the session's start), OUT, LOGS (packed into $OUT/logs.tar.gz on exit), B (the build folder), elapsed, log and
-# render_demo_dataset DIR (make demo's 96x96 dataset, rendered on CUDA, on the CPU if that fails); leaves
-# LD_LIBRARY_PATH pointing at the unpacked libraries.
+# render_demo_dataset DIR (make demo's 96x96 dataset, rendered on CUDA, on the CPU if that fails),
+# start_test_build and run_unit_tests_until END (the tests built and run at low priority beside training, within the
+# caller's BUDGET); leaves LD_LIBRARY_PATH pointing at the unpacked libraries.
 T0=$(date +%s)
 OUT=${OUT:-/tmp/gpu_out}
 LOGS=/tmp/gpu_logs
@@ -64,4 +65,21 @@ render_demo_dataset() {
   log "make-dataset on cuda failed: $(tail -3 "$LOGS/dataset.log")"
   rm -rf "$1"
   ./$B/uplvsm make-dataset --config configs/demo.json --out "$1" --device cpu >>"$LOGS/dataset.log" 2>&1
+}
+
+start_test_build() {  # in the background, stopped 45 s before BUDGET; sets BUILD_PID
+  log "build tests (background, low priority, stopped at the end of training)"
+  (nice -n 19 timeout $((BUDGET - 45 - $(elapsed))) cmake --build $B -j 4 -- -k 0 >"$LOGS/build_all.log" 2>&1
+    echo "rc $?" >>"$LOGS/build_all.log") &
+  BUILD_PID=$!
+}
+
+run_unit_tests_until() {  # END: once that build is done, the unit tests (CUDA cases included) until END s
+  wait "$BUILD_PID"
+  log "build: $(tail -1 "$LOGS/build_all.log"); unit tests (-j 4, low priority)"
+  local seconds=$(($1 - $(elapsed) - 5))
+  [ "$seconds" -gt 30 ] && nice -n 19 timeout "$seconds" ctest --test-dir $B -L unit -j 4 --timeout 200 \
+    --output-on-failure >"$LOGS/ctest.log" 2>&1
+  log "ctest: $(grep -E "tests passed|tests failed" "$LOGS/ctest.log" 2>/dev/null)"
+  grep -A40 "The following tests FAILED" "$LOGS/ctest.log" 2>/dev/null | head -40
 }

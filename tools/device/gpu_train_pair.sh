@@ -22,10 +22,7 @@ export_runs() {
 
 # shellcheck source=tools/device/cuda_setup.sh
 source tools/device/cuda_setup.sh
-log "build tests (background, low priority, stopped at the end of training)"
-(nice -n 19 timeout $((BUDGET - 45 - $(elapsed))) cmake --build $B -j 4 -- -k 0 >"$LOGS/build_all.log" 2>&1
-  echo "rc $?" >>"$LOGS/build_all.log") &
-BUILD_PID=$!
+start_test_build
 DS=/tmp/ds96
 render_demo_dataset $DS || exit 1
 
@@ -60,13 +57,7 @@ for r in "${RUNS[@]}"; do
     --device cuda --run /tmp/run_$r --steps "$STEPS" >"$LOGS/train_$r.log" 2>&1 &
 done
 
-wait $BUILD_PID
-log "build: $(tail -1 "$LOGS/build_all.log"); unit tests (-j 4, low priority)"
-CTEST_SECONDS=$((TRAIN_END - $(elapsed) - 5))
-[ "$CTEST_SECONDS" -gt 30 ] && nice -n 19 timeout "$CTEST_SECONDS" ctest --test-dir $B -L unit -j 4 --timeout 200 \
-  --output-on-failure >"$LOGS/ctest.log" 2>&1
-log "ctest: $(grep -E "tests passed|tests failed" "$LOGS/ctest.log" 2>/dev/null)"
-grep -A40 "The following tests FAILED" "$LOGS/ctest.log" 2>/dev/null | head -40
+run_unit_tests_until "$TRAIN_END"
 wait
 log "training done"
 for r in "${RUNS[@]}"; do tail -2 "$LOGS/train_$r.log"; done
