@@ -127,6 +127,22 @@ TEST(Config, TokenizerAndDatasetKnobsAreValidated) {
   EXPECT_NO_THROW(config_from_json({{"model", {{"dinov2", {{"pos_embed_init", "sincos"}}}}}}, "ok.json"));
 }
 
+TEST(Config, StructureLossWeightsAreCheckedAndRoundTrip) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  const auto ok = config_from_json({{"training", {{"l1_loss_weight", 0.8}, {"ssim_loss_weight", 0.2}}}}, "ok");
+  EXPECT_EQ(ok.training.l1_loss_weight, 0.8);
+  EXPECT_EQ(ok.training.ssim_loss_weight, 0.2);
+  EXPECT_EQ(config_to_json(ok)["training"]["ssim_loss_weight"].get<double>(), 0.2);
+  EXPECT_EQ(config_from_json(nlohmann::json::object(), "ok").training.ssim_loss_weight, 0.0);  // off by default
+  for (const char* loss : {"l1_loss_weight", "ssim_loss_weight", "gradient_difference_weight"})
+    EXPECT_NE(message({{"training", {{loss, -0.1}}}}).find("ssim_loss_weight and gradient_difference_weight must be"),
+              std::string::npos)
+        << loss;
+  EXPECT_NE(message({{"model", {{"image_size", 8}, {"patch_size", 8}}}, {"training", {{"ssim_loss_weight", 0.2}}}})
+                .find("ssim_loss_weight needs model.image_size >= 11"),
+            std::string::npos);
+}
+
 TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   EXPECT_NO_THROW(config_from_json({{"training", {{"rotation_equivariance_weight", 0.1}}}}, "ok"));
@@ -151,9 +167,13 @@ TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
   EXPECT_NE(message({{"model", {{"variant", "lvsm"}, {"estimator_half_view", true}}}})
                 .find("model.estimator_half_view: only the uplvsm variant"),
             std::string::npos);
-  EXPECT_NE(message({{"model", {{"estimator_half_view", true}}}, {"training", {{"perceptual_loss_weight", 0.5}}}})
-                .find("set training.perceptual_loss_weight to 0"),
-            std::string::npos);
+  for (const char* loss :
+       {"perceptual_loss_weight", "l1_loss_weight", "ssim_loss_weight", "gradient_difference_weight"})
+    EXPECT_NE(message({{"model", {{"estimator_half_view", true}}}, {"training", {{loss, 0.5}}}})
+                  .find("set training.perceptual_loss_weight, l1_loss_weight, ssim_loss_weight and "
+                        "gradient_difference_weight to 0"),
+              std::string::npos)
+        << loss;
   EXPECT_NE(message({{"model", {{"variant", "lvsm"}}}, {"training", {{"turned_view_weight", 0.1}}}})
                 .find("training.turned_view_weight: only a UP-LVSM"),
             std::string::npos);

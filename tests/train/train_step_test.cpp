@@ -11,10 +11,12 @@
 
 #include "test_util.h"
 #include "train_test_util.h"
+#include "uplvsm/eval/metrics.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/gradient_difference_loss.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/train_step.h"
 
@@ -63,6 +65,11 @@ train::StepContext step_context(model::UPLVSM& net, const TrainingConfig& tc,
   ctx.params = train::trainable_parameters(*net);
   ctx.training = tc;
   return ctx;
+}
+
+// One scene's v random 32x32 views with the micro model's intrinsics.
+model::Views random_views(int64_t v) {
+  return model::Views{torch::rand({1, v, 3, 32, 32}), torch::tensor({28.f, 28.f, 16.f, 16.f}).repeat({1, v, 1}), {}};
 }
 
 }  // namespace
@@ -129,10 +136,7 @@ TEST(TrainStep, ReleasesThePreviousStepsGradients) {
   std::unique_ptr<torch::optim::AdamW> optimizer;
   auto ctx = step_context(net, tc, optimizer);
   train::TrainState state;
-  const auto views = [](int64_t v) {
-    return model::Views{torch::rand({1, v, 3, 32, 32}), torch::tensor({28.f, 28.f, 16.f, 16.f}).repeat({1, v, 1}), {}};
-  };
-  const std::vector<train::MicroBatch> batch{{views(2), views(2)}};
+  const std::vector<train::MicroBatch> batch{{random_views(2), random_views(2)}};
   train::train_step(ctx, state, batch);
   std::vector<torch::Tensor> held, values;
   for (const auto& p : ctx.params) {
@@ -145,4 +149,39 @@ TEST(TrainStep, ReleasesThePreviousStepsGradients) {
     EXPECT_FALSE(ctx.params[i].grad().is_same(held[i])) << i;
     EXPECT_TRUE(held[i].equal(values[i])) << i;
   }
+}
+
+// training.l1_loss_weight, ssim_loss_weight and gradient_difference_weight add their terms to the step's loss: the
+// reported loss is w_l2 MSE + w_l1 mean|render - target| + w_ssim (1 - SSIM) + w_gd GDL, SSIM from the evaluation's
+// metric on the same render.
+TEST(TrainStep, AddsTheStructureTermsToTheLoss) {
+  torch::manual_seed(5);
+  model::UPLVSM net(test::micro_model());
+  net->train();
+  TrainingConfig tc;
+  tc.warmup = 0;
+  tc.train_steps = 10;
+  tc.l2_loss_weight = 1.0;
+  tc.l1_loss_weight = 0.8;
+  tc.ssim_loss_weight = 0.2;
+  tc.gradient_difference_weight = 0.5;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  auto ctx = step_context(net, tc, optimizer);
+  const std::vector<train::MicroBatch> batch{{random_views(2), random_views(3)}};
+  torch::Tensor render;
+  {
+    torch::NoGradGuard no_grad;
+    render = net->render(batch[0].inputs, batch[0].targets, model::TargetPoses::Estimator).render;
+  }
+  const auto& target = batch[0].targets.images;
+  const double mse = (render - target).pow(2).mean().item<double>();
+  const double l1 = (render - target).abs().mean().item<double>();
+  const double ssim = eval::ssim(render, target).mean().item<double>();
+  const double gdl = train::gradient_difference_loss(render, target).item<double>();
+  train::TrainState state;
+  const auto r = train::train_step(ctx, state, batch);
+  EXPECT_NEAR(r.mse, mse, 1e-6);
+  EXPECT_NEAR(r.loss, mse + 0.8 * l1 + 0.2 * (1 - ssim) + 0.5 * gdl, 1e-5);
+  EXPECT_GT(0.5 * gdl, 1e-3);
+  EXPECT_GT(0.2 * (1 - ssim), 1e-3);  // the terms are not negligible here, so the check can fail
 }

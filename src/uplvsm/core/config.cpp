@@ -150,6 +150,9 @@ void training_fields(C& c, F&& f) {
   f("frame_dist_curriculum_steps", c.frame_dist_curriculum_steps);
   f("l2_loss_weight", c.l2_loss_weight);
   f("perceptual_loss_weight", c.perceptual_loss_weight);
+  f("l1_loss_weight", c.l1_loss_weight);
+  f("ssim_loss_weight", c.ssim_loss_weight);
+  f("gradient_difference_weight", c.gradient_difference_weight);
   f("checkpoint_every", c.checkpoint_every);
   f("keep_checkpoints", c.keep_checkpoints);
   f("log_every", c.log_every);
@@ -361,9 +364,12 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
                             "latent rotations to align");
   require(!m.estimator_half_view || m.variant == Variant::UPLVSM, s,
           "model.estimator_half_view: only the uplvsm variant has an estimator to show half a view");
-  require(!m.estimator_half_view || !estimated_poses || tr.perceptual_loss_weight == 0, s,
+  require(!m.estimator_half_view || !estimated_poses ||
+              (tr.perceptual_loss_weight == 0 && tr.l1_loss_weight == 0 && tr.ssim_loss_weight == 0 &&
+               tr.gradient_difference_weight == 0),
+          s,
           "model.estimator_half_view: training scores half of each target with the MSE alone; set "
-          "training.perceptual_loss_weight to 0");
+          "training.perceptual_loss_weight, l1_loss_weight, ssim_loss_weight and gradient_difference_weight to 0");
   require(!m.encoder_latent_cameras || (m.variant == Variant::UPLVSM && !m.encoder_cameras), s,
           "model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras has latent cameras "
           "to give its encoder");
@@ -385,6 +391,12 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
           "training: need 1 <= min_frame_dist <= max_frame_dist");
   require(tr.frame_dist_curriculum_steps >= 0, s, "training.frame_dist_curriculum_steps must be >= 0");
+  for (const double w : {tr.l1_loss_weight, tr.ssim_loss_weight, tr.gradient_difference_weight})
+    require(w >= 0 && std::isfinite(w), s,
+            "training.l1_loss_weight, ssim_loss_weight and gradient_difference_weight must be finite numbers >= 0 "
+            "(0: off)");
+  require(tr.ssim_loss_weight == 0 || c.model.image_size >= 11, s,
+          "training.ssim_loss_weight needs model.image_size >= 11 (SSIM's 11x11 window)");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
   require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
           "training.pose_noise_variance must be a finite number >= 0");

@@ -116,6 +116,12 @@ struct TrainingConfig {
   int64_t frame_dist_curriculum_steps = 0;
   double l2_loss_weight = 1.0;
   double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (TrainOptions::perceptual_weights)
+  // Not in the paper: structure-aware photometric terms that need no weights (3D Gaussian Splatting uses
+  // 0.8 L1 + 0.2 (1 - SSIM)): mean |render - target| and 1 - SSIM (train/structural_dissimilarity_loss.h). 0: off.
+  double l1_loss_weight = 0.0;
+  double ssim_loss_weight = 0.0;
+  // Not in the paper: the gradient difference loss (train/gradient_difference_loss.h), against the blur. 0: off.
+  double gradient_difference_weight = 0.0;
   int64_t checkpoint_every = 4000;
   int64_t keep_checkpoints = 3;
   int64_t log_every = 10;

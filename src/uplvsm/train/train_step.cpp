@@ -7,8 +7,10 @@
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/estimator_half_view.h"
+#include "uplvsm/train/gradient_difference_loss.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/rotation_alignment_loss.h"
+#include "uplvsm/train/structural_dissimilarity_loss.h"
 #include "uplvsm/train/turned_view_loss.h"
 
 namespace uplvsm::train {
@@ -92,12 +94,13 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
   const auto& target = batch.targets.images;
   TranslationWarmup warmup(*ctx.net, tc, step);  // also through backward (checkpoint recomputation reads it)
   torch::Tensor mse, loss;
+  model::Rendered out;
   {
     AutocastGuard amp(target.device(), ctx.bf16);
-    model::Rendered out;
     std::tie(out, mse) = render_and_mse(ctx, batch, step);
     loss = tc.l2_loss_weight * mse;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
+    if (tc.l1_loss_weight > 0) loss = loss + tc.l1_loss_weight * (out.render.to(torch::kFloat32) - target).abs().mean();
     if (tc.latent_translation_weight > 0)
       loss =
           loss + tc.latent_translation_weight * out.pose_enc.narrow(-1, 0, 3).to(torch::kFloat32).pow(2).sum(-1).mean();
@@ -113,6 +116,10 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
       loss = loss + tc.rotation_alignment_weight *
                         rotation_alignment_loss(batch.inputs, batch.targets, out.pose_enc, tc.rotation_alignment_blur);
   }
+  // Outside autocast: SSIM's local variances are differences of near-equal means, which bf16 would cancel.
+  if (tc.ssim_loss_weight > 0) loss = loss + tc.ssim_loss_weight * structural_dissimilarity_loss(out.render, target);
+  if (tc.gradient_difference_weight > 0)
+    loss = loss + tc.gradient_difference_weight * gradient_difference_loss(out.render, target);
   (loss / accum).backward();
   return {loss.item<double>() / accum, mse.item<double>() / accum};
 }
