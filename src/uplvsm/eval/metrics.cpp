@@ -4,13 +4,16 @@
 #include <stdexcept>
 #include <string>
 
+#include "uplvsm/core/image_gradients.h"
+#include "uplvsm/core/ssim_window.h"
+
 namespace uplvsm::eval {
 namespace {
 
-constexpr int64_t kRadius = 5;  // int(3.5 * 1.5 + 0.5): scipy's truncate rule
-constexpr double kSigma = 1.5;
-constexpr double kCovNorm = 121.0 / 120.0;              // NP / (NP - 1), NP = 11 * 11 (sample covariance)
-constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;  // (K * data_range)^2, data_range 1
+using ssim::kC1;
+using ssim::kC2;
+using ssim::kCovNorm;
+using ssim::kRadius;
 
 void check_pair(const torch::Tensor& pred, const torch::Tensor& gt, const char* what) {
   if (!pred.defined() || !gt.defined()) throw std::runtime_error(std::string(what) + ": undefined tensor");
@@ -53,20 +56,9 @@ torch::Tensor gaussian_filter(const torch::Tensor& x, const std::vector<double>&
   return filter1d(rows.to(torch::kFloat64), -1, w).to(dtype);
 }
 
-std::vector<double> window_values() {
-  std::vector<double> w;
-  double sum = 0;
-  for (int64_t x = -kRadius; x <= kRadius; ++x) {
-    w.push_back(std::exp(-0.5 / (kSigma * kSigma) * static_cast<double>(x * x)));
-    sum += w.back();
-  }
-  for (auto& v : w) v /= sum;
-  return w;
-}
-
 }  // namespace
 
-torch::Tensor gaussian_window() { return torch::tensor(window_values(), torch::kFloat64); }
+torch::Tensor gaussian_window() { return torch::tensor(ssim::window_values(), torch::kFloat64); }
 
 torch::Tensor reflect_pad2d(const torch::Tensor& x, int64_t pad) {
   if (x.dim() < 2) throw std::runtime_error("reflect_pad2d: expected [..., H, W], got " + c10::str(x.sizes()));
@@ -90,7 +82,7 @@ torch::Tensor ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
     throw std::runtime_error("ssim: images of " + std::to_string(H) + "x" + std::to_string(W) +
                              " are smaller than the 11x11 window");
   const auto cd = pred.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
-  const auto w = window_values();
+  const auto w = ssim::window_values();
   // skimage's argument order is (gt, pred): x = gt, y = pred. SSIM is symmetric, but rounding follows the order.
   auto x = gt.to(cd).reshape({-1, H, W});
   auto y = pred.to(cd).reshape({-1, H, W});
@@ -115,10 +107,7 @@ torch::Tensor ssim(const torch::Tensor& pred, const torch::Tensor& gt) {
 torch::Tensor gradient_energy(const torch::Tensor& x) {
   if (x.dim() < 3 || x.size(-1) < 2 || x.size(-2) < 2)
     throw std::runtime_error("gradient_energy: expected [..., C, H, W] with H, W >= 2, got " + c10::str(x.sizes()));
-  auto v = x.to(torch::kFloat64).clamp(0.0, 1.0);
-  auto dx = (v.narrow(-1, 1, v.size(-1) - 1) - v.narrow(-1, 0, v.size(-1) - 1)).abs().flatten(-3);
-  auto dy = (v.narrow(-2, 1, v.size(-2) - 1) - v.narrow(-2, 0, v.size(-2) - 1)).abs().flatten(-3);
-  return torch::cat({dx, dy}, -1).mean(-1);
+  return absolute_forward_differences(x.to(torch::kFloat64).clamp(0.0, 1.0)).mean(-1);
 }
 
 torch::Tensor gradient_energy_ratio(const torch::Tensor& pred, const torch::Tensor& gt) {

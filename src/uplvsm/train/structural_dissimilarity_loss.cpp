@@ -1,21 +1,19 @@
 #include "uplvsm/train/structural_dissimilarity_loss.h"
 
-#include <cmath>
+#include "uplvsm/core/ssim_window.h"
 
 namespace uplvsm::train {
 
 namespace {
 
-constexpr int64_t kTaps = 11;
-constexpr double kSigma = 1.5;
-constexpr double kCovNorm = 121.0 / 120.0;              // sample covariance over the 11 x 11 window
-constexpr double kC1 = 0.01 * 0.01, kC2 = 0.03 * 0.03;  // (K * data range)^2
+constexpr int64_t kTaps = 2 * ssim::kRadius + 1;
+using ssim::kC1;
+using ssim::kC2;
+using ssim::kCovNorm;
 
 // The five local means SSIM needs (x, y, xx, yy, xy), each filtered by the separable window without padding.
 torch::Tensor local_means(const torch::Tensor& x, const torch::Tensor& y) {
-  auto r = torch::arange(kTaps, x.options()) - (kTaps - 1) / 2;
-  auto taps = (-(r * r) / (2 * kSigma * kSigma)).exp();
-  taps = taps / taps.sum();
+  auto taps = torch::tensor(ssim::window_values(), torch::kFloat64).to(x.options());
   namespace F = torch::nn::functional;
   auto stacked = torch::cat({x, y, x * x, y * y, x * y}, 1);  // [n, 5, H, W]
   auto rows =
