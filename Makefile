@@ -153,9 +153,9 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
-	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train on the built-in rooms with the rotation-first recipe (configs/demo_rotation_first.json: 4000 steps x 8 with a rotation-only latent camera on 2 CPU cores; then configs/demo_rotation_first_long_gpu.json: 4000 steps x 32 with the full camera on a GPU; then configs/demo_gradient_difference.json: 1500 steps x 8 with the gradient difference loss against the blur on 2 CPU cores); unposed: target poses from the Latent Plücker Learner; the encoder also reads the inputs' latent cameras and the decoder the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
+	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train on the built-in rooms with the rotation-first recipe (configs/demo_rotation_first.json: 4000 steps x 8 with a rotation-only latent camera on 2 CPU cores; then configs/demo_rotation_first_long_gpu.json: 4000 steps x 32 with the full camera on a GPU; then configs/demo_gradient_difference.json: 1500 steps x 8 with the gradient difference loss against the blur on 2 CPU cores; then configs/demo_gradient_difference_long_gpu.json: 2000 steps x 32 with the same loss on a GPU); unposed: target poses from the Latent Plücker Learner; the encoder also reads the inputs' latent cameras and the decoder the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
 	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_gradient_difference_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
-	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; the unposed model's first-stage training block for 1800 steps (x 64; one GPU); video: interpolation between the inputs' real cameras" \
+	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_same_budget_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; trained on the unposed model's budget (5375 steps x 32 = 172000 scenes of 6 targets; one GPU); video: interpolation between the inputs' real cameras" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
 
@@ -164,10 +164,11 @@ demo: build-cli
 # cores, ~78 min at one thread, the thread count it was trained with: bf16 sums split across threads round
 # differently), its second stage with the full latent camera (configs/demo_rotation_first_long_gpu.json: 4000 steps
 # at batch 32; one H200, 330 s), a third stage that adds the gradient difference loss against the blur
-# (configs/demo_gradient_difference.json: 1500 steps at batch 8; 2 CPU cores, ~27 min at one thread), the
-# camera-mapper fine-tune with the same loss (configs/demo_gradient_difference_mapper.json, 2000 steps at batch 8;
-# 2 CPU cores), then the weights-only exports. DEMO_MODEL_DEVICE=cpu runs the second stage on a CPU too (hours on 2
-# cores). Every step resumes, so run it again after an interruption.
+# (configs/demo_gradient_difference.json: 1500 steps at batch 8; 2 CPU cores, ~27 min at one thread), a fourth with
+# more compute and the same loss (configs/demo_gradient_difference_long_gpu.json: 2000 steps at batch 32; one H200,
+# 170 s), the camera-mapper fine-tune with the same loss (configs/demo_gradient_difference_mapper.json, 2000 steps at
+# batch 8; 2 CPU cores), then the weights-only exports. DEMO_MODEL_DEVICE=cpu runs the second and fourth stages on a
+# CPU too (hours on 2 cores). Every step resumes, so run it again after an interruption.
 DEMO_MODEL_WORK ?= out/demo_model
 DEMO_MODEL_DEVICE ?= cuda
 DEMO_FIRST_STAGE_DEVICE ?= cpu
@@ -183,17 +184,19 @@ demo-model: build-cli
 	  --run $(DEMO_MODEL_WORK)/main --resume auto --device $(DEMO_MODEL_DEVICE)
 	$(UPLVSM) train --config configs/demo_gradient_difference.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data \
 	  --run $(DEMO_MODEL_WORK)/sharp --resume auto --device $(DEMO_SHARPEN_DEVICE) --threads $(DEMO_SHARPEN_THREADS)
-	$(UPLVSM) train --stage mapper --config configs/demo_gradient_difference_mapper.json --init $(DEMO_MODEL_WORK)/sharp --data $(DEMO_MODEL_WORK)/data \
+	$(UPLVSM) train --config configs/demo_gradient_difference_long_gpu.json --init $(DEMO_MODEL_WORK)/sharp --data $(DEMO_MODEL_WORK)/data \
+	  --run $(DEMO_MODEL_WORK)/long --resume auto --device $(DEMO_MODEL_DEVICE)
+	$(UPLVSM) train --stage mapper --config configs/demo_gradient_difference_mapper.json --init $(DEMO_MODEL_WORK)/long --data $(DEMO_MODEL_WORK)/data \
 	  --run $(DEMO_MODEL_WORK)/mapper --resume auto --device $(DEMO_MAPPER_DEVICE)
-	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/sharp --out $(DEMO_MODEL)
+	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/long --out $(DEMO_MODEL)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
 
-# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm_gpu.json: the unposed recipe's training
-# block) for 1800 steps at batch 64: trained on one H200 beside the unposed recipe's own 1800-step run (259 s).
+# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm_same_budget_gpu.json: the unposed model's
+# budget up to its third stage, 5375 steps at batch 32 of 6 targets = 172000 scenes; one H200, 430 s).
 demo-ceiling-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
-	$(UPLVSM) train --config configs/demo_lvsm_gpu.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling --resume auto \
-	  --steps 1800 --device $(DEMO_MODEL_DEVICE)
+	$(UPLVSM) train --config configs/demo_lvsm_same_budget_gpu.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling \
+	  --resume auto --device $(DEMO_MODEL_DEVICE)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/ceiling --out $(DEMO_CEILING_MODEL)
 
 clean:
