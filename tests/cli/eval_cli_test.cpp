@@ -1,4 +1,5 @@
-// `uplvsm eval --target-poses auto` evaluates a model with the protocol it was trained with.
+// `uplvsm eval --target-poses auto` evaluates a model with the protocol it was trained with; `--refine-poses` refines
+// the estimator's poses and says so in metrics.json, and is refused for poses that do not come from the estimator.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -13,10 +14,11 @@ using namespace uplvsm;
 namespace fs = std::filesystem;
 
 namespace {
-std::string evaluated_target_poses(const fs::path& out) {
+nlohmann::json metrics(const fs::path& out) {
   std::ifstream in(out / "metrics.json");
-  return nlohmann::json::parse(in).at("target_poses").get<std::string>();
+  return nlohmann::json::parse(in);
 }
+std::string evaluated_target_poses(const fs::path& out) { return metrics(out).at("target_poses").get<std::string>(); }
 }  // namespace
 
 // A UP-LVSM trained from dataset cameras (the "SfM target poses" ablation) never trained its estimator: `auto`
@@ -38,4 +40,15 @@ TEST(EvalCli, AutoTargetPosesFollowTheTrainingConfig) {
   EXPECT_EQ(evaluated_target_poses(dir / "auto"), "dataset");
   ASSERT_EQ(test::run_cli(eval + " --target-poses estimator --out " + (dir / "est").string(), &out), 0) << out;
   EXPECT_EQ(evaluated_target_poses(dir / "est"), "estimator");
+
+  ASSERT_EQ(test::run_cli(eval + " --target-poses estimator --refine-poses 2 --refine-lr 0.05 --out " +
+                              (dir / "refined").string(),
+                          &out),
+            0)
+      << out;
+  EXPECT_EQ(metrics(dir / "refined").at("pose_refinement"), (nlohmann::json{{"steps", 2}, {"lr", 0.05}}));
+  EXPECT_FALSE(metrics(dir / "est").contains("pose_refinement"));
+  EXPECT_NE(test::run_cli(eval + " --refine-poses 2 --out " + (dir / "refused").string(), &out), 0);
+  EXPECT_NE(out.find("pose refinement refines the latent poses"), std::string::npos) << out;
+  test::remove_tree(dir);
 }

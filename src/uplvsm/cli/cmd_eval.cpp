@@ -24,6 +24,7 @@ struct EvalArgs {
   Amp amp = Amp::None;
   TargetPoseChoice target_poses = TargetPoseChoice::Auto;
   int64_t max_scenes = 0, batch = 4, visualise = 8;
+  eval::PoseRefinement refinement;
 };
 
 void add_eval_options(CLI::App* cmd, EvalArgs& a) {
@@ -43,6 +44,15 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
                           "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the "
                           "mapper after the camera-control stage), estimator, mapper (dataset cameras through the "
                           "camera-control mapper) or dataset");
+  cmd->add_option("--refine-poses", a.refinement.steps,
+                  "UP-LVSM, estimator protocol: refine each target's latent pose by this many Adam steps on its "
+                  "render's error against the target, the model frozen (the target-pose alignment of pose-free "
+                  "evaluations; 0: the paper's protocol, the estimator's poses as they are)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  cmd->add_option("--refine-lr", a.refinement.lr, "learning rate of --refine-poses")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -69,6 +79,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
   opt.device = device;
   opt.num_visualised = a.visualise;
   opt.out_dir = a.out;
+  opt.pose_refinement = a.refinement;
   opt.bf16 = a.amp == Amp::Bf16;
   // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
   opt.target_poses = model::resolve_target_poses(
@@ -88,6 +99,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
                {"config", config.name},
                {"variant", to_string(config.model.variant)},
                {"target_poses", model::to_string(opt.target_poses)}};
+  if (a.refinement.steps > 0) opt.extra["pose_refinement"] = {{"steps", a.refinement.steps}, {"lr", a.refinement.lr}};
   return opt;
 }
 
@@ -102,7 +114,9 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
   };
   std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes, summary.seconds,
                            a.out)
-            << line(to_string(config.model.variant) + " (" + model::to_string(opt.target_poses) + ")", "model")
+            << line(to_string(config.model.variant) + " (" + model::to_string(opt.target_poses) +
+                        (a.refinement.steps > 0 ? ", refined" : "") + ")",
+                    "model")
             << line("copy nearest", "copy_nearest") << line("mean colour", "mean_colour");
   if (!opt.lpips) std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
 }

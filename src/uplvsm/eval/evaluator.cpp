@@ -185,7 +185,9 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
     AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
     model::Views inputs{in_img, k.narrow(1, 0, vi), c2w.narrow(1, 0, vi)};
     model::Views targets{gt, k.narrow(1, vi, vt), c2w.narrow(1, vi, vt)};
-    pred = net->render(inputs, targets, opt.target_poses).render;
+    pred = opt.pose_refinement.steps != 0  // a negative count reaches the refinement's own check
+               ? render_at_refined_poses(*model::as_uplvsm(*net), inputs, targets, opt.pose_refinement).render
+               : net->render(inputs, targets, opt.target_poses).render;
   }
   pred = pred.to(torch::kFloat32);
   auto copy = state.ordered_views ? copy_nearest_input(in_img, in_frames, tgt_frames)
@@ -340,6 +342,10 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   const std::string index_path =
       opt.index_path.empty() ? (fs::path(dataset.root()) / "evaluation_index.json").string() : opt.index_path;
   EvalSummary counts;
+  TORCH_CHECK(
+      opt.pose_refinement.steps == 0 || (model::as_uplvsm(*net) && opt.target_poses == model::TargetPoses::Estimator),
+      "eval: pose refinement refines the latent poses UP-LVSM's estimator reads from the targets; this is ",
+      net->name(), " with target poses '", model::to_string(opt.target_poses), "'");
   TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count, "eval: shard ",
               opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");
   const auto all_jobs = plan_jobs(dataset, opt, index_path, counts);

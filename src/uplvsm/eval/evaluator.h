@@ -21,6 +21,7 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/eval/lpips.h"
+#include "uplvsm/eval/target_pose_refinement.h"
 #include "uplvsm/model/novel_view_model.h"
 
 namespace uplvsm::eval {
@@ -40,6 +41,9 @@ struct EvalOptions {
   // Where target cameras come from: the estimator reading the target image (UP-LVSM's protocol), the dataset
   // cameras through the pose mapper (camera control), or the dataset cameras directly (posed models).
   model::TargetPoses target_poses = model::TargetPoses::Estimator;
+  // UP-LVSM with the estimator's poses only: refine each target's latent pose against the target before the render
+  // that is scored (eval/target_pose_refinement.h; steps 0, the paper's protocol, leaves them as they are).
+  PoseRefinement pose_refinement;
   nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
   // Sharded evaluation, one process per rank: this rank scores the scenes whose position in the index is
   // shard_rank mod shard_count; `gather` (the caller's collective, e.g. c10d) returns every rank's string in rank
