@@ -8,7 +8,9 @@
 #      weights-only) with configs/demo_rotation_first_long_gpu.json for as many steps (a multiple of 250, at most
 #      MAX_STEPS, the config's 4000) as a short speed probe says fit (on 2026-11-27 all 4000: the shipped model);
 #      and `seed`, both stages from scratch with another seed (configs/demo_rotation_first_gpu.json, then
-#      configs/demo_rotation_first_release_gpu.json from it);
+#      configs/demo_rotation_first_release_gpu.json from it), SETS's --set's added to both (e.g. the block split
+#      "--set model.transformer.encoder_n_layer=1 --set model.transformer.decoder_n_layer=5", docs/demo.md's
+#      *Where the gap is, at the demo size*);
 #   3. builds and runs the unit tests meanwhile at low priority (CUDA where a test has a CUDA case);
 #   4. leaves the weights (weights-only exports) and logs.tar.gz (logs, metrics.jsonl, the steps run, ctest) in $OUT.
 # Before it, here: `uplvsm export --checkpoint R/rotation --out .gpuinit/stage1_777.safetensors` (.gpuinit/ listed in
@@ -35,10 +37,12 @@ train() {  # NAME ARGS...: one training, stopped at TRAIN_END whatever its step
   log "train $name: rc $? $(tail -c 300 "$LOGS/train_$name.log" | tr '\r' '\n' | tail -1)"
 }
 
-log "seed $SEED: both stages (background)"
-( train seed_stage1 --config configs/demo_rotation_first_gpu.json --run /tmp/run_seed_stage1 --set training.seed=$SEED
+log "seed $SEED: both stages (background) ${SETS:-}"
+# shellcheck disable=SC2086  # SETS is a list of words
+( train seed_stage1 --config configs/demo_rotation_first_gpu.json --run /tmp/run_seed_stage1 --set training.seed=$SEED \
+    ${SETS:-}
   train seed_stage2 --config configs/demo_rotation_first_release_gpu.json --init /tmp/run_seed_stage1 \
-    --run /tmp/run_seed_stage2 ) &
+    --run /tmp/run_seed_stage2 ${SETS:-} ) &
 SEED_PID=$!
 
 log "speed probe of the long stage, 80 steps beside the seed's"
