@@ -43,10 +43,11 @@ op). Process-wide: it applies to torch too.)");
         d["interop_threads"] = i.interop_threads;
         d["omp_wait_policy"] = i.omp_wait_policy;
         d["allocator"] = i.allocator;
+        d["cpu_features"] = i.cpu_features;
         d["cuda_devices"] = i.cuda_devices;
         return d;
       },
-      "LibTorch version, the BLAS library loaded, threads, OpenMP wait policy, allocator, CUDA devices.");
+      "LibTorch version, the BLAS library loaded, threads, CPU features, OpenMP wait policy, allocator, CUDA devices.");
   bind_metrics(m);
   bind_io(m);
   bind_data(m);

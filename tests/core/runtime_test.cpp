@@ -68,6 +68,20 @@ TEST(Runtime, LoadedOpenBlasUsesVectorKernelsTheCpuSupports) {
   EXPECT_NE(format_runtime_info(info).find("BLAS core    " + info.blas_core), std::string::npos);
 }
 
+TEST(Runtime, CpuFeaturesAreNamedInInfo) {
+  EXPECT_EQ(describe_cpu_features(CpuFeatures{}), "-");
+  CpuFeatures amx;
+  amx.avx2_fma = amx.avx512 = amx.avx512_bf16 = amx.amx_bf16 = true;
+  EXPECT_EQ(describe_cpu_features(amx), "AVX2+FMA AVX-512 AVX-512-BF16 AMX-BF16");
+  CpuFeatures avx2;
+  avx2.avx2_fma = true;
+  EXPECT_EQ(describe_cpu_features(avx2), "AVX2+FMA");
+  const auto cpu = detect_cpu_features();
+  EXPECT_TRUE(!cpu.amx_bf16 || cpu.avx512) << "AMX-BF16 without AVX-512 on an x86 CPU";
+  const auto info = runtime_info();
+  EXPECT_NE(format_runtime_info(info).find("CPU          " + describe_cpu_features(cpu)), std::string::npos);
+}
+
 TEST(Runtime, DeviceNamesAreParsedOrRejectedClearly) {
   EXPECT_EQ(parse_device("cpu"), torch::Device(torch::kCPU));
   try {

@@ -1,13 +1,14 @@
 // Tests of model/bf16_linear: the weight-gradient product against an fp64 computation rounded once to bf16, over
 // shapes that exercise the odd row, the output-row and column tails and the split into parts; its independence of
 // the thread count; the linear's forward and gradients against autocast's ATen linear; CastOnceLinear taking it in
-// autocast training only.
+// autocast training only; ATen's weight gradient where the CPU has AMX-BF16 or where chosen.
 #include "uplvsm/model/bf16_linear.h"
 
 #include <ATen/Parallel.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/model/bf16_simd.h"
@@ -18,6 +19,13 @@ using namespace uplvsm;
 namespace {
 
 bool has_bf16_dot_products() { return model::row_simd::cpu_has_avx512_bf16; }
+
+// Our weight gradient for a scope, whatever the start-up chose (ATen's on a CPU with AMX-BF16).
+struct OurWeightGradient {
+  model::WeightGradientPath before = model::weight_gradient_path();
+  OurWeightGradient() { model::set_weight_gradient_path(model::WeightGradientPath::Ours); }
+  ~OurWeightGradient() { model::set_weight_gradient_path(before); }
+};
 
 torch::Tensor bf16_randn(std::vector<int64_t> shape, uint64_t seed) {
   torch::manual_seed(seed);
@@ -121,12 +129,14 @@ void expect_linear_matches_autocast(bool with_bias) {
 
 TEST(Bf16Linear, TrainsAsAutocastsLinearWithAndWithoutBias) {
   if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  OurWeightGradient ours;
   expect_linear_matches_autocast(true);
   expect_linear_matches_autocast(false);
 }
 
 TEST(Bf16Linear, CastOnceLinearTakesItOnlyInAutocastTraining) {
   if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  OurWeightGradient ours;
   model::CastOnceLinear linear(torch::nn::LinearOptions(32, 16).bias(false));
   auto x = torch::randn({5, 32});
   const auto node = [&] {
@@ -144,6 +154,27 @@ TEST(Bf16Linear, CastOnceLinearTakesItOnlyInAutocastTraining) {
   AutocastGuard autocast(torch::kCPU, true);
   auto y = odd(torch::randn({5, 24}));
   EXPECT_EQ(y.grad_fn()->name().find("Bf16Linear"), std::string::npos) << y.grad_fn()->name();
+}
+
+TEST(Bf16Linear, AtensWeightGradientWhereTheCpuHasAmxOrWhenChosen) {
+  CpuFeatures bf16_only, amx;
+  bf16_only.avx512 = bf16_only.avx512_bf16 = true;
+  amx = bf16_only;
+  amx.amx_bf16 = true;
+  EXPECT_EQ(model::default_weight_gradient_path(bf16_only), model::WeightGradientPath::Ours);
+  EXPECT_EQ(model::default_weight_gradient_path(amx), model::WeightGradientPath::Aten);
+  if (std::getenv("UPLVSM_WEIGHT_GRADIENT") == nullptr)
+    EXPECT_EQ(model::weight_gradient_path(), model::default_weight_gradient_path(detect_cpu_features()));
+  // Chosen at run time, CastOnceLinear follows: autocast training takes ATen's linear with ATen's chosen.
+  const auto before = model::weight_gradient_path();
+  model::set_weight_gradient_path(model::WeightGradientPath::Aten);
+  model::CastOnceLinear linear(torch::nn::LinearOptions(32, 16).bias(false));
+  {
+    AutocastGuard autocast(torch::kCPU, true);
+    auto y = linear(torch::randn({5, 32}));
+    EXPECT_EQ(y.grad_fn()->name().find("Bf16Linear"), std::string::npos) << y.grad_fn()->name();
+  }
+  model::set_weight_gradient_path(before);
 }
 
 }  // namespace

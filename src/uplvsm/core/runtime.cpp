@@ -4,6 +4,9 @@
 #include <link.h>
 #include <malloc.h>
 #include <sched.h>
+#if defined(__x86_64__) || defined(__i386__)
+#include <cpuid.h>
+#endif
 #include <unistd.h>
 
 #include <cctype>
@@ -23,6 +26,19 @@ std::string loaded_openblas_core() {
   auto fn = reinterpret_cast<GetCorename>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
   return fn ? std::string(fn()) : std::string();
 }
+
+#if defined(__x86_64__) || defined(__i386__)
+// CPUID leaf 7 EDX bit 22 (AMX-BF16), and the OS saving the tile state (XCR0 bits 17, 18). GCC 12's
+// __builtin_cpu_supports("amx-bf16") answers false on a CPU that has it (seen here), hence CPUID directly.
+bool cpu_has_amx_bf16() {
+  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
+  if (!__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx) || !((edx >> 22) & 1u)) return false;
+  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx) || !((ecx >> 27) & 1u)) return false;  // OSXSAVE: xgetbv allowed
+  uint32_t xcr0_low = 0, xcr0_high = 0;
+  __asm__("xgetbv" : "=a"(xcr0_low), "=d"(xcr0_high) : "c"(0));
+  return ((xcr0_low >> 17) & 3u) == 3u;
+}
+#endif
 }  // namespace
 
 CpuFeatures detect_cpu_features() {
@@ -33,6 +49,7 @@ CpuFeatures detect_cpu_features() {
   cpu.avx512 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
                __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
   cpu.avx512_bf16 = cpu.avx512 && __builtin_cpu_supports("avx512bf16");
+  cpu.amx_bf16 = cpu_has_amx_bf16();
 #endif
   return cpu;
 }
@@ -125,6 +142,14 @@ void init_library_runtime(bool set_threads) {
   if (set_threads) torch::set_num_threads(available_cores());
 }
 
+std::string describe_cpu_features(const CpuFeatures& cpu) {
+  std::string names;
+  for (auto [has, name] : {std::pair{cpu.avx2_fma, "AVX2+FMA"}, std::pair{cpu.avx512, "AVX-512"},
+                           std::pair{cpu.avx512_bf16, "AVX-512-BF16"}, std::pair{cpu.amx_bf16, "AMX-BF16"}})
+    if (has) names += (names.empty() ? "" : " ") + std::string(name);
+  return names.empty() ? "-" : names;
+}
+
 std::string best_openblas_core(const CpuFeatures& cpu) {
   if (cpu.avx512_bf16) return "Cooperlake";
   if (cpu.avx512) return "SkylakeX";
@@ -193,6 +218,7 @@ RuntimeInfo runtime_info() {
   const char* policy = std::getenv("OMP_WAIT_POLICY");
   info.omp_wait_policy = policy ? policy : "(unset: libgomp default, active spinning)";
   info.allocator = allocator_description();  // reporting only: the Python module's runtime_info() changes nothing
+  info.cpu_features = describe_cpu_features(detect_cpu_features());
   info.cuda_available = torch::cuda::is_available();
   info.cuda_devices = info.cuda_available ? static_cast<int>(torch::cuda::device_count()) : 0;
   return info;
@@ -206,11 +232,12 @@ std::string format_runtime_info(const RuntimeInfo& info) {
   return fmt::format(
       "LibTorch     {}\nBLAS         {} ({})\nBLAS config  {}\nBLAS core    {}{}\nthreads      {} intra-op, {} "
       "inter-op "
-      "(cores available: {})\nOpenMP wait  {}\nallocator    {}\nCUDA         {}\n",
+      "(cores available: {})\nCPU          {}\nOpenMP wait  {}\nallocator    {}\nCUDA         {}\n",
       info.torch_version, blas_kind, info.blas_library, info.blas_config.empty() ? "-" : info.blas_config,
       info.blas_core.empty() ? "-" : info.blas_core,
       std::getenv("OPENBLAS_CORETYPE") ? fmt::format(" (OPENBLAS_CORETYPE={})", std::getenv("OPENBLAS_CORETYPE")) : "",
-      info.threads, info.interop_threads, available_cores(), info.omp_wait_policy, info.allocator,
+      info.threads, info.interop_threads, available_cores(), info.cpu_features.empty() ? "-" : info.cpu_features,
+      info.omp_wait_policy, info.allocator,
       info.cuda_available ? fmt::format("available, {} device(s)", info.cuda_devices) : "not available");
 }
 

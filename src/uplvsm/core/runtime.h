@@ -15,7 +15,8 @@ struct RuntimeInfo {
   int threads = 0;
   int interop_threads = 0;
   std::string omp_wait_policy;
-  std::string allocator;  // how large host allocations are served (init_runtime tunes glibc malloc)
+  std::string allocator;     // how large host allocations are served (init_runtime tunes glibc malloc)
+  std::string cpu_features;  // the vector extensions the kernels choose by ("AVX2+FMA AVX-512 ...", or "-")
   bool cuda_available = false;
   int cuda_devices = 0;
 };
@@ -32,8 +33,10 @@ struct CpuFeatures {
   bool avx2_fma = false;
   bool avx512 = false;  // F, VL, BW and DQ: what OpenBLAS's SkylakeX kernels use
   bool avx512_bf16 = false;
+  bool amx_bf16 = false;  // AMX tiles with BF16 products, enabled by the OS (XCR0): oneDNN's fastest bf16 matmuls
 };
 CpuFeatures detect_cpu_features();
+std::string describe_cpu_features(const CpuFeatures& cpu);  // "AVX2+FMA AVX-512 AVX-512-BF16 AMX-BF16", or "-"
 std::string openblas_core_for_cpu(const std::string& picked_core, const CpuFeatures& cpu);
 
 // Threads default to the cores this process may run on (sched affinity); 0 means "all of them".

@@ -4,6 +4,7 @@
 #include <ATen/record_function.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstdlib>
 #include <cstring>
 #include <vector>
@@ -26,12 +27,16 @@ constexpr int64_t kPartRows = 65536;   // K rows per 4 parts: 4 .. 16 parts, so 
 // 17408-69632 rows, operands out of cache), not at the paper's widths (768 x 3072: 0.74-0.79 against 0.77-0.82).
 constexpr int64_t kMaxWeightElements = 512 * 512;
 
-bool forced_aten() {
-  static const bool aten = [] {
-    const char* env = std::getenv("UPLVSM_WEIGHT_GRADIENT");
-    return env && std::strcmp(env, "aten") == 0;
-  }();
-  return aten;
+WeightGradientPath path_from_environment() {
+  const char* env = std::getenv("UPLVSM_WEIGHT_GRADIENT");
+  if (env && std::strcmp(env, "aten") == 0) return WeightGradientPath::Aten;
+  if (env && std::strcmp(env, "ours") == 0) return WeightGradientPath::Ours;
+  return default_weight_gradient_path(detect_cpu_features());
+}
+
+std::atomic<WeightGradientPath>& path_choice() {
+  static std::atomic<WeightGradientPath> choice{path_from_environment()};
+  return choice;
 }
 
 // Words (lo[j] | hi[j] << 16) for j < n into dst; hi null gives zero high halves (a missing odd row).
@@ -194,11 +199,19 @@ struct Bf16LinearWithBiasFunction : torch::autograd::Function<Bf16LinearWithBias
 
 }  // namespace
 
+WeightGradientPath default_weight_gradient_path(const CpuFeatures& cpu) {
+  return cpu.amx_bf16 ? WeightGradientPath::Aten : WeightGradientPath::Ours;
+}
+
+void set_weight_gradient_path(WeightGradientPath path) { path_choice().store(path); }
+
+WeightGradientPath weight_gradient_path() { return path_choice().load(); }
+
 bool bf16_linear_applies(const torch::Tensor& input, const torch::Tensor& weight) {
-  return !forced_aten() && row_simd::cpu_has_avx512_bf16 && input.device().is_cpu() && weight.device().is_cpu() &&
-         input.scalar_type() == torch::kBFloat16 && weight.scalar_type() == torch::kBFloat16 && weight.dim() == 2 &&
-         weight.size(1) % 16 == 0 && weight.numel() <= kMaxWeightElements && input.dim() >= 1 &&
-         input.size(-1) == weight.size(1);
+  return path_choice().load() == WeightGradientPath::Ours && row_simd::cpu_has_avx512_bf16 && input.device().is_cpu() &&
+         weight.device().is_cpu() && input.scalar_type() == torch::kBFloat16 &&
+         weight.scalar_type() == torch::kBFloat16 && weight.dim() == 2 && weight.size(1) % 16 == 0 &&
+         weight.numel() <= kMaxWeightElements && input.dim() >= 1 && input.size(-1) == weight.size(1);
 }
 
 torch::Tensor bf16_linear(const torch::Tensor& input, const torch::Tensor& weight, const torch::Tensor& bias) {
