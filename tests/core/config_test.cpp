@@ -5,7 +5,6 @@
 
 #include "test_util.h"
 #include "uplvsm/core/config.h"
-#include "uplvsm/core/progress.h"
 
 using namespace uplvsm;
 
@@ -275,11 +274,4 @@ TEST(Config, MissingOrInvalidFile) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("broken.json"), std::string::npos);
   }
-}
-
-TEST(Progress, DurationFormat) {
-  EXPECT_EQ(format_duration(5), "00:05");
-  EXPECT_EQ(format_duration(125), "02:05");
-  EXPECT_EQ(format_duration(3725), "1:02:05");
-  EXPECT_EQ(format_duration(-1), "--:--");
 }
