@@ -301,6 +301,30 @@ TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
   for (double loss : logged(run)) EXPECT_TRUE(std::isfinite(loss)) << loss;
 }
 
+TEST(Trainer, InitIntoADeeperModelStartsFromTheSameFunctionWhenAskedAndFailsOtherwise) {
+  auto config = test::micro_config();
+  config.training.train_steps = 6;
+  auto base = test::temp_dir("train_deepen_base").string();
+  train::train(config, options(base));
+
+  config.training.train_steps = 3;
+  auto same = test::temp_dir("train_deepen_same").string(), deep = test::temp_dir("train_deepen_deep").string();
+  auto opt = options(same);
+  opt.init_weights = model::resolve_checkpoint(base);
+  train::train(config, opt);  // the same depth: the reference first step
+  config.model.transformer.estimator_n_layer = 2;
+  config.model.transformer.decoder_n_layer = 2;
+  opt.run_dir = deep;
+  // Strict by default: the error names the blocks the file lacks.
+  EXPECT_NE(test::error_of([&] { train::train(config, opt); }).find("transformer_decoder.1."), std::string::npos);
+  test::remove_tree(deep);
+  config.training.init_new_blocks_identity = true;
+  train::train(config, opt);
+  // Step 1's loss is computed before any update: the deeper model starts as the same function.
+  EXPECT_EQ(logged(deep)[0], logged(same)[0]);
+  EXPECT_NE(logged(deep)[2], logged(same)[2]);  // and then trains its added blocks (step 1's learning rate is 0)
+}
+
 TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {
   auto config = test::micro_config();
   config.model.variant = Variant::PTLVSM;

@@ -173,6 +173,7 @@ void training_fields(C& c, F&& f) {
   f("rotation_alignment_blur", c.rotation_alignment_blur);
   f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
   f("latent_translation_weight", c.latent_translation_weight);
+  f("init_new_blocks_identity", c.init_new_blocks_identity);
 }
 
 template <typename C, typename F>

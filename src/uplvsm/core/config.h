@@ -168,6 +168,9 @@ struct TrainingConfig {
   // Not in the paper: makes a latent move cost more than a turn. Adds weight * mean |t|^2 of the estimated target
   // translations to the loss; 0: off (the official recipe).
   double latent_translation_weight = 0;
+  // Not in the paper: with `--init`, transformer blocks this config has and the weights lack (a deeper stack) start as
+  // the identity (model/function_preserving_deepening.h) instead of failing the strict load. false: strict.
+  bool init_new_blocks_identity = false;
 };
 
 struct DatasetConfig {

@@ -8,6 +8,7 @@
 #include <optional>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/core/autocast.h"
@@ -21,6 +22,7 @@
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/eval_mode.h"
+#include "uplvsm/model/function_preserving_deepening.h"
 #include "uplvsm/model/memory_estimate.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
@@ -107,16 +109,24 @@ void check_same_model(const Config& a, const Config& b, const std::string& sourc
 
 // A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
 // Returns whether the pose mapper still needs its initial fit (an UP-LVSM with one, from a file without it).
-bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path) {
+bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path, bool new_blocks_identity) {
   auto w = model::read_pretrained_weights(path);
   torch::NoGradGuard no_grad;
   const auto* up = model::as_uplvsm(net);
   const bool mapper = up && up->pose_mapper;
   model::LoadOptions load;
   if (mapper) load.allow_missing_substrings.push_back("pose_mapper.");
+  std::vector<std::string> new_blocks;
+  if (new_blocks_identity && w.source == model::WeightSource::Uplvsm)
+    for (const auto& block : new_blocks = model::blocks_absent_from(net, w.tensors, path))
+      load.allow_missing_substrings.push_back(block + ".");
   auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path, load)
                                                         : model::load_dinov2_into_tokenizer(net, w.tensors, path);
+  model::make_blocks_identity(net, new_blocks);
   spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
+  if (!new_blocks.empty())
+    spdlog::info("{} transformer block(s) not in {} start as the identity: {}", new_blocks.size(), path,
+                 fmt::join(new_blocks, ", "));
   return mapper && !w.tensors.count("pose_mapper.A");
 }
 
@@ -212,7 +222,7 @@ TrainState resume_or_initialise(model::NovelViewModelImpl& net, torch::optim::Ad
     spdlog::info("resumed from {} at step {}", resume_from, state.step);
     return state;
   }
-  if (!opt.init_weights.empty() && init_from_weights(net, opt.init_weights))
+  if (!opt.init_weights.empty() && init_from_weights(net, opt.init_weights, config.training.init_new_blocks_identity))
     calibrate_pose_mapper(*model::as_uplvsm(net), config, opt);
   return {};
 }
