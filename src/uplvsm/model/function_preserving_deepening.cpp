@@ -51,7 +51,10 @@ std::vector<std::string> blocks_absent_from(const torch::nn::Module& net, const 
   }
   for (const auto& name : absent) {
     const auto [stack, index] = stack_and_index(name);
-    if (index < 0 || (last_held.count(stack) && last_held[stack] > index))
+    if (index < 0)
+      throw std::runtime_error(fmt::format(
+          "{}: transformer block {} is absent from the file and not a numbered block of a stack", source, name));
+    if (last_held.count(stack) && last_held[stack] > index)
       throw std::runtime_error(fmt::format(
           "{}: transformer block {} is absent from the file but a later block of its stack is in it; only blocks "
           "appended after the file's blocks can start as the identity",
