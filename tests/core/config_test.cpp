@@ -142,6 +142,26 @@ TEST(Config, StructureLossWeightsAreCheckedAndRoundTrip) {
             std::string::npos);
 }
 
+TEST(Config, FittedPosesAreCheckedAndRoundTrip) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  const auto ok = config_from_json({{"training", {{"fitted_pose_steps", 5}, {"fitted_pose_lr", 0.02}}}}, "ok");
+  EXPECT_EQ(ok.training.fitted_pose_steps, 5);
+  EXPECT_EQ(config_to_json(ok)["training"]["fitted_pose_lr"].get<double>(), 0.02);
+  EXPECT_EQ(config_from_json(nlohmann::json::object(), "ok").training.fitted_pose_steps, 0);  // off by default
+  EXPECT_FALSE(
+      config_from_json({{"training", {{"render_at_fitted_poses", false}}}}, "ok").training.render_at_fitted_poses);
+  for (const auto& bad : {nlohmann::json{{"fitted_pose_steps", -1}}, nlohmann::json{{"fitted_pose_steps", 5000}},
+                          nlohmann::json{{"fitted_pose_lr", 0}}, nlohmann::json{{"fitted_pose_weight", -1}}})
+    EXPECT_NE(message({{"training", bad}}).find("training.fitted_pose_steps must be in [0, 1000]"), std::string::npos)
+        << bad.dump();
+  EXPECT_NE(message({{"model", {{"variant", "lvsm"}}}, {"training", {{"fitted_pose_steps", 5}}}})
+                .find("training.fitted_pose_steps: only a UP-LVSM whose target poses come from its estimator"),
+            std::string::npos);
+  EXPECT_NE(message({{"model", {{"estimator_half_view", true}}}, {"training", {{"fitted_pose_steps", 5}}}})
+                .find("which model.estimator_half_view hides half of"),
+            std::string::npos);
+}
+
 TEST(Config, RotationEquivarianceNeedsTheEstimatorAndSaneAngles) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   EXPECT_NO_THROW(config_from_json({{"training", {{"rotation_equivariance_weight", 0.1}}}}, "ok"));

@@ -320,9 +320,11 @@ TEST(Trainer, InitIntoADeeperModelStartsFromTheSameFunctionWhenAskedAndFailsOthe
   test::remove_tree(deep);
   config.training.init_new_blocks_identity = true;
   train::train(config, opt);
-  // Step 1's loss is computed before any update: the deeper model starts as the same function.
-  EXPECT_EQ(logged(deep)[0], logged(same)[0]);
-  EXPECT_NE(logged(deep)[2], logged(same)[2]);  // and then trains its added blocks (step 1's learning rate is 0)
+  // Steps 1 and 2 see the weights as loaded (step 1's learning rate is 0): the deeper model starts as the same
+  // function, within float summation order (bit for bit on some CPUs, not all); then it trains its added blocks.
+  const auto deep_losses = logged(deep), same_losses = logged(same);
+  for (int step : {0, 1}) EXPECT_NEAR(deep_losses[step], same_losses[step], 1e-6 * same_losses[step]) << step;
+  EXPECT_GT(std::abs(deep_losses[2] - same_losses[2]), 1e-4 * same_losses[2]);
 }
 
 TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {

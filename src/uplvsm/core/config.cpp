@@ -174,6 +174,10 @@ void training_fields(C& c, F&& f) {
   f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
   f("latent_translation_weight", c.latent_translation_weight);
   f("init_new_blocks_identity", c.init_new_blocks_identity);
+  f("fitted_pose_steps", c.fitted_pose_steps);
+  f("fitted_pose_lr", c.fitted_pose_lr);
+  f("fitted_pose_weight", c.fitted_pose_weight);
+  f("render_at_fitted_poses", c.render_at_fitted_poses);
 }
 
 template <typename C, typename F>
@@ -380,6 +384,15 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
   only_with_estimated_poses(tr.latent_translation_warmup_steps != 0 || tr.latent_translation_weight != 0,
                             "training.latent_translation_warmup_steps / latent_translation_weight",
                             "a latent translation to warm up or weigh");
+  require(tr.fitted_pose_steps >= 0 && tr.fitted_pose_steps <= 1000 && tr.fitted_pose_lr > 0 &&
+              std::isfinite(tr.fitted_pose_lr) && tr.fitted_pose_weight >= 0 && std::isfinite(tr.fitted_pose_weight),
+          s,
+          "training.fitted_pose_steps must be in [0, 1000] (0: off), fitted_pose_lr a finite number > 0 and "
+          "fitted_pose_weight a finite number >= 0");
+  only_with_estimated_poses(tr.fitted_pose_steps != 0, "training.fitted_pose_steps", "latent poses to fit");
+  require(tr.fitted_pose_steps == 0 || !m.estimator_half_view, s,
+          "training.fitted_pose_steps: fits each pose to its whole target, which model.estimator_half_view hides "
+          "half of; use one or the other");
 }
 
 void validate_training(const Config& c, const std::string& s) {

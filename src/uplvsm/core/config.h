@@ -171,6 +171,17 @@ struct TrainingConfig {
   // Not in the paper: with `--init`, transformer blocks this config has and the weights lack (a deeper stack) start as
   // the identity (model/function_preserving_deepening.h) instead of failing the strict load. false: strict.
   bool init_new_blocks_identity = false;
+  // Not in the paper: the decoder trained at latent poses fitted to their targets (model/latent_pose_refinement.h).
+  // Each target's estimated pose is refined by fitted_pose_steps Adam steps (fitted_pose_lr) on its render's error,
+  // keeping each view's best pose, the render is scored at that pose, and the estimator is pulled towards it by
+  // fitted_pose_weight x the squared distance between the two 7-D poses, averaged over targets. 0 steps: off (the
+  // official recipe).
+  int64_t fitted_pose_steps = 0;
+  double fitted_pose_lr = 1e-2;
+  double fitted_pose_weight = 1.0;
+  // false: the render is scored at the estimator's poses as in the official recipe, and the fit only teaches the
+  // estimator (through the pull).
+  bool render_at_fitted_poses = true;
 };
 
 struct DatasetConfig {

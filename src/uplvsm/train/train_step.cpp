@@ -5,6 +5,7 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/geometry/camera_rotation_warp.h"
 #include "uplvsm/geometry/quaternion.h"
+#include "uplvsm/model/latent_pose_refinement.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/estimator_half_view.h"
 #include "uplvsm/train/gradient_difference_loss.h"
@@ -69,14 +70,43 @@ class TranslationWarmup {
   model::LatentPluckerLearnerImpl* estimator_ = nullptr;
 };
 
-// The render and its MSE: the official one, or with model.estimator_half_view (and target poses from the estimator)
-// the estimator shown one half of each target and the other half scored.
-std::pair<model::Rendered, torch::Tensor> render_and_mse(StepContext& ctx, const MicroBatch& batch, int64_t step) {
+// The render, its MSE and (training.fitted_pose_steps) the estimator's pull towards the fitted poses.
+struct ScoredRender {
+  model::Rendered out;
+  torch::Tensor mse;
+  torch::Tensor pose_pull;  // undefined unless the poses are fitted
+};
+
+// training.fitted_pose_steps: each target's estimated latent pose is fitted to the target
+// (model/latent_pose_refinement) and the render is scored there (training.render_at_fitted_poses), so the decoder
+// learns what a well-placed camera shows rather than hedging against the estimator's misplacement, or at the
+// estimator's poses as usual; either way the estimator is pulled to where the fit went. out.pose_enc stays the
+// estimator's, for the other latent-pose terms.
+ScoredRender render_with_fitted_poses(StepContext& ctx, const MicroBatch& batch) {
+  auto& net = *model::as_uplvsm(*ctx.net);
+  const auto& targets = batch.targets;
+  auto latents = net.encode(batch.inputs);
+  auto estimated = net.target_latent_poses(batch.inputs, targets, latents, model::TargetPoses::Estimator);
+  const model::PoseRefinement fit{ctx.training.fitted_pose_steps, ctx.training.fitted_pose_lr, /*keep_best=*/true};
+  auto fitted = model::refine_latent_poses(net, latents, estimated, targets, fit);
+  const auto& scored_at = ctx.training.render_at_fitted_poses ? fitted : estimated;
+  auto render = net.render_views(latents, scored_at, targets.fxfycxcy, targets.images.size(3), targets.images.size(4));
+  auto mse = torch::mse_loss(render.to(torch::kFloat32), targets.images);
+  auto pull = (estimated.to(torch::kFloat32) - fitted).pow(2).sum(-1).mean();
+  return {model::Rendered{render, estimated, latents}, mse, pull};
+}
+
+// The render and its MSE: the official one, with training.fitted_pose_steps at fitted poses, or with
+// model.estimator_half_view (and target poses from the estimator) the estimator shown one half of each target and the
+// other half scored.
+ScoredRender render_and_mse(StepContext& ctx, const MicroBatch& batch, int64_t step) {
   const auto& target = batch.targets.images;
-  if (!ctx.net->config.estimator_half_view || ctx.target_poses != model::TargetPoses::Estimator) {
+  const bool estimated = ctx.target_poses == model::TargetPoses::Estimator;
+  if (estimated && ctx.training.fitted_pose_steps > 0) return render_with_fitted_poses(ctx, batch);
+  if (!ctx.net->config.estimator_half_view || !estimated) {
     auto out = ctx.net->render(batch.inputs, batch.targets, ctx.target_poses);
     auto mse = torch::mse_loss(out.render.to(torch::kFloat32), target);
-    return {out, mse};
+    return {out, mse, {}};
   }
   auto& net = *model::as_uplvsm(*ctx.net);
   const int64_t b = target.size(0), v = target.size(1), H = target.size(3), W = target.size(4);
@@ -85,7 +115,7 @@ std::pair<model::Rendered, torch::Tensor> render_and_mse(StepContext& ctx, const
   auto poses = net.estimate_poses_seeing(target, seen, latents);
   auto render = net.render_views(latents, poses, batch.targets.fxfycxcy, H, W);
   auto mse = masked_mse(render, target, 1 - seen);
-  return {model::Rendered{render, poses, latents}, mse};
+  return {model::Rendered{render, poses, latents}, mse, {}};
 }
 
 // Forward and losses under autocast, as the official step; the MSE on fp32 (autocast's policy for losses).
@@ -97,8 +127,11 @@ Losses forward_backward(StepContext& ctx, const MicroBatch& batch, double accum,
   model::Rendered out;
   {
     AutocastGuard amp(target.device(), ctx.bf16);
-    std::tie(out, mse) = render_and_mse(ctx, batch, step);
+    auto scored = render_and_mse(ctx, batch, step);
+    out = scored.out;
+    mse = scored.mse;
     loss = tc.l2_loss_weight * mse;
+    if (scored.pose_pull.defined()) loss = loss + tc.fitted_pose_weight * scored.pose_pull;
     if (ctx.perceptual) loss = loss + tc.perceptual_loss_weight * ctx.perceptual->forward(out.render, target);
     if (tc.l1_loss_weight > 0) loss = loss + tc.l1_loss_weight * (out.render.to(torch::kFloat32) - target).abs().mean();
     if (tc.latent_translation_weight > 0)
