@@ -332,16 +332,15 @@ void validate_model(const ModelConfig& m, const std::string& s) {
           "model.dinov2.pos_embed_init 'sincos' needs embed_dim divisible by 4");
 }
 
+// Whether UP-LVSM's estimator supplies the training targets' latent poses (what the latent-pose terms act on).
+bool estimates_target_poses(const ModelConfig& m, const TrainingConfig& tr) {
+  return m.variant == Variant::UPLVSM &&
+         (tr.target_poses == TargetPoseChoice::Auto || tr.target_poses == TargetPoseChoice::Estimator);
+}
+
 // Where the target cameras come from, against what the model can do with them.
 void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const std::string& s) {
   const auto tp = tr.target_poses;
-  // The training terms on latent poses: only where the estimator supplies them.
-  const bool estimated_poses =
-      (m.variant == Variant::UPLVSM && (tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Estimator));
-  auto only_with_estimated_poses = [&](bool used, const std::string& field, const std::string& what) {
-    require(!used || estimated_poses, s,
-            field + ": only a UP-LVSM whose target poses come from its estimator has " + what);
-  };
   require(m.variant == Variant::UPLVSM || tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Dataset, s,
           "training.target_poses: the " + to_string(m.variant) +
               " variant renders from dataset cameras ('auto' or 'dataset')");
@@ -350,6 +349,26 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
   require(!m.encoder_cameras || (m.variant == Variant::UPLVSM && tp == TargetPoseChoice::Dataset), s,
           "model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
           "training.target_poses 'dataset'");
+  require(!m.estimator_half_view || m.variant == Variant::UPLVSM, s,
+          "model.estimator_half_view: only the uplvsm variant has an estimator to show half a view");
+  require(!m.estimator_half_view || !estimates_target_poses(m, tr) ||
+              (tr.perceptual_loss_weight == 0 && tr.l1_loss_weight == 0 && tr.ssim_loss_weight == 0 &&
+               tr.gradient_difference_weight == 0),
+          s,
+          "model.estimator_half_view: training scores half of each target with the MSE alone; set "
+          "training.perceptual_loss_weight, l1_loss_weight, ssim_loss_weight and gradient_difference_weight to 0");
+  require(!m.encoder_latent_cameras || (m.variant == Variant::UPLVSM && !m.encoder_cameras), s,
+          "model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras has latent cameras "
+          "to give its encoder");
+}
+
+// The training terms on latent poses (not in the paper): their ranges, and only where the estimator supplies them.
+void validate_latent_pose_terms(const ModelConfig& m, const TrainingConfig& tr, const std::string& s) {
+  const bool estimated_poses = estimates_target_poses(m, tr);
+  auto only_with_estimated_poses = [&](bool used, const std::string& field, const std::string& what) {
+    require(!used || estimated_poses, s,
+            field + ": only a UP-LVSM whose target poses come from its estimator has " + what);
+  };
   require(tr.rotation_equivariance_weight >= 0 && tr.rotation_equivariance_degrees > 0 &&
               tr.rotation_equivariance_degrees <= 30,
           s, "training.rotation_equivariance_weight must be >= 0 and rotation_equivariance_degrees in (0, 30]");
@@ -367,17 +386,6 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
           "training.rotation_alignment_blur needs training.rotation_alignment_weight > 0");
   only_with_estimated_poses(tr.rotation_alignment_weight != 0, "training.rotation_alignment_weight",
                             "latent rotations to align");
-  require(!m.estimator_half_view || m.variant == Variant::UPLVSM, s,
-          "model.estimator_half_view: only the uplvsm variant has an estimator to show half a view");
-  require(!m.estimator_half_view || !estimated_poses ||
-              (tr.perceptual_loss_weight == 0 && tr.l1_loss_weight == 0 && tr.ssim_loss_weight == 0 &&
-               tr.gradient_difference_weight == 0),
-          s,
-          "model.estimator_half_view: training scores half of each target with the MSE alone; set "
-          "training.perceptual_loss_weight, l1_loss_weight, ssim_loss_weight and gradient_difference_weight to 0");
-  require(!m.encoder_latent_cameras || (m.variant == Variant::UPLVSM && !m.encoder_cameras), s,
-          "model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras has latent cameras "
-          "to give its encoder");
   require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
   require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
           "training.latent_translation_weight must be a finite number >= 0");
@@ -429,6 +437,7 @@ void validate_config(const Config& c, const std::string& s) {
   validate_model(c.model, s);
   validate_training(c, s);
   validate_target_poses(c.model, c.training, s);
+  validate_latent_pose_terms(c.model, c.training, s);
 }
 
 json config_to_json(const Config& c) {
