@@ -258,6 +258,23 @@ TEST(Config, EstimatorCorrespondenceNeedsTheImageTokens) {
   EXPECT_NE(msg.find("estimator_correspondence reads input view 0's image tokens"), std::string::npos) << msg;
 }
 
+TEST(Config, PoseErrorFeedbackNeedsTheWholeTargetOfAnUplvsm) {
+  EXPECT_EQ(Config().model.transformer.pose_error_feedback_steps, 0);  // the one-shot official estimator by default
+  EXPECT_EQ(config_from_json({{"model", {{"transformer", {{"pose_error_feedback_steps", 2}}}}}}, "ok.json")
+                .model.transformer.pose_error_feedback_steps,
+            2);
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  for (auto model : {nlohmann::json{{"estimator_half_view", true}}, nlohmann::json{{"variant", "lvsm"}}}) {
+    model["transformer"] = {{"pose_error_feedback_steps", 1}};
+    EXPECT_NE(message({{"model", model}})
+                  .find("pose_error_feedback_steps corrects the estimator's latent poses from the whole target"),
+              std::string::npos)
+        << model;
+  }
+  EXPECT_NE(message({{"model", {{"transformer", {{"pose_error_feedback_steps", 9}}}}}}).find("in [0, 8], got 9"),
+            std::string::npos);
+}
+
 TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   auto msg = message({{"model", {{"encoder_cameras", true}}}});  // target poses left at 'auto' (the estimator)

@@ -23,6 +23,9 @@ TEST(MemoryEstimate, ParameterCountFromTheConfigEqualsTheBuiltModel) {
   correspondence.keep_image_tokens = true;
   correspondence.transformer.estimator_correspondence = true;
   configs.push_back(correspondence);
+  auto feedback = test::micro_model();
+  feedback.transformer.pose_error_feedback_steps = 2;
+  configs.push_back(feedback);
   for (std::string name : {"tiny", "tiny_ptlvsm", "tiny_lvsm", "tiny_mapper"})
     configs.push_back(load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json").model);
   for (const auto& c : configs) {

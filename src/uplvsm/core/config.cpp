@@ -97,6 +97,7 @@ void transformer_fields(C& c, F&& f) {
   f("rotation_only_latent_camera", c.rotation_only_latent_camera);
   f("latent_rotation_gain", c.latent_rotation_gain);
   f("estimator_correspondence", c.estimator_correspondence);
+  f("pose_error_feedback_steps", c.pose_error_feedback_steps);
 }
 
 template <typename C, typename F>
@@ -308,6 +309,12 @@ void validate_model(const ModelConfig& m, const std::string& s) {
   require(!m.transformer.estimator_correspondence || (m.variant == Variant::UPLVSM && m.keep_image_tokens), s,
           "model.transformer.estimator_correspondence reads input view 0's image tokens: it needs the uplvsm variant "
           "and model.keep_image_tokens: true");
+  require(t.pose_error_feedback_steps == 0 || (m.variant == Variant::UPLVSM && !m.estimator_half_view), s,
+          "model.transformer.pose_error_feedback_steps corrects the estimator's latent poses from the whole target: it "
+          "needs the uplvsm variant without model.estimator_half_view");
+  require(t.pose_error_feedback_steps >= 0 && t.pose_error_feedback_steps <= 8, s,
+          fmt::format("model.transformer.pose_error_feedback_steps must be in [0, 8], got {}",
+                      t.pose_error_feedback_steps));
   require(!m.keep_image_tokens || m.variant == Variant::UPLVSM, s,
           "model.keep_image_tokens: only the uplvsm variant has an encoder whose image tokens it could keep");
   require(m.patch_size > 0 && m.image_size > 0 && m.image_size % m.patch_size == 0, s,

@@ -48,6 +48,10 @@ struct TransformerConfig {
   // content in input view 0 (model/correspondence_displacement.h), so a global shift of the image (a turn) is
   // visible to it, not averaged away by the mean pooling. Starts as the official estimator (its output layer at 0).
   bool estimator_correspondence = false;
+  // Not in the paper (model/pose_error_feedback.h): after its one-shot reading, the estimator is shown the render at
+  // its pose beside the target this many times and reads a correction each time (iterative error feedback). Starts
+  // as the one-shot estimator; 0 is the official model.
+  int64_t pose_error_feedback_steps = 0;
 };
 
 struct Dinov2Config {

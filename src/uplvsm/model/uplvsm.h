@@ -5,6 +5,8 @@
 //        (model.encoder_latent_cameras, not official: T[view i>0] += tokenizer(Plücker(pose(Estimator(T_i, S))))
 //        and S = Encoder([latents ; T])[:L] again: the inputs' latent cameras in the encoder, as RayZer)
 //   e  = Estimator(DINOv2(target), S)                            7-D latent pose per target
+//        (model.transformer.pose_error_feedback_steps, not official: k times e = e + Estimator(DINOv2(target) +
+//        embed(render at e, target - render, Plücker(e)), S) through a correction head; iterative error feedback)
 //   Q  = target_pose_tokenizer(Plücker(pose(e), intrinsics))
 //   img = sigmoid(head(Decoder(LN([Q ; S]))[:n]))
 // Where a target's pose comes from (estimator, a camera mapper, dataset cameras) is one seam, TargetPoses:
@@ -15,6 +17,7 @@
 
 #include "uplvsm/model/latent_plucker_learner.h"
 #include "uplvsm/model/novel_view_model.h"
+#include "uplvsm/model/pose_error_feedback.h"
 #include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/transformer.h"
 
@@ -52,6 +55,10 @@ struct UPLVSMImpl : NovelViewModelImpl {
   struct EncodedInputs {
     torch::Tensor latents, input_poses;
   };
+  // The estimator's latent poses of `targets` (their images and intrinsics), each corrected
+  // model.transformer.pose_error_feedback_steps times from the render at it (model/pose_error_feedback.h).
+  torch::Tensor estimate_poses_with_feedback(const Views& targets, const torch::Tensor& scene_latents,
+                                             ForwardTrace* trace = nullptr);
   EncodedInputs encode_with_input_poses(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy);
   // Renders [b, v_t, 3, H, W] from latent poses [b, v_t, 7] and target intrinsics [b, v_t, 4].
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
@@ -82,6 +89,7 @@ struct UPLVSMImpl : NovelViewModelImpl {
   torch::nn::ModuleList transformer_encoder{nullptr}, transformer_decoder{nullptr};
   LayerNorm transformer_input_layernorm_decoder{nullptr};
   LatentPluckerLearner estimator{nullptr};
+  PoseErrorFeedback pose_error_feedback{nullptr};  // registered when config.transformer.pose_error_feedback_steps
   PoseMapper pose_mapper{nullptr};  // camera control, an option of UP-LVSM: registered when config.pose_mapper
 };
 TORCH_MODULE(UPLVSM);

@@ -116,6 +116,8 @@ bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path, 
   const bool mapper = up && up->pose_mapper;
   model::LoadOptions load;
   if (mapper) load.allow_missing_substrings.push_back("pose_mapper.");
+  // Starts as the one-shot estimator (its output layer at zero) when the file was trained without it.
+  if (up && up->pose_error_feedback) load.allow_missing_substrings.push_back("pose_error_feedback.");
   std::vector<std::string> new_blocks;
   if (new_blocks_identity && w.source == model::WeightSource::Uplvsm)
     for (const auto& block : new_blocks = model::blocks_absent_from(net, w.tensors, path))
@@ -147,7 +149,7 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
     model::Views inputs{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))};
     model::Views targets{dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
     auto latents = net.encode_scene(inputs.images, inputs.fxfycxcy);
-    latent.push_back(net.estimate_poses(targets.images, latents).reshape({-1, 7}).cpu());
+    latent.push_back(net.estimate_poses_with_feedback(targets, latents).reshape({-1, 7}).cpu());
     real.push_back(geometry::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
   }
   const double rms = model::fit_pose_mapper(*net.pose_mapper, torch::cat(real), torch::cat(latent));
