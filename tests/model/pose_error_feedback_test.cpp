@@ -1,4 +1,4 @@
-// model/pose_error_feedback: the patches against torch's unfold, the correction starting at zero (a model with the
+// model/pose_error_feedback: the embedding's shapes, the correction starting at zero (a model with the
 // feedback starts as the one-shot estimator), a rotation-only camera kept turning only, and the feedback reading
 // the render: a change of the decoder moves the corrected pose and not the first reading, and the loss reaches the
 // feedback's weights; its FLOPs are counted.
@@ -15,11 +15,16 @@
 using namespace uplvsm;
 using namespace uplvsm::model;
 
-TEST(PoseErrorFeedback, PatchesAreUnfoldsRowMajorPatchesChannelFirst) {
-  auto images = torch::randn({2, 5, 16, 24});
-  auto expected = torch::nn::functional::unfold(images, torch::nn::functional::UnfoldFuncOptions({8, 8}).stride(8));
-  EXPECT_EQ(test::max_abs_diff(image_patches(images, 8), expected.transpose(1, 2)), 0.0);
-  EXPECT_NE(test::error_of([&] { image_patches(images, 7); }).find("multiples of the patch size 7"), std::string::npos);
+TEST(PoseErrorFeedback, EmbedsTwelveChannelPatchesAndNamesBadShapes) {
+  PoseErrorFeedback feedback(8, 32);
+  auto images = torch::rand({2, 3, 16, 24});
+  torch::NoGradGuard no_grad;
+  EXPECT_EQ(feedback->embed(images, images.flip(3), torch::randn({2, 6, 16, 24})).sizes(),
+            (std::vector<int64_t>{2, 6, 32}));
+  EXPECT_NE(test::error_of([&] {
+              feedback->embed(images, images.narrow(1, 0, 2), torch::randn({2, 6, 16, 24}));
+            }).find("targets and renders must be [N, 3, H, W] and rays [N, 6, H, W]"),
+            std::string::npos);
 }
 
 TEST(PoseErrorFeedback, StartsAtZeroAndKeepsARotationOnlyCameraTurning) {

@@ -42,7 +42,7 @@ int64_t parameter_count(const ModelConfig& c) {
     n += stack_parameters(t.estimator_n_layer, t) + head_parameters(t.d, t.d / 2, 3) + head_parameters(t.d, t.d / 2, 4);
     if (c.pose_mapper) n += 7 * 7 + 7;
     if (t.estimator_correspondence) n += 2 * t.d * t.d_head + head_parameters(4, t.d / 2, t.d);
-    if (t.pose_error_feedback_steps > 0) n += (12 * p * p + 1) * t.d + head_parameters(t.d, t.d / 2, 7);
+    if (t.pose_error_feedback_steps > 0) n += 12 * p * p * t.d + head_parameters(t.d, t.d / 2, 7);
   }
   return n + t.d + t.d * p * p * 3;  // image_token_decoder: LayerNorm, Linear
 }

@@ -4,20 +4,11 @@
 
 namespace uplvsm::model {
 
-torch::Tensor image_patches(const torch::Tensor& images, int64_t p) {
-  TORCH_CHECK(images.dim() == 4 && images.size(2) % p == 0 && images.size(3) % p == 0,
-              "image_patches: images must be [N, C, H, W] with H and W multiples of the patch size ", p, ", got ",
-              images.sizes());
-  const int64_t N = images.size(0), C = images.size(1), h = images.size(2) / p, w = images.size(3) / p;
-  return images.reshape({N, C, h, p, w, p}).permute({0, 2, 4, 1, 3, 5}).reshape({N, h * w, C * p * p});
-}
-
-PoseErrorFeedbackImpl::PoseErrorFeedbackImpl(int64_t p, int64_t d) : patch_size(p) {
-  patch_embed = register_module("patch_embed", torch::nn::Linear(12 * p * p, d));
+PoseErrorFeedbackImpl::PoseErrorFeedbackImpl(int64_t p, int64_t d) {
+  patch_embed = register_module("patch_embed", PoseTokenizer(p, d, 12));
   correction_head = register_module("correction_head", DinoMlp(d, d / 2, 7));
   torch::NoGradGuard no_grad;
-  patch_embed->weight.normal_(0.0, 0.02);
-  patch_embed->bias.zero_();
+  patch_embed->linear->weight.normal_(0.0, 0.02);
   correction_head->fc1->weight.normal_(0.0, 0.02);
   correction_head->fc1->bias.zero_();
   correction_head->fc2->weight.zero_();
@@ -29,9 +20,8 @@ torch::Tensor PoseErrorFeedbackImpl::embed(const torch::Tensor& targets, const t
   TORCH_CHECK(targets.dim() == 4 && targets.sizes() == renders.sizes() && rays.dim() == 4 && rays.size(1) == 6,
               "pose error feedback: targets and renders must be [N, 3, H, W] and rays [N, 6, H, W], got ",
               targets.sizes(), ", ", renders.sizes(), ", ", rays.sizes());
-  const auto dtype = patch_embed->weight.scalar_type();
-  auto x = torch::cat({renders.to(dtype), (targets - renders).to(dtype), rays.to(dtype)}, 1);
-  return patch_embed(image_patches(x, patch_size));
+  const auto dtype = patch_embed->linear->weight.scalar_type();
+  return patch_embed(torch::cat({renders.to(dtype), (targets - renders).to(dtype), rays.to(dtype)}, 1));
 }
 
 torch::Tensor PoseErrorFeedbackImpl::correct(const torch::Tensor& poses, const torch::Tensor& pooled,

@@ -8,26 +8,24 @@
 #include <torch/torch.h>
 
 #include "uplvsm/model/dinov2.h"
+#include "uplvsm/model/pose_tokenizer.h"
 
 namespace uplvsm::model {
 
 struct PoseErrorFeedbackImpl : torch::nn::Module {
   PoseErrorFeedbackImpl(int64_t patch_size, int64_t d);
   // targets and renders [N, 3, H, W], the current pose's Plücker rays [N, 6, H, W] -> [N, n, d], added to the
-  // target's image tokens: a patch embedding of (render, target - render, rays), row-major like the tokenizer's.
+  // target's image tokens: a patch embedding of (render, target - render, rays), patches row-major like the
+  // tokenizer's.
   torch::Tensor embed(const torch::Tensor& targets, const torch::Tensor& renders, const torch::Tensor& rays);
   // poses [N, 7] (t, q_xyzw) and the estimator's pooled features of the fed-back target [N, d] -> corrected poses:
   // t + dt (t stays 0 for a rotation-only camera), q + dq renormalised. Its output layer starts at zero, so a model
   // starts as the one-shot estimator (and --init from one loads with this module at its initial values).
   torch::Tensor correct(const torch::Tensor& poses, const torch::Tensor& pooled, bool rotation_only);
 
-  int64_t patch_size;
-  torch::nn::Linear patch_embed{nullptr};
+  PoseTokenizer patch_embed{nullptr};  // the ray tokenizer's patch layout over 12 channels
   DinoMlp correction_head{nullptr};
 };
 TORCH_MODULE(PoseErrorFeedback);
-
-// [N, C, H, W] -> [N, (H/p)(W/p), C p p]: the patches in row-major order, each flattened channel-first.
-torch::Tensor image_patches(const torch::Tensor& images, int64_t patch_size);
 
 }  // namespace uplvsm::model

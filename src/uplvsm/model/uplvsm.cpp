@@ -113,12 +113,12 @@ torch::Tensor UPLVSMImpl::estimate_poses_with_feedback(const Views& targets, con
   auto poses = estimate_poses_from_tokens(tokens, scene_latents, trace).to(torch::kFloat32);
   const auto latents_per_view = repeat_per_view(scene_latents, v);
   for (int64_t k = 0; k < config.transformer.pose_error_feedback_steps; ++k) {
+    auto rays = geometry::plucker_rays(geometry::pose_encoding_to_c2w(poses), targets.fxfycxcy, H, W);
     torch::Tensor render;
     {  // the error is evidence for the estimator, not a path for gradients into the decoder
       torch::NoGradGuard no_grad;
-      render = render_views(scene_latents, poses, targets.fxfycxcy, H, W);
+      render = render_rays(scene_latents, rays.detach());
     }
-    auto rays = geometry::plucker_rays(geometry::pose_encoding_to_c2w(poses), targets.fxfycxcy, H, W);
     auto fed_back = tokens.flatten(0, 1) +
                     pose_error_feedback->embed(targets.images.flatten(0, 1), render.flatten(0, 1), rays.flatten(0, 1));
     auto pooled = estimator->pooled(fed_back.to(tokens.scalar_type()), latents_per_view);
@@ -137,9 +137,15 @@ torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const
                                        const torch::Tensor& fxfycxcy, int64_t H, int64_t W, ForwardTrace* trace) {
   TORCH_CHECK(pose_enc.dim() == 3 && pose_enc.size(2) == 7, "render_views: poses must be [b, v, 7], got ",
               pose_enc.sizes());
-  const int64_t b = pose_enc.size(0), v = pose_enc.size(1);
-  auto rays = geometry::plucker_rays(geometry::pose_encoding_to_c2w(pose_enc), fxfycxcy, H, W);  // [b, v, 6, H, W]
-  auto q = target_pose_tokenizer(rays.flatten(0, 1));                                            // [b v, n, d]
+  return render_rays(scene_latents, geometry::plucker_rays(geometry::pose_encoding_to_c2w(pose_enc), fxfycxcy, H, W),
+                     trace);
+}
+
+torch::Tensor UPLVSMImpl::render_rays(const torch::Tensor& scene_latents, const torch::Tensor& rays,
+                                      ForwardTrace* trace) {
+  TORCH_CHECK(rays.dim() == 5 && rays.size(2) == 6, "render_rays: rays must be [b, v, 6, H, W], got ", rays.sizes());
+  const int64_t b = rays.size(0), v = rays.size(1), H = rays.size(3), W = rays.size(4);
+  auto q = target_pose_tokenizer(rays.flatten(0, 1));  // [b v, n, d]
   const int64_t n = q.size(1);
   auto x = transformer_input_layernorm_decoder(torch::cat({q, repeat_per_view(scene_latents, v)}, 1));
   auto y = run_stack(transformer_decoder, x, grad_checkpoint_every, "uplvsm::decoder", OutputRows{0, n});

@@ -64,6 +64,9 @@ struct UPLVSMImpl : NovelViewModelImpl {
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
                              const torch::Tensor& target_fxfycxcy, int64_t height, int64_t width,
                              ForwardTrace* trace = nullptr);
+  // The same from the targets' Plücker rays [b, v_t, 6, H, W].
+  torch::Tensor render_rays(const torch::Tensor& scene_latents, const torch::Tensor& rays,
+                            ForwardTrace* trace = nullptr);
   // Latent poses [b, v_t, 7] of the targets from `source` (Estimator: needs the target images; Mapper, Dataset:
   // needs c2w of inputs and targets).
   torch::Tensor target_latent_poses(const Views& inputs, const Views& targets, const torch::Tensor& scene_latents,
