@@ -17,14 +17,6 @@ namespace fs = std::filesystem;
 
 namespace {
 
-train::TrainOptions run_options(const std::string& run) {
-  train::TrainOptions o;
-  o.data_root = test::micro_dataset();
-  o.run_dir = run;
-  o.progress = false;
-  return o;
-}
-
 // Cuts a file to `keep` of its bytes, as a full disk or an interrupted copy leaves it.
 void truncate_file(const std::string& path, double keep) {
   std::ifstream in(path, std::ios::binary);
@@ -50,7 +42,7 @@ std::string run_with_three_checkpoints(const std::string& name) {
   config.training.train_steps = 6;
   config.training.checkpoint_every = 2;
   auto run = test::temp_dir(name).string();
-  train::train(config, run_options(run));
+  train::train(config, test::micro_run_options(run));
   return run;
 }
 
@@ -92,14 +84,14 @@ TEST(CheckpointFallback, ResumeAutoContinuesFromThePreviousCheckpointAndAnExplic
   auto config = test::micro_config();
   config.training.train_steps = 6;
   config.training.checkpoint_every = 2;
-  auto explicit_bad = run_options(run);
+  auto explicit_bad = test::micro_run_options(run);
   explicit_bad.resume = all[2];
   const auto msg = test::error_of([&] { train::train(config, explicit_bad); });
   EXPECT_NE(msg.find(all[2]), std::string::npos) << msg;
 
   // auto: resumes at step 4 and trains steps 5 and 6 again (rewriting the damaged checkpoint).
   LogCapture log;
-  EXPECT_EQ(train::train(config, run_options(run)).step, 6);
+  EXPECT_EQ(train::train(config, test::micro_run_options(run)).step, 6);
   EXPECT_NE(log.text.str().find("resumed from " + all[1] + " at step 4"), std::string::npos) << log.text.str();
   EXPECT_EQ(train::read_newest_valid_checkpoint((fs::path(run) / "checkpoints").string())->path, all[2]);
 }

@@ -6,6 +6,7 @@
 #include "test_util.h"
 #include "uplvsm/core/config.h"
 #include "uplvsm/data/synthetic/room_scenes.h"
+#include "uplvsm/train/trainer.h"
 
 namespace uplvsm::test {
 
@@ -62,6 +63,15 @@ inline std::string micro_dataset() {
     data::write_builtin_dataset(root, 6, 2, 5, opt);
   }
   return root;
+}
+
+// Trainer options for a run of micro_dataset() into `run`, without a progress bar.
+inline train::TrainOptions micro_run_options(const std::string& run) {
+  train::TrainOptions o;
+  o.data_root = micro_dataset();
+  o.run_dir = run;
+  o.progress = false;
+  return o;
 }
 
 }  // namespace uplvsm::test

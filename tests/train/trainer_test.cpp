@@ -37,19 +37,12 @@ std::vector<double> expect_losses_above_mse(const std::string& run, size_t steps
   return losses;
 }
 
-train::TrainOptions options(const std::string& run) {
-  train::TrainOptions o;
-  o.data_root = test::micro_dataset();
-  o.run_dir = run;
-  o.progress = false;
-  return o;
-}
 }  // namespace
 
 TEST(Trainer, LossFallsAndCheckpointRoundTrips) {
   auto config = test::micro_config();
   auto run = test::temp_dir("train_loss").string();
-  auto result = train::train(config, options(run));
+  auto result = train::train(config, test::micro_run_options(run));
   EXPECT_EQ(result.step, 40);
   auto losses = logged_losses(run);
   ASSERT_EQ(losses.size(), 40u);
@@ -73,13 +66,13 @@ TEST(Trainer, ResumeReproducesTheUninterruptedRunExactly) {
   auto config = test::micro_config();
   config.training.train_steps = 16;
   auto straight = test::temp_dir("train_straight").string();
-  train::train(config, options(straight));
+  train::train(config, test::micro_run_options(straight));
 
   auto resumed = test::temp_dir("train_resumed").string();
-  auto first = options(resumed);
+  auto first = test::micro_run_options(resumed);
   first.stop_after_steps = 7;
   EXPECT_EQ(train::train(config, first).step, 7);
-  EXPECT_EQ(train::train(config, options(resumed)).step, 16);  // --resume auto
+  EXPECT_EQ(train::train(config, test::micro_run_options(resumed)).step, 16);  // --resume auto
 
   // Bitwise: same data per step (step-keyed loader), same optimiser state, same schedule.
   EXPECT_EQ(logged_losses(straight), logged_losses(resumed));
@@ -94,12 +87,12 @@ namespace {
 // a training option draws at random is keyed to the step). Returns the uninterrupted run's directory.
 std::string expect_resumes_exactly(const Config& config, const std::string& name, int64_t stop_after) {
   auto straight = test::temp_dir(name).string();
-  train::train(config, options(straight));
+  train::train(config, test::micro_run_options(straight));
   auto resumed = test::temp_dir(name + "_resumed").string();
-  auto first = options(resumed);
+  auto first = test::micro_run_options(resumed);
   first.stop_after_steps = stop_after;
   train::train(config, first);
-  train::train(config, options(resumed));
+  train::train(config, test::micro_run_options(resumed));
   EXPECT_EQ(logged_losses(resumed), logged_losses(straight));
   return straight;
 }
@@ -134,7 +127,7 @@ TEST(Trainer, EstimatorHalfViewChangesTheRunAndResumesExactly) {
   auto config = test::micro_config();
   config.training.train_steps = 6;
   auto plain = test::temp_dir("train_plain_view").string();
-  train::train(config, options(plain));
+  train::train(config, test::micro_run_options(plain));
   config.model.estimator_half_view = true;
   const auto losses = logged_losses(expect_resumes_exactly(config, "train_half_view", 2));
   ASSERT_EQ(losses.size(), logged_losses(plain).size());
@@ -161,7 +154,7 @@ TEST(Trainer, LatentTranslationWarmupAndWeight) {
   config.training.train_steps = 1;
   config.training.latent_translation_warmup_steps = 1;
   auto run = test::temp_dir("train_translation_warmup").string();
-  train::train(config, options(run));
+  train::train(config, test::micro_run_options(run));
   const auto ckpt = model::read_checkpoint(run);
   int64_t translation = 0, rotation = 0;
   for (const auto& [name, moment] : ckpt.optimizer) {
@@ -181,7 +174,7 @@ TEST(Trainer, LatentTranslationWarmupAndWeight) {
   weighed.training.train_steps = 2;
   weighed.training.latent_translation_weight = 10.0;
   auto weighed_run = test::temp_dir("train_translation_weight").string();
-  train::train(weighed, options(weighed_run));
+  train::train(weighed, test::micro_run_options(weighed_run));
   expect_losses_above_mse(weighed_run, 2);
 
   config.model.variant = Variant::PTLVSM;  // a posed variant has no latent translation: refused by name
@@ -194,11 +187,11 @@ TEST(Trainer, ResumeRejectsADifferentModel) {
   auto config = test::micro_config();
   config.training.train_steps = 2;
   auto run = test::temp_dir("train_mismatch").string();
-  train::train(config, options(run));
+  train::train(config, test::micro_run_options(run));
   config.training.train_steps = 4;
   config.model.transformer.decoder_n_layer = 2;
   try {
-    train::train(config, options(run));
+    train::train(config, test::micro_run_options(run));
     FAIL() << "expected an error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("model config differs"), std::string::npos) << e.what();
@@ -210,7 +203,7 @@ TEST(Trainer, PerceptualLossWithVgg19WeightsElseMseOnly) {
   config.training.train_steps = 3;
   config.training.perceptual_loss_weight = 0.5;
   auto mse_only = test::temp_dir("train_mse_only").string();
-  train::train(config, options(mse_only));  // no --vgg19: warns and trains with MSE only
+  train::train(config, test::micro_run_options(mse_only));  // no --vgg19: warns and trains with MSE only
   auto loss = logged(mse_only), mse = logged(mse_only, "mse"), psnr = logged(mse_only, "psnr");
   ASSERT_EQ(loss.size(), 3u);
   for (size_t i = 0; i < loss.size(); ++i) {
@@ -225,7 +218,7 @@ TEST(Trainer, PerceptualLossWithVgg19WeightsElseMseOnly) {
   auto run = test::temp_dir("train_perceptual").string();
   const auto vgg_path = run + "/vgg19.safetensors";
   io::write_safetensors(vgg_path, weights);
-  auto opt = options(run + "/run");
+  auto opt = test::micro_run_options(run + "/run");
   opt.perceptual_weights = vgg_path;
   train::train(config, opt);
   auto p_loss = logged(run + "/run"), p_mse = logged(run + "/run", "mse");
@@ -239,7 +232,7 @@ TEST(Trainer, Bf16AutocastKeepsFp32MasterWeights) {
   config.training.train_steps = 3;
   config.training.amp = Amp::Bf16;
   auto run = test::temp_dir("train_bf16").string();
-  auto result = train::train(config, options(run));
+  auto result = train::train(config, test::micro_run_options(run));
   EXPECT_EQ(result.step, 3);
   for (double loss : logged(run)) EXPECT_TRUE(std::isfinite(loss) && loss > 0) << loss;
   auto ckpt = model::read_checkpoint(run);
@@ -251,7 +244,7 @@ TEST(Trainer, PeriodicEvaluationIsLoggedBesideTheLoss) {
   config.training.train_steps = 6;
   config.training.eval_every = 4;
   auto run = test::temp_dir("train_periodic_eval").string();
-  auto opt = options(run);
+  auto opt = test::micro_run_options(run);
   std::vector<int64_t> steps;
   opt.periodic_eval = [&](model::NovelViewModel& net, int64_t step) {
     EXPECT_FALSE(net->is_training());
@@ -284,13 +277,13 @@ TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
   auto config = test::micro_config();
   config.training.train_steps = 8;
   auto base = test::temp_dir("train_mapper_base").string();
-  train::train(config, options(base));
+  train::train(config, test::micro_run_options(base));
 
   config.model.pose_mapper = true;
   config.training.target_poses = TargetPoseChoice::Mapper;
   config.training.train_steps = 3;
   auto run = test::temp_dir("train_mapper").string();
-  auto opt = options(run);
+  auto opt = test::micro_run_options(run);
   opt.init_weights = model::resolve_checkpoint(base);
   train::train(config, opt);
   auto ckpt = model::read_checkpoint(run);
@@ -305,11 +298,11 @@ TEST(Trainer, InitIntoADeeperModelStartsFromTheSameFunctionWhenAskedAndFailsOthe
   auto config = test::micro_config();
   config.training.train_steps = 6;
   auto base = test::temp_dir("train_deepen_base").string();
-  train::train(config, options(base));
+  train::train(config, test::micro_run_options(base));
 
   config.training.train_steps = 3;
   auto same = test::temp_dir("train_deepen_same").string(), deep = test::temp_dir("train_deepen_deep").string();
-  auto opt = options(same);
+  auto opt = test::micro_run_options(same);
   opt.init_weights = model::resolve_checkpoint(base);
   train::train(config, opt);  // the same depth: the reference first step
   config.model.transformer.estimator_n_layer = 2;
@@ -333,7 +326,7 @@ TEST(Trainer, PosedVariantsTrainThroughTheSameLoop) {
   config.model.transformer.n_layer = 2;
   config.training.train_steps = 20;
   auto run = test::temp_dir("train_ptlvsm").string();
-  train::train(config, options(run));
+  train::train(config, test::micro_run_options(run));
   auto losses = logged(run);
   ASSERT_EQ(losses.size(), 20u);
   EXPECT_LT(losses[19] + losses[18], losses[0] + losses[1]);

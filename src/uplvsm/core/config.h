@@ -126,6 +126,11 @@ struct TrainingConfig {
   double ssim_loss_weight = 0.0;
   // Not in the paper: the gradient difference loss (train/gradient_difference_loss.h), against the blur. 0: off.
   double gradient_difference_weight = 0.0;
+  // Not in the paper: an exponential moving average of the weights (train/weight_ema.h), updated after every applied
+  // update with min(ema_decay, (1 + n) / (10 + n)) at its n-th update. What a run's checkpoints hand to every reader
+  // (eval, export, --init) and what its periodic evaluations score; the trained weights stay in the checkpoint's
+  // optimiser state, for the resume. 0: off (the official recipe).
+  double ema_decay = 0.0;
   int64_t checkpoint_every = 4000;
   int64_t keep_checkpoints = 3;
   int64_t log_every = 10;

@@ -53,7 +53,8 @@ TrainingMemory training_memory(const Config& config) {
   const auto& tc = config.training;
   TrainingMemory m;
   m.parameters = parameter_count(c);
-  m.state_bytes = 16.0 * static_cast<double>(m.parameters);
+  // + 4 bytes for the weight average's copy (training.ema_decay).
+  m.state_bytes = (tc.ema_decay > 0 ? 20.0 : 16.0) * static_cast<double>(m.parameters);
   const double b = static_cast<double>(tc.batch_size), vi = static_cast<double>(tc.num_input_views),
                vt = static_cast<double>(tc.num_target_views);
   const double grid = static_cast<double>(c.image_size / c.patch_size), n = grid * grid,

@@ -18,19 +18,17 @@
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
-#include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/eval_mode.h"
-#include "uplvsm/model/function_preserving_deepening.h"
 #include "uplvsm/model/memory_estimate.h"
-#include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/perceptual_loss.h"
+#include "uplvsm/train/run_start.h"
 #include "uplvsm/train/train_step.h"
+#include "uplvsm/train/weight_ema.h"
 
 namespace uplvsm::train {
 
@@ -98,65 +96,6 @@ void truncate_metrics(const std::string& path, int64_t step) {
   io::write_file_atomic(path, kept.data(), kept.size());
 }
 
-void check_same_model(const Config& a, const Config& b, const std::string& source) {
-  auto ja = config_to_json(a)["model"], jb = config_to_json(b)["model"];
-  if (ja != jb)
-    throw std::runtime_error(
-        fmt::format("resume from {}: its model config differs from the given one\n  checkpoint: {}\n  "
-                    "given:      {}",
-                    source, jb.dump(), ja.dump()));
-}
-
-// A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
-// Returns whether the pose mapper still needs its initial fit (an UP-LVSM with one, from a file without it).
-bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path, bool new_blocks_identity) {
-  auto w = model::read_pretrained_weights(path);
-  torch::NoGradGuard no_grad;
-  const auto* up = model::as_uplvsm(net);
-  const bool mapper = up && up->pose_mapper;
-  model::LoadOptions load;
-  if (mapper) load.allow_missing_substrings.push_back("pose_mapper.");
-  // Starts as the one-shot estimator (its output layer at zero) when the file was trained without it.
-  if (up && up->pose_error_feedback) load.allow_missing_substrings.push_back("pose_error_feedback.");
-  std::vector<std::string> new_blocks;
-  if (new_blocks_identity && w.source == model::WeightSource::Uplvsm)
-    for (const auto& block : new_blocks = model::blocks_absent_from(net, w.tensors, path))
-      load.allow_missing_substrings.push_back(block + ".");
-  auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path, load)
-                                                        : model::load_dinov2_into_tokenizer(net, w.tensors, path);
-  model::make_blocks_identity(net, new_blocks);
-  spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
-  if (!new_blocks.empty())
-    spdlog::info("{} transformer block(s) not in {} start as the identity: {}", new_blocks.size(), path,
-                 fmt::join(new_blocks, ", "));
-  return mapper && !w.tensors.count("pose_mapper.A");
-}
-
-// The camera-control stage starts from the least-squares map between real target poses and the latent poses the
-// estimator gives them, on calibration batches drawn apart from the training stream (another seed).
-void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const TrainOptions& opt) {
-  data::ChunkDataset dataset(opt.data_root, "train");
-  auto lo = loader_options(config, dataset, nullptr);
-  lo.seed += 1000003;
-  const int64_t batches = std::max<int64_t>(1, (64 + lo.batch_size - 1) / lo.batch_size);
-  torch::NoGradGuard no_grad;
-  model::EvalModeGuard mode(net);
-  std::vector<torch::Tensor> real, latent;
-  const int64_t vi = config.training.num_input_views;
-  for (int64_t i = 0; i < batches; ++i) {
-    auto batch = data::make_training_batch(dataset, lo, i);
-    auto dev = [&](const torch::Tensor& t) { return t.to(opt.device); };
-    model::Views inputs{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))};
-    model::Views targets{dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
-    auto latents = net.encode_scene(inputs.images, inputs.fxfycxcy);
-    latent.push_back(net.estimate_poses_with_feedback(targets, latents).reshape({-1, 7}).cpu());
-    real.push_back(geometry::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
-  }
-  const double rms = model::fit_pose_mapper(*net.pose_mapper, torch::cat(real), torch::cat(latent));
-  spdlog::info("pose mapper: least-squares fit on {} target views (RMS residual {:.4f})", torch::cat(real).size(0),
-               rms);
-}
-
 // Held-out evaluation on rank 0; a new best PSNR is recorded in the state and its weights kept as best.safetensors.
 void run_periodic_eval(const TrainOptions& opt, const Config& config, model::NovelViewModel& net, TrainState& state,
                        bool lead, std::ofstream& metrics, const std::string& ckpt_dir) {
@@ -201,32 +140,6 @@ RunFiles prepare_run_dir(const Config& config, const TrainOptions& opt, bool lea
   auto cfg_text = config_to_json(config).dump(2) + "\n";
   if (lead) io::write_file_atomic((fs::path(opt.run_dir) / "config.json").string(), cfg_text.data(), cfg_text.size());
   return {(fs::path(opt.run_dir) / "checkpoints").string(), (fs::path(opt.run_dir) / "metrics.jsonl").string()};
-}
-
-// The checkpoint to resume from: for "auto" the newest in the run that reads (none on a new run; a damaged newer
-// one is skipped with a warning), a given file (damaged: an error), or none.
-std::optional<model::CheckpointFile> resume_checkpoint(const TrainOptions& opt, const std::string& checkpoint_dir) {
-  if (opt.resume == "none") return std::nullopt;
-  if (opt.resume != "auto") return model::read_checkpoint(opt.resume);
-  return read_newest_valid_checkpoint(checkpoint_dir);
-}
-
-// Restores weights, optimiser and training state from a checkpoint, or initialises a new run (optionally from
-// weights). Returns the state to continue from.
-TrainState resume_or_initialise(model::NovelViewModelImpl& net, torch::optim::AdamW& optimizer, const Config& config,
-                                const TrainOptions& opt, const std::string& checkpoint_dir) {
-  if (auto ckpt = resume_checkpoint(opt, checkpoint_dir)) {
-    const std::string& resume_from = ckpt->path;
-    check_same_model(config, ckpt->config, resume_from);
-    model::load_state_dict(net, ckpt->model, resume_from);
-    restore_optimizer_state(optimizer, net, ckpt->optimizer, resume_from);
-    auto state = TrainState::from_json(ckpt->state);
-    spdlog::info("resumed from {} at step {}", resume_from, state.step);
-    return state;
-  }
-  if (!opt.init_weights.empty() && init_from_weights(net, opt.init_weights, config.training.init_new_blocks_identity))
-    calibrate_pose_mapper(*model::as_uplvsm(net), config, opt);
-  return {};
 }
 
 // Restricts the train split to the configured subset and checks it can serve this run (cameras, scene count).
@@ -333,23 +246,6 @@ void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator*
                  state.skipped_gradnorm, tc.allowed_gradnorm_factor);
 }
 
-// The model on its device in train mode, its optimiser and the state to go on from (a checkpoint or step 0).
-struct ModelStart {
-  model::NovelViewModel net;
-  std::unique_ptr<torch::optim::AdamW> optimizer;
-  TrainState state;
-};
-
-ModelStart start_model(const Config& config, const TrainOptions& opt, const std::string& checkpoint_dir) {
-  torch::manual_seed(static_cast<uint64_t>(config.training.seed));
-  auto net = model::make_model(config.model);
-  net->to(opt.device);
-  net->train();
-  auto optimizer = make_optimizer(*net, config.training);
-  TrainState state = resume_or_initialise(*net, *optimizer, config, opt, checkpoint_dir);
-  return {net, std::move(optimizer), state};
-}
-
 // One line on what is trained on what, and how the views are drawn when the frames are unordered.
 void announce_training(const Config& config, const TrainOptions& opt, const data::ChunkDataset& dataset,
                        const data::LoaderOptions& loader_opt, int64_t parameters, int64_t step) {
@@ -382,6 +278,29 @@ void update_progress(ProgressBar& bar, int64_t step, const RunningMeans& means, 
                     {"lr", fmt::format("{:.2e}", r.lr)}});
 }
 
+// What a step's end writes, besides the metrics line.
+struct TrainedModel {
+  model::NovelViewModel net;
+  torch::optim::AdamW& optimizer;
+  WeightEma* ema;  // null: no weight average
+};
+
+// The periodic evaluation and the checkpoint when this step is due for them, both of the weight average when the run
+// keeps one. Evaluation first, so the checkpoint of this step carries its best-so-far record. Returns the checkpoint
+// written, or "".
+std::string evaluate_and_checkpoint(const TrainOptions& opt, const Config& config, TrainedModel m, TrainState& state,
+                                    bool lead, std::ofstream& metrics, const std::string& checkpoint_dir,
+                                    bool stop_now) {
+  const auto& tc = config.training;
+  const bool last = state.step == tc.train_steps;
+  if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || last)) {
+    WeightEmaScope average(m.ema);
+    run_periodic_eval(opt, config, m.net, state, lead, metrics, checkpoint_dir);
+  }
+  if (!lead || !(state.step % tc.checkpoint_every == 0 || last || stop_now)) return "";
+  return save_training_checkpoint(checkpoint_dir, config, state, *m.net, m.optimizer, tc.keep_checkpoints, m.ema);
+}
+
 bool already_finished(const std::string& run_dir, int64_t step, int64_t train_steps) {
   if (step < train_steps) return false;
   spdlog::info("run {} already finished ({} of {} steps)", run_dir, step, train_steps);
@@ -398,7 +317,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
 
-  auto [net, optimizer, state] = start_model(config, opt, files.checkpoint_dir);
+  auto [net, optimizer, state, ema] = start_model(config, opt, files.checkpoint_dir);
   if (lead) truncate_metrics(files.metrics, state.step);
   join_ranks(comm, *net, tc);
   TrainResult result;
@@ -431,12 +350,13 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
       log_step(metrics, state, r, step_seconds, loader, dataset);
     if (show_progress) update_progress(bar, state.step, means, r);
     const bool stop_now = r.stop || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
-    // Evaluation first, so the checkpoint of this step carries its best-so-far record.
-    if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || state.step == tc.train_steps))
-      run_periodic_eval(opt, config, net, state, lead, metrics, files.checkpoint_dir);
-    if (lead && (state.step % tc.checkpoint_every == 0 || state.step == tc.train_steps || stop_now))
-      result.last_checkpoint =
-          save_training_checkpoint(files.checkpoint_dir, config, state, *net, *optimizer, tc.keep_checkpoints);
+    if (ema && !r.skipped) {
+      update_weight_ema(*ema);
+      state.ema_updates = ema->updates;
+    }
+    auto saved = evaluate_and_checkpoint(opt, config, {net, *optimizer, ema.get()}, state, lead, metrics,
+                                         files.checkpoint_dir, stop_now);
+    if (!saved.empty()) result.last_checkpoint = saved;
     if (stop_now) {
       result.interrupted = warn_if_interrupted(r, result.last_checkpoint);
       break;

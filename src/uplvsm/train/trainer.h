@@ -1,7 +1,8 @@
 // The training loop (official recipe): batches from the step-keyed loader, the model's forward with the run's target
 // poses (UP-LVSM: the estimator on the target images), MSE (+ perceptual when available) loss, AdamW with
 // warmup+cosine, gradient clipping with the official skip rules, JSONL metrics, atomic checkpoints with rotation,
-// exact resume, SIGINT/SIGTERM checkpointing.
+// exact resume (train/run_start.h), SIGINT/SIGTERM checkpointing, and the optional weight average
+// (train/weight_ema.h).
 #pragma once
 #include <torch/torch.h>
 
