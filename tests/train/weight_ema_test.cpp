@@ -52,7 +52,7 @@ TEST(WeightEma, DecayWarmsUpThenHoldsTheConfiguredValue) {
 TEST(WeightEma, UpdateAndSwapMatchAHandComputation) {
   torch::nn::Linear layer(3, 2);
   auto ema = train::make_weight_ema(*layer, 0.9);
-  ASSERT_EQ(ema.names, (std::vector<std::string>{"weight", "bias"}));
+  ASSERT_EQ(ema.names, (std::vector<std::string>{"bias", "weight"}));  // by name, as the optimiser state
   const auto w0 = layer->weight.detach().clone();
   std::vector<torch::Tensor> expected{w0.to(torch::kDouble)};
   for (int n = 0; n < 3; ++n) {
@@ -62,14 +62,13 @@ TEST(WeightEma, UpdateAndSwapMatchAHandComputation) {
     }
     const double d = std::min(0.9, (1.0 + n) / (10.0 + n));
     expected.push_back(d * expected.back() + (1 - d) * layer->weight.detach().to(torch::kDouble));
-    train::update_weight_ema(ema);
+    train::update_weight_ema(ema, n);
   }
-  EXPECT_EQ(ema.updates, 3);
-  EXPECT_TRUE(torch::allclose(ema.average[0].to(torch::kDouble), expected.back(), 0, 1e-6));
+  EXPECT_TRUE(torch::allclose(ema.average[1].to(torch::kDouble), expected.back(), 0, 1e-6));
   const auto trained = layer->weight.detach().clone();
   {
     train::WeightEmaScope average(&ema);
-    EXPECT_TRUE(torch::equal(layer->weight, ema.params[0]));  // the module's own tensor, now the average
+    EXPECT_TRUE(torch::equal(layer->weight, ema.params[1]));  // the module's own tensor, now the average
     EXPECT_TRUE(torch::allclose(layer->weight.detach().to(torch::kDouble), expected.back(), 0, 1e-6));
     EXPECT_TRUE(torch::equal(train::online_weights_while_swapped(ema).at("online/weight"), trained));
   }
@@ -100,7 +99,7 @@ TEST(WeightEma, RestoringOnlineWeightsChecksNamesAndShapes) {
   EXPECT_TRUE(train::restore_online_weights(
       ema, {{"online/weight", torch::ones({2, 3})}, {"online/bias", torch::ones({2})}}, "f.safetensors"));
   EXPECT_TRUE(torch::equal(layer->weight, torch::ones({2, 3})));  // the trained weights go on training
-  EXPECT_TRUE(torch::equal(ema.average[0], loaded));              // the loaded average stays the average
+  EXPECT_TRUE(torch::equal(ema.average[1], loaded));              // the loaded average stays the average
 }
 
 // The average leaves the training as it was (same losses, the checkpoint's trained weights are the plain run's), and
@@ -184,6 +183,7 @@ TEST(WeightEma, ResumingWithoutTheAverageGoesOnFromTheTrainedWeights) {
   EXPECT_EQ(ema_run_losses(switched), ema_run_losses(plain));
   const auto ckpt = model::read_checkpoint(switched);
   for (const auto& [k, v] : ckpt.optimizer) EXPECT_NE(k.rfind("online/", 0), 0u) << k;
+  EXPECT_EQ(ckpt.state.at("ema_updates").get<int64_t>(), 0);  // turned on again, its warm-up starts afresh
   expect_same_tensors(ckpt.model, model::read_checkpoint(plain).model, "weights");
 }
 

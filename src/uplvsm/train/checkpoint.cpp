@@ -46,19 +46,17 @@ TrainState TrainState::from_json(const nlohmann::json& j) {
 
 std::string checkpoint_name(int64_t step) { return fmt::format("ckpt_{:016d}.safetensors", step); }
 
-namespace {
-std::map<std::string, torch::Tensor> named_trainable(const torch::nn::Module& module) {
+std::map<std::string, torch::Tensor> named_trainable_parameters(const torch::nn::Module& module) {
   std::map<std::string, torch::Tensor> out;
   for (const auto& item : module.named_parameters(true))
     if (item.value().requires_grad()) out[item.key()] = item.value();
   return out;
 }
-}  // namespace
 
 model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module) {
   model::NamedTensors out;
   auto& states = opt.state();
-  for (const auto& [name, p] : named_trainable(module)) {
+  for (const auto& [name, p] : named_trainable_parameters(module)) {
     auto it = states.find(state_key(states, p));
     if (it == states.end()) continue;  // an optimiser made elsewhere, before its first step
     auto& s = static_cast<torch::optim::AdamWParamState&>(*it->second);
@@ -73,7 +71,7 @@ void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& 
                              const model::NamedTensors& state, const std::string& source) {
   auto& states = opt.state();
   int64_t restored = 0;
-  for (const auto& [name, p] : named_trainable(module)) {
+  for (const auto& [name, p] : named_trainable_parameters(module)) {
     auto m = state.find("exp_avg/" + name), v = state.find("exp_avg_sq/" + name), s = state.find("step/" + name);
     if (m == state.end() || v == state.end() || s == state.end()) continue;
     if (m->second.sizes() != p.sizes() || v->second.sizes() != p.sizes())

@@ -4,6 +4,7 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -28,6 +29,9 @@ struct TrainState {
 };
 
 std::string checkpoint_name(int64_t step);
+
+// The module's parameters that train (requires_grad), by name: what the optimiser state and the weight average cover.
+std::map<std::string, torch::Tensor> named_trainable_parameters(const torch::nn::Module& module);
 
 // Optimiser state as named tensors "<kind>/<param name>" (kind: exp_avg, exp_avg_sq, step) and back.
 model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module);

@@ -114,7 +114,7 @@ ModelStart resume_or_initialise(model::NovelViewModel net, const Config& config,
     auto ema = restore_weights(*net, *ckpt, decay);
     restore_optimizer_state(*optimizer, *net, ckpt->optimizer, ckpt->path);
     auto state = TrainState::from_json(ckpt->state);
-    if (ema) ema->updates = state.ema_updates;
+    if (!ema) state.ema_updates = 0;  // an average turned on again later starts its warm-up afresh
     spdlog::info("resumed from {} at step {}", ckpt->path, state.step);
     return {net, std::move(optimizer), state, std::move(ema)};
   }

@@ -350,10 +350,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
       log_step(metrics, state, r, step_seconds, loader, dataset);
     if (show_progress) update_progress(bar, state.step, means, r);
     const bool stop_now = r.stop || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
-    if (ema && !r.skipped) {
-      update_weight_ema(*ema);
-      state.ema_updates = ema->updates;
-    }
+    if (ema && !r.skipped) update_weight_ema(*ema, state.ema_updates++);
     auto saved = evaluate_and_checkpoint(opt, config, {net, *optimizer, ema.get()}, state, lead, metrics,
                                          files.checkpoint_dir, stop_now);
     if (!saved.empty()) result.last_checkpoint = saved;

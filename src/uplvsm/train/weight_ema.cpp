@@ -5,17 +5,18 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/train/checkpoint.h"
+
 namespace uplvsm::train {
 
 WeightEma make_weight_ema(const torch::nn::Module& module, double decay) {
   torch::NoGradGuard no_grad;
   WeightEma ema;
   ema.decay = decay;
-  for (const auto& item : module.named_parameters(true)) {
-    if (!item.value().requires_grad()) continue;  // frozen weights are their own average
-    ema.names.push_back(item.key());
-    ema.params.push_back(item.value());
-    ema.average.push_back(item.value().detach().clone());
+  for (const auto& [name, param] : named_trainable_parameters(module)) {  // frozen weights are their own average
+    ema.names.push_back(name);
+    ema.params.push_back(param);
+    ema.average.push_back(param.detach().clone());
   }
   return ema;
 }
@@ -24,12 +25,11 @@ double ema_decay_at(double decay, int64_t updates) {
   return std::min(decay, (1.0 + static_cast<double>(updates)) / (10.0 + static_cast<double>(updates)));
 }
 
-void update_weight_ema(WeightEma& ema) {
+void update_weight_ema(WeightEma& ema, int64_t updates_so_far) {
   torch::NoGradGuard no_grad;
-  const double d = ema_decay_at(ema.decay, ema.updates);
+  const double d = ema_decay_at(ema.decay, updates_so_far);
   // lerp_(w, 1 - d) is d * average + (1 - d) * w in one pass, without a temporary.
   for (size_t i = 0; i < ema.params.size(); ++i) ema.average[i].lerp_(ema.params[i].detach(), 1.0 - d);
-  ++ema.updates;
 }
 
 void swap_weight_ema(WeightEma& ema) {

@@ -16,7 +16,6 @@ inline constexpr const char* kOnlineWeightsKind = "online/";
 
 struct WeightEma {
   double decay = 0;
-  int64_t updates = 0;  // averaging updates so far (sets the warm-up decay)
   std::vector<std::string> names;
   std::vector<torch::Tensor> params;   // the module's trainable parameters, in `names` order
   std::vector<torch::Tensor> average;  // detached copies, fp32 like the parameters
@@ -28,8 +27,9 @@ WeightEma make_weight_ema(const torch::nn::Module& module, double decay);
 // The decay of the next update: min(decay, (1 + n) / (10 + n)), so a run from random weights is not held at them.
 double ema_decay_at(double decay, int64_t updates);
 
-// average <- d * average + (1 - d) * weights, after a parameter update (skipped updates leave it alone).
-void update_weight_ema(WeightEma& ema);
+// average <- d * average + (1 - d) * weights with d = ema_decay_at(decay, updates_so_far), after a parameter update
+// (skipped updates leave it alone). The count lives in the training state (TrainState::ema_updates), for the resume.
+void update_weight_ema(WeightEma& ema, int64_t updates_so_far);
 
 // Exchanges the module's weights with the average (twice: back as they were). While swapped, `average` holds the
 // trained weights.
