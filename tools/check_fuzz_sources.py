@@ -1,0 +1,60 @@
+#!/usr/bin/env python3
+"""Check that fuzz/CMakeLists.txt's READER_SOURCES lists every source a listed reader needs at link time.
+
+    python3 tools/check_fuzz_sources.py
+
+The fuzz build compiles its own short list of sources (with sanitizers), so a function moved out of a listed file into
+a new one links in the main build and fails only in `make fuzz` (core/config_validation.cpp did). The rule, a heuristic:
+a source implements the header of its own name, or else the first header of its own directory it includes; every source
+that implements the header of a listed source must be listed too. Exits 1 naming what is missing.
+"""
+import pathlib
+import re
+import sys
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SRC = ROOT / "src" / "uplvsm"
+
+
+def reader_sources():
+    text = (ROOT / "fuzz" / "CMakeLists.txt").read_text()
+    match = re.search(r"set\(READER_SOURCES(.*?)\)", text, re.S)
+    if not match:
+        sys.exit("check_fuzz_sources: fuzz/CMakeLists.txt has no set(READER_SOURCES ...)")
+    return set(match.group(1).split())
+
+
+def implemented_header(source):
+    """The header a source file implements: its own name's, else the first include from its own directory."""
+    relative = source.relative_to(SRC)
+    own = relative.with_suffix(".h")
+    if (SRC / own).exists():
+        return str(own)
+    for line in source.read_text().splitlines():
+        match = re.match(r'#include "uplvsm/([^"]+\.h)"', line)
+        if match and pathlib.PurePath(match.group(1)).parent == relative.parent:
+            return match.group(1)
+    return None
+
+
+def main():
+    readers = reader_sources()
+    implementers = {}
+    for source in SRC.rglob("*.cpp"):
+        implementers.setdefault(implemented_header(source), set()).add(str(source.relative_to(SRC)))
+    missing = []
+    for reader in sorted(readers):
+        if not (SRC / reader).exists():
+            missing.append(f"{reader} (listed, but src/uplvsm/{reader} does not exist)")
+            continue
+        for other in sorted(implementers.get(implemented_header(SRC / reader), ())):
+            if other not in readers:
+                missing.append(f"{other} (implements uplvsm/{implemented_header(SRC / reader)}, as {reader} does)")
+    for line in missing:
+        print(f"check_fuzz_sources: fuzz/CMakeLists.txt READER_SOURCES lacks {line}")
+    print(f"check_fuzz_sources: {len(readers)} reader sources, {len(missing)} missing")
+    return 1 if missing else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
