@@ -246,6 +246,22 @@ TEST(Config, LatentRotationGainReadsAndMustBePositive) {
   }
 }
 
+TEST(Config, LatentPivotDepthReadsAndMustBeNonNegativeWithoutErrorFeedback) {
+  EXPECT_EQ(Config().model.transformer.latent_pivot_depth, 0.0);  // the official camera turns in place
+  auto c = config_from_json({{"model", {{"transformer", {{"latent_pivot_depth", 2.0}}}}}}, "ok.json");
+  EXPECT_EQ(c.model.transformer.latent_pivot_depth, 2.0);
+  auto msg = test::error_of(
+      [] { config_from_json({{"model", {{"transformer", {{"latent_pivot_depth", -1.0}}}}}}, "bad.json"); });
+  EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("model.transformer.latent_pivot_depth must be a finite number >= 0"), std::string::npos) << msg;
+  msg = test::error_of([] {
+    config_from_json(
+        {{"model", {{"transformer", {{"latent_pivot_depth", 2.0}, {"pose_error_feedback_steps", 1}}}}}}, "bad.json");
+  });
+  EXPECT_NE(msg.find("model.transformer.latent_pivot_depth: the error-feedback correction"), std::string::npos)
+      << msg;
+}
+
 TEST(Config, EstimatorCorrespondenceNeedsTheImageTokens) {
   EXPECT_FALSE(Config().model.transformer.estimator_correspondence);  // the official estimator by default
   EXPECT_TRUE(

@@ -1,11 +1,13 @@
 // Tests of model/latent_plucker_learner's initialisation: the official zero-bias quaternion head gives arbitrary
 // rotations at step 0; `identity_rotation_init` starts every latent camera near the identity, nothing else changed;
-// `rotation_only_latent_camera` fixes the translation at zero.
+// `rotation_only_latent_camera` fixes the translation at zero; `latent_pivot_depth` turns it about a pivot.
 #include "uplvsm/model/latent_plucker_learner.h"
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+
+#include "uplvsm/geometry/camera.h"
 
 using namespace uplvsm;
 using namespace uplvsm::model;
@@ -80,4 +82,42 @@ TEST(LatentPluckerLearner, RotationOnlyLatentCameraHasZeroTranslationAndTheSameR
   poses.sum().backward();
   EXPECT_FALSE(turning->absT_head->fc2->weight.grad().defined());
   EXPECT_GT(turning->quaR_head->fc2->weight.grad().abs().sum().item<float>(), 0.0f);
+}
+
+TEST(LatentPluckerLearner, PivotDepthAddsTheOrbitTranslationToARotationOnlyCamera) {
+  // latent_pivot_depth with rotation_only_latent_camera: the translation is exactly the orbit's, driven by the
+  // rotation (the gradient reaches the quaternion head through it); the rotation is the plain camera's.
+  auto config = estimator_config(false);
+  config.rotation_only_latent_camera = true;
+  torch::manual_seed(9);
+  LatentPluckerLearner turning(config);
+  config.latent_pivot_depth = 2.0;
+  torch::manual_seed(9);
+  LatentPluckerLearner orbiting(config);
+  auto tokens = torch::randn({4, 16, 64}), latents = torch::randn({4, 8, 64});
+  auto poses = orbiting(tokens, latents);
+  auto q = turning(tokens, latents).narrow(1, 3, 4);
+  EXPECT_TRUE(torch::allclose(poses.narrow(1, 3, 4), q));
+  EXPECT_TRUE(torch::allclose(poses.narrow(1, 0, 3), geometry::pivot_translation(q, 2.0), 1e-5, 1e-6));
+  EXPECT_GT(poses.narrow(1, 0, 3).abs().max().item<float>(), 0.1f) << "the official init's turns are large";
+  poses.narrow(1, 0, 3).sum().backward();
+  EXPECT_FALSE(orbiting->absT_head->fc2->weight.grad().defined());
+  EXPECT_GT(orbiting->quaR_head->fc2->weight.grad().abs().sum().item<float>(), 0.0f);
+}
+
+TEST(LatentPluckerLearner, PivotDepthWithAFreeTranslationAddsTheHeadsOutput) {
+  // Released (rotation_only off), the translation head's output is added to the orbit's, so a model trained with
+  // a pivot and only turning starts its free stage where the first ended.
+  auto config = estimator_config(false);
+  torch::manual_seed(10);
+  LatentPluckerLearner plain(config);
+  config.latent_pivot_depth = 1.5;
+  torch::manual_seed(10);
+  LatentPluckerLearner orbiting(config);
+  auto tokens = torch::randn({4, 16, 64}), latents = torch::randn({4, 8, 64});
+  torch::NoGradGuard no_grad;
+  auto base = plain(tokens, latents), poses = orbiting(tokens, latents);
+  auto expected_t = base.narrow(1, 0, 3) + geometry::pivot_translation(base.narrow(1, 3, 4), 1.5);
+  EXPECT_TRUE(torch::allclose(poses.narrow(1, 0, 3), expected_t, 1e-5, 1e-6));
+  EXPECT_TRUE(torch::equal(poses.narrow(1, 3, 4), base.narrow(1, 3, 4)));
 }

@@ -95,6 +95,7 @@ void transformer_fields(C& c, F&& f) {
   f("identity_rotation_init", c.identity_rotation_init);
   f("rotation_only_latent_camera", c.rotation_only_latent_camera);
   f("latent_rotation_gain", c.latent_rotation_gain);
+  f("latent_pivot_depth", c.latent_pivot_depth);
   f("estimator_correspondence", c.estimator_correspondence);
   f("pose_error_feedback_steps", c.pose_error_feedback_steps);
 }

@@ -44,6 +44,12 @@ struct TransformerConfig {
   // output change turns the latent camera this many times as far (1: the official head). A lever that makes a
   // turn as cheap to learn as a move; the translation, read by a linear layer, can grow at no cost.
   double latent_rotation_gain = 1.0;
+  // Not in the paper: the latent camera turns about a pivot this far in front of input view 0 (the latent world's
+  // origin camera), on its optical axis, instead of about its own centre: t = (I - R) (0, 0, d) is added to the
+  // translation head's output. 0 (the official camera) turns in place, as a camera walking through a room does; a
+  // pivot > 0 makes a turn an orbit, as a camera circling an object does, so a rotation-only latent camera
+  // (rotation_only_latent_camera) can explain an orbit. A length in the latent world's own units.
+  double latent_pivot_depth = 0.0;
   // Not in the paper (needs model.keep_image_tokens): the estimator also reads where each target patch finds its
   // content in input view 0 (model/correspondence_displacement.h), so a global shift of the image (a turn) is
   // visible to it, not averaged away by the mean pooling. Starts as the official estimator (its output layer at 0).

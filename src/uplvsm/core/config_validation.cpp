@@ -40,6 +40,11 @@ void validate_model(const ModelConfig& m, const std::string& s) {
   require(t.n_latent_vectors >= 1, s, "model.transformer.n_latent_vectors must be >= 1");
   require(std::isfinite(t.latent_rotation_gain) && t.latent_rotation_gain > 0, s,
           "model.transformer.latent_rotation_gain must be a finite number > 0");
+  require(std::isfinite(t.latent_pivot_depth) && t.latent_pivot_depth >= 0, s,
+          "model.transformer.latent_pivot_depth must be a finite number >= 0");
+  require(t.latent_pivot_depth == 0 || t.pose_error_feedback_steps == 0, s,
+          "model.transformer.latent_pivot_depth: the error-feedback correction (pose_error_feedback_steps) moves the "
+          "translation on its own, not about the pivot; use one or the other");
   require(m.dinov2.embed_dim == t.d, s,
           fmt::format("model.dinov2.embed_dim ({}) must equal model.transformer.d ({}): DINOv2 tokens are used "
                       "directly as transformer tokens",

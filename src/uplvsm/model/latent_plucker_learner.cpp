@@ -1,5 +1,6 @@
 #include "uplvsm/model/latent_plucker_learner.h"
 
+#include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/quaternion.h"
 
 namespace uplvsm::model {
@@ -18,6 +19,7 @@ LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
   }
   rotation_only = c.rotation_only_latent_camera;
   rotation_gain = c.latent_rotation_gain;
+  pivot_depth = c.latent_pivot_depth;
   if (c.identity_rotation_init) {
     torch::NoGradGuard no_grad;
     quaR_head->fc2->bias.copy_(torch::tensor({0.0f, 0.0f, 0.0f, 1.0f}));  // q_xyzw = identity
@@ -42,6 +44,7 @@ torch::Tensor LatentPluckerLearnerImpl::heads(const torch::Tensor& pooled) {
   auto q_raw = quaR_head(pooled);
   if (rotation_gain != 1.0) q_raw = torch::cat({q_raw.narrow(-1, 0, 3) * rotation_gain, q_raw.narrow(-1, 3, 1)}, -1);
   auto q = geometry::normalize_quat(q_raw, 1e-3);
+  if (pivot_depth != 0.0) t = t + geometry::pivot_translation(q, pivot_depth);
   return torch::cat({t, q}, -1);
 }
 

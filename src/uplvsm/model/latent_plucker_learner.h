@@ -1,6 +1,7 @@
 // The Latent Plücker Learner's estimator (official `ViTEstimator`): the target view's image tokens together with
 // the scene latents go through a few transformer blocks; the image-token outputs are mean-pooled and two small MLP
-// heads give a translation (3) and a quaternion (4, scalar-last, normalised in fp32): the 7-D latent pose.
+// heads give a translation (3) and a quaternion (4, scalar-last, normalised in fp32): the 7-D latent pose (c2w in
+// input view 0's frame). With model.transformer.latent_pivot_depth the turn is about a pivot in front of view 0.
 // It never sees a ground-truth pose: the rendering loss is its only teacher.
 #pragma once
 #include <torch/torch.h>
@@ -29,6 +30,7 @@ struct LatentPluckerLearnerImpl : torch::nn::Module {
   int64_t grad_checkpoint_every = 0;  // see run_stack
   bool rotation_only = false;         // model.transformer.rotation_only_latent_camera
   double rotation_gain = 1.0;         // model.transformer.latent_rotation_gain
+  double pivot_depth = 0.0;           // model.transformer.latent_pivot_depth
   // Multiplies the translation head's output (training.latent_translation_warmup_steps); 1 outside training.
   double translation_scale = 1.0;
 };
