@@ -250,16 +250,16 @@ TEST(Config, LatentPivotDepthReadsAndMustBeNonNegativeWithoutErrorFeedback) {
   EXPECT_EQ(Config().model.transformer.latent_pivot_depth, 0.0);  // the official camera turns in place
   auto c = config_from_json({{"model", {{"transformer", {{"latent_pivot_depth", 2.0}}}}}}, "ok.json");
   EXPECT_EQ(c.model.transformer.latent_pivot_depth, 2.0);
-  auto msg = test::error_of(
-      [] { config_from_json({{"model", {{"transformer", {{"latent_pivot_depth", -1.0}}}}}}, "bad.json"); });
+  auto msg = test::error_of([] {
+    config_from_json({{"model", {{"transformer", {{"latent_pivot_depth", -1.0}}}}}}, "bad.json");
+  });
   EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
   EXPECT_NE(msg.find("model.transformer.latent_pivot_depth must be a finite number >= 0"), std::string::npos) << msg;
   msg = test::error_of([] {
-    config_from_json(
-        {{"model", {{"transformer", {{"latent_pivot_depth", 2.0}, {"pose_error_feedback_steps", 1}}}}}}, "bad.json");
+    config_from_json({{"model", {{"transformer", {{"latent_pivot_depth", 2.0}, {"pose_error_feedback_steps", 1}}}}}},
+                     "bad.json");
   });
-  EXPECT_NE(msg.find("model.transformer.latent_pivot_depth: the error-feedback correction"), std::string::npos)
-      << msg;
+  EXPECT_NE(msg.find("model.transformer.latent_pivot_depth: the error-feedback correction"), std::string::npos) << msg;
 }
 
 TEST(Config, EstimatorCorrespondenceNeedsTheImageTokens) {
