@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <utility>
 
 #include "uplvsm/geometry/camera.h"
 
@@ -21,6 +22,16 @@ TransformerConfig estimator_config(bool identity) {
   return c;
 }
 
+// Two estimators drawn from the same seed, so they hold the same weights and differ only where the configs do.
+std::pair<LatentPluckerLearner, LatentPluckerLearner> learners_with_same_init(const TransformerConfig& a,
+                                                                              const TransformerConfig& b,
+                                                                              uint64_t seed) {
+  torch::manual_seed(seed);
+  LatentPluckerLearner first(a);
+  torch::manual_seed(seed);
+  return {first, LatentPluckerLearner(b)};
+}
+
 // Rotation angle (degrees) of each latent pose [N, 7] (t, q_xyzw): 2 acos |w|.
 torch::Tensor rotation_degrees(const torch::Tensor& poses) {
   auto w = poses.select(1, 6).abs().clamp_max(1.0);
@@ -28,10 +39,7 @@ torch::Tensor rotation_degrees(const torch::Tensor& poses) {
 }
 
 TEST(LatentPluckerLearner, IdentityRotationInitStartsNearTheIdentityAndChangesOnlyThatBias) {
-  torch::manual_seed(4);
-  LatentPluckerLearner official(estimator_config(false));
-  torch::manual_seed(4);
-  LatentPluckerLearner identity(estimator_config(true));
+  auto [official, identity] = learners_with_same_init(estimator_config(false), estimator_config(true), 4);
   auto tokens = torch::randn({16, 10, 64}), latents = torch::randn({16, 8, 64});
   torch::NoGradGuard no_grad;
   const double official_median = rotation_degrees(official(tokens, latents)).median().item<double>();
@@ -51,11 +59,8 @@ TEST(LatentPluckerLearner, IdentityRotationInitStartsNearTheIdentityAndChangesOn
 TEST(LatentPluckerLearner, RotationGainScalesTheQuaternionsVectorPartBeforeNormalising) {
   // latent_rotation_gain g: q = normalise(g x, g y, g z, w) of the same head output; the translation unchanged.
   auto config = estimator_config(true);
-  torch::manual_seed(6);
-  LatentPluckerLearner plain(config);
   config.latent_rotation_gain = 8.0;
-  torch::manual_seed(6);
-  LatentPluckerLearner gained(config);
+  auto [plain, gained] = learners_with_same_init(estimator_config(true), config, 6);
   auto tokens = torch::randn({5, 16, 64}), latents = torch::randn({5, 8, 64});
   torch::NoGradGuard no_grad;
   auto raw = plain->quaR_head(plain->pooled(tokens, latents));
@@ -69,12 +74,9 @@ TEST(LatentPluckerLearner, RotationGainScalesTheQuaternionsVectorPartBeforeNorma
 
 TEST(LatentPluckerLearner, RotationOnlyLatentCameraHasZeroTranslationAndTheSameRotation) {
   // rotation_only_latent_camera: translation exactly 0 and no gradient into its head; the rotation is unchanged.
-  torch::manual_seed(5);
-  LatentPluckerLearner plain(estimator_config(false));
   auto config = estimator_config(false);
   config.rotation_only_latent_camera = true;
-  torch::manual_seed(5);
-  LatentPluckerLearner turning(config);
+  auto [plain, turning] = learners_with_same_init(estimator_config(false), config, 5);
   auto tokens = torch::randn({3, 16, 64}), latents = torch::randn({3, 8, 64});
   auto poses = turning(tokens, latents);
   EXPECT_EQ(poses.narrow(1, 0, 3).abs().max().item<float>(), 0.0f);
@@ -89,11 +91,9 @@ TEST(LatentPluckerLearner, PivotDepthAddsTheOrbitTranslationToARotationOnlyCamer
   // rotation (the gradient reaches the quaternion head through it); the rotation is the plain camera's.
   auto config = estimator_config(false);
   config.rotation_only_latent_camera = true;
-  torch::manual_seed(9);
-  LatentPluckerLearner turning(config);
-  config.latent_pivot_depth = 2.0;
-  torch::manual_seed(9);
-  LatentPluckerLearner orbiting(config);
+  auto pivoted = config;
+  pivoted.latent_pivot_depth = 2.0;
+  auto [turning, orbiting] = learners_with_same_init(config, pivoted, 9);
   auto tokens = torch::randn({4, 16, 64}), latents = torch::randn({4, 8, 64});
   auto poses = orbiting(tokens, latents);
   auto q = turning(tokens, latents).narrow(1, 3, 4);
@@ -109,11 +109,8 @@ TEST(LatentPluckerLearner, PivotDepthWithAFreeTranslationAddsTheHeadsOutput) {
   // Released (rotation_only off), the translation head's output is added to the orbit's, so a model trained with
   // a pivot and only turning starts its free stage where the first ended.
   auto config = estimator_config(false);
-  torch::manual_seed(10);
-  LatentPluckerLearner plain(config);
   config.latent_pivot_depth = 1.5;
-  torch::manual_seed(10);
-  LatentPluckerLearner orbiting(config);
+  auto [plain, orbiting] = learners_with_same_init(estimator_config(false), config, 10);
   auto tokens = torch::randn({4, 16, 64}), latents = torch::randn({4, 8, 64});
   torch::NoGradGuard no_grad;
   auto base = plain(tokens, latents), poses = orbiting(tokens, latents);
