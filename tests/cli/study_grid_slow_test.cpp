@@ -1,9 +1,11 @@
-// The multi-run studies through the binary at micro scale: study scaling (nested subsets, resumable) and study
-// pose-noise (UP-LVSM never reads training cameras, so its results must not move; LVSM's must).
+// The multi-run studies through the binary at micro scale: study scaling (nested subsets, resumable, a budget that
+// grows) and study pose-noise (UP-LVSM never reads training cameras, so it is trained once; LVSM's result moves).
 #include <gtest/gtest.h>
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "train/train_test_util.h"
 
@@ -70,20 +72,49 @@ TEST(StudyGrid, ScalingTrainsEachSubsetOnceAndWritesTheTable) {
   EXPECT_NE(text.find("only 4 scenes"), std::string::npos) << text;
 }
 
+// Levels given both ways (sd 0.1 and variance 0.01 are one level), two seeds; UP-LVSM, which never reads training
+// cameras, is trained once per seed and stands at every level; LVSM's result moves with the noise.
 TEST(StudyGrid, PoseNoiseMovesLvsmButNotUplvsm) {
   StudyFixture f;
   const auto out = (f.dir / "noise").string();
   std::string text;
   ASSERT_EQ(run_cli("study pose-noise --config " + f.uplvsm_cfg + " " + f.lvsm_cfg + " --data " + f.data +
-                        " --noise 0 0.1 --steps 4 --out " + out,
+                        " --noise-std 0 0.1 --noise-variance 0.01 --seeds 5 6 --steps 4 --out " + out,
                     &text),
             0);
-  auto up0 = read_json(fs::path(out) / "runs/uplvsm__noise0/result.json");
-  auto up1 = read_json(fs::path(out) / "runs/uplvsm__noise0.1/result.json");
-  auto lv0 = read_json(fs::path(out) / "runs/lvsm__noise0/result.json");
-  auto lv1 = read_json(fs::path(out) / "runs/lvsm__noise0.1/result.json");
-  EXPECT_EQ(up0.at("psnr").get<double>(), up1.at("psnr").get<double>());
-  EXPECT_NE(lv0.at("psnr").get<double>(), lv1.at("psnr").get<double>());
-  EXPECT_NE(text.find("never reads them"), std::string::npos) << text;
-  EXPECT_TRUE(fs::exists(fs::path(out) / "README.md"));
+  for (const auto* seed : {"5", "6"}) {
+    auto lv0 = read_json(fs::path(out) / (std::string("runs/lvsm__noise_sd0__seed") + seed) / "result.json");
+    auto lv1 = read_json(fs::path(out) / (std::string("runs/lvsm__noise_sd0.1__seed") + seed) / "result.json");
+    EXPECT_NE(lv0.at("psnr").get<double>(), lv1.at("psnr").get<double>()) << seed;
+    EXPECT_EQ(lv1.at("seed"), std::stoi(seed));
+    EXPECT_TRUE(fs::exists(fs::path(out) / (std::string("runs/uplvsm__noise_sd0__seed") + seed)));
+    EXPECT_FALSE(fs::exists(fs::path(out) / (std::string("runs/uplvsm__noise_sd0.1__seed") + seed)));
+  }
+  EXPECT_NE(text.find("| Method | noise sd 0 | noise sd 0.1 = var 0.01 |"), std::string::npos) << text;
+  std::ifstream csv_file(fs::path(out) / "table.csv");
+  const std::string csv((std::istreambuf_iterator<char>(csv_file)), std::istreambuf_iterator<char>());
+  EXPECT_NE(csv.find("uplvsm,noise sd 0.1 = var 0.01,1,6,"), std::string::npos) << csv;
+  for (const auto* file : {"README.md", "psnr.png", "ssim.png"}) EXPECT_TRUE(fs::exists(fs::path(out) / file)) << file;
+}
+
+// The budget grows with the subset (--steps-growth), and the pose noise reaches every run's config.
+TEST(StudyGrid, ScalingBudgetGrowsWithTheSubset) {
+  StudyFixture f;
+  const auto out = (f.dir / "scaling_growth").string();
+  std::string text;
+  ASSERT_EQ(
+      run_cli("study scaling --config " + f.lvsm_cfg + " --data " + f.data +
+                  " --subsets 1 4 --steps 2 --steps-growth 2 --noise-std 0.05 --set training.eval_every=2 --out " + out,
+              &text),
+      0);
+  EXPECT_EQ(read_json(fs::path(out) / "runs/lvsm__1/result.json").at("steps"), 2);
+  EXPECT_EQ(read_json(fs::path(out) / "runs/lvsm__4/result.json").at("steps"), 4);
+  auto plan = read_json(fs::path(out) / "study.json");
+  EXPECT_EQ(plan.at("runs")[1].at("config").at("training").at("pose_noise_std"), 0.05);
+  // Held-out curves from the periodic evaluations (--set training.eval_every): steps 2 and 4 of the larger subset.
+  std::ifstream curves(fs::path(out) / "curves.csv");
+  const std::string text_csv((std::istreambuf_iterator<char>(curves)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text_csv.find("lvsm,4 scenes,777,4,"), std::string::npos) << text_csv;
+  EXPECT_NE(text_csv.find("lvsm,4 scenes,777,2,"), std::string::npos) << text_csv;
+  EXPECT_TRUE(fs::exists(fs::path(out) / "curves.png"));
 }

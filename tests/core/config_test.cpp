@@ -39,6 +39,26 @@ TEST(Config, UnknownFieldIsAnErrorNamingThePath) {
   }
 }
 
+// Files written until d3badc2 carry training.pose_noise_variance (N(0, value) before the scene normalisation): at 0
+// they read as clean cameras; any other value is refused with the new key, since it has no equal in the official knob.
+TEST(Config, OldPoseNoiseVarianceReadsAtZeroAndIsRefusedOtherwise) {
+  nlohmann::json j = {{"training", {{"pose_noise_variance", 0}}}};
+  EXPECT_EQ(config_from_json(j, "old.json").training.pose_noise_std, 0);
+  j["training"]["pose_noise_variance"] = 0.01;
+  try {
+    config_from_json(j, "old.json");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    const std::string what = e.what();
+    for (const auto* needle : {"old.json", "training.pose_noise_variance", "training.pose_noise_std", "d3badc2"})
+      EXPECT_NE(what.find(needle), std::string::npos) << what;
+  }
+  j["training"] = {{"pose_noise_std", 0.1}};
+  EXPECT_EQ(config_from_json(j, "new.json").training.pose_noise_std, 0.1);
+  j["training"] = {{"pose_noise_std", -0.1}};
+  EXPECT_THROW(config_from_json(j, "new.json"), std::runtime_error);
+}
+
 TEST(Config, CommandLineOverridesSetFieldsAndNameTheirMistakes) {
   const auto tiny = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny.json");
   auto c = apply_config_overrides(tiny,

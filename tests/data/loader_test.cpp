@@ -118,28 +118,90 @@ TEST(Loader, FrameDistanceCurriculumStartsWithTheSmallestGap) {
   EXPECT_GT(*gaps.rbegin(), opt.min_frame_dist);
 }
 
+// chunks_per_shuffle 0 shuffles the whole split as the official does: an epoch still visits every scene once, but
+// its first four samples are not confined to two chunks (as they are with pairs, above).
+TEST(Loader, WholeSplitShuffleVisitsEveryScenePerEpoch) {
+  const auto root = test::temp_dir("loader_whole_shuffle");
+  data::RoomSceneOptions scene;
+  scene.height = 24, scene.width = 32, scene.frames = 8;
+  data::write_builtin_dataset(root.string(), 12, 0, 3, scene, /*scenes_per_chunk=*/2);
+  data::ChunkDataset dataset(root.string(), "train");
+  auto opt = micro_options();
+  opt.batch_size = 1;
+  opt.chunks_per_shuffle = 0;
+  int spread_groups = 0;
+  for (int64_t epoch = 0; epoch < 4; ++epoch) {
+    std::set<std::string> scenes, first_chunks;
+    for (int64_t step = 12 * epoch; step < 12 * epoch + 12; ++step) {
+      const auto key = data::make_training_batch(dataset, opt, step).keys.at(0);
+      scenes.insert(key);
+      if (step < 12 * epoch + 4) first_chunks.insert(dataset.chunk_name(dataset.find(key)));
+    }
+    EXPECT_EQ(scenes.size(), 12u) << "epoch " << epoch;
+    spread_groups += first_chunks.size() > 2;
+  }
+  EXPECT_GT(spread_groups, 0);
+}
+
+// The official dataset's preprocess_poses over each sample's views: centred on their mean camera, the largest
+// translation coordinate 1 / 1.35.
+TEST(Loader, CamerasAreInTheFrameOfTheSampledViews) {
+  data::ChunkDataset dataset(test::micro_dataset(), "train");
+  auto batch = data::make_training_batch(dataset, micro_options(), 3);
+  using torch::indexing::Slice;
+  auto t = batch.c2w.index({Slice(), Slice(), Slice(0, 3), 3});
+  EXPECT_LT(t.mean(1).abs().max().item<double>(), 1e-5);
+  EXPECT_NEAR(t.abs().amax({1, 2}).min().item<double>(), 1 / 1.35, 1e-5);
+  EXPECT_NEAR(t.abs().amax({1, 2}).max().item<double>(), 1 / 1.35, 1e-5);
+  EXPECT_TRUE(torch::equal(batch.input_c2w(2), batch.c2w.narrow(1, 0, 2)));
+}
+
 TEST(Loader, PoseNoisePerturbsOnlyTheCameras) {
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   auto clean = data::make_training_batch(dataset, micro_options(), 3);
   auto opt = micro_options();
-  opt.pose_noise_variance = 0.01;
+  opt.pose_noise_std = 0.1;
   auto noisy = data::make_training_batch(dataset, opt, 3);
-  // Same scenes, views and pixels: the noise has its own random stream.
+  // Same scenes, views, pixels and scene frame: the noise has its own random stream and comes after the split.
   EXPECT_EQ(noisy.keys, clean.keys);
   EXPECT_EQ(noisy.frames, clean.frames);
   EXPECT_TRUE(torch::equal(noisy.images, clean.images));
   EXPECT_TRUE(torch::equal(noisy.target_index, clean.target_index));
-  EXPECT_TRUE(torch::equal(noisy.c2w, data::make_training_batch(dataset, opt, 3).c2w));  // reproducible (resume)
-  EXPECT_FALSE(torch::equal(noisy.c2w, data::make_training_batch(dataset, opt, 4).c2w.narrow(0, 0, 2)));
-  // Translations move by about sigma = 0.1 per coordinate; rotations stay rotations.
+  EXPECT_TRUE(torch::equal(noisy.c2w, clean.c2w));
+  EXPECT_TRUE(torch::equal(noisy.target_c2w(), data::make_training_batch(dataset, opt, 3).target_c2w()));  // resume
+  EXPECT_FALSE(torch::equal(noisy.input_c2w(2), data::make_training_batch(dataset, opt, 4).input_c2w(2)));
   using torch::indexing::Slice;
-  auto dt = (noisy.c2w - clean.c2w).index({Slice(), Slice(), Slice(0, 3), 3});
-  const double spread = dt.std().item<double>();
-  EXPECT_GT(spread, 0.04);
-  EXPECT_LT(spread, 0.25);
-  auto R = noisy.c2w.index({Slice(), Slice(), Slice(0, 3), Slice(0, 3)}).to(torch::kFloat64);
+  auto R = noisy.target_c2w().index({Slice(), Slice(), Slice(0, 3), Slice(0, 3)}).to(torch::kFloat64);
   EXPECT_TRUE(torch::allclose(R.matmul(R.transpose(-1, -2)), torch::eye(3, torch::kFloat64).expand_as(R), 1e-5, 1e-5));
-  EXPECT_TRUE(torch::allclose(noisy.c2w.index({Slice(), Slice(), 3}), clean.c2w.index({Slice(), Slice(), 3}), 0, 1e-6));
+}
+
+// The official noise_scale is a standard deviation on the (t, q) encoding in the scene frame: translations move by
+// N(0, sd^2) exactly, and a target that repeats an input has a draw of its own.
+TEST(Loader, PoseNoiseHasTheOfficialScaleAndIsDrawnApartForTargets) {
+  data::ChunkDataset dataset(test::micro_dataset(), "train");
+  auto opt = micro_options();
+  opt.pose_noise_std = 0.1;
+  std::vector<torch::Tensor> moves;
+  int repeats = 0;
+  using torch::indexing::Slice;
+  for (int64_t step = 0; step < 12; ++step) {
+    auto clean = data::make_training_batch(dataset, micro_options(), step);
+    auto noisy = data::make_training_batch(dataset, opt, step);
+    moves.push_back((noisy.input_c2w(2) - clean.input_c2w(2)).index({Slice(), Slice(), Slice(0, 3), 3}).flatten());
+    moves.push_back((noisy.target_c2w() - clean.target_c2w()).index({Slice(), Slice(), Slice(0, 3), 3}).flatten());
+    for (int64_t b = 0; b < 2; ++b)
+      for (int64_t k = 0; k < 2; ++k) {
+        const int64_t view = noisy.target_index[b][k].item<int64_t>();
+        if (view >= 2) continue;
+        ++repeats;
+        EXPECT_TRUE(torch::equal(clean.target_c2w()[b][k], clean.input_c2w(2)[b][view]));
+        EXPECT_FALSE(torch::allclose(noisy.target_c2w()[b][k], noisy.input_c2w(2)[b][view]));
+      }
+  }
+  EXPECT_GT(repeats, 0);
+  const double sd = torch::cat(moves).std().item<double>();  // 360 draws: within ~8 % of 0.1
+  EXPECT_GT(sd, 0.08);
+  EXPECT_LT(sd, 0.12);
 }
 
 namespace {

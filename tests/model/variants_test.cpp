@@ -108,6 +108,34 @@ TEST(Variants, PosedVariantsRenderEveryTargetAndIgnoreTheWorldFrameAndScale) {
   }
 }
 
+// Cameras the training loader already put in the scene frame of all the sample's views (Views::in_scene_frame) are
+// taken as they are: normalising again over only these inputs and targets would change the frame (and, with pose
+// noise, normalise the noise away), so a world transform now reaches the render; unflagged views stay invariant.
+TEST(Variants, PosedModelsTakeCamerasAlreadyInTheSceneFrameAsTheyAre) {
+  torch::manual_seed(5);
+  auto net = model::make_model(small_config("lvsm"));
+  net->eval();
+  auto s = random_scene(1, 2, 2);
+  auto world = geometry::pose_encoding_to_c2w(torch::tensor({{0.3, -2.0, 1.0, 0.2, -0.4, 0.1, 0.9}}));
+  auto flagged = [](model::Views v) {
+    v.in_scene_frame = true;
+    return v;
+  };
+  auto out = net->render(flagged(s.inputs), flagged(s.targets), model::TargetPoses::Dataset);
+  auto moved = net->render(flagged(transformed(s.inputs, world, 2.5)), flagged(transformed(s.targets, world, 2.5)),
+                           model::TargetPoses::Dataset);
+  EXPECT_GT(test::max_abs_diff(out.render, moved.render), 1e-3);
+  // Given cameras that are in the frame of these very views, both paths agree.
+  auto all = torch::cat({s.inputs.c2w, s.targets.c2w}, 1)[0];
+  auto normalised = geometry::official_scene_normalize(all).unsqueeze(0);
+  auto in = s.inputs, tg = s.targets;
+  in.c2w = normalised.narrow(1, 0, 2);
+  tg.c2w = normalised.narrow(1, 2, 2);
+  auto given = net->render(flagged(in), flagged(tg), model::TargetPoses::Dataset);
+  auto plain = net->render(s.inputs, s.targets, model::TargetPoses::Dataset);
+  EXPECT_LT(test::max_abs_diff(given.render, plain.render), 1e-4);
+}
+
 TEST(Variants, PtlvsmMarksInputViewZeroAndLvsmEveryInputView) {
   torch::manual_seed(4);
   auto s = random_scene(1, 3, 1);

@@ -28,11 +28,32 @@ TEST(StudyGrid, TableCsvAndPlotFollowTheCells) {
   EXPECT_NE(md.find("| uplvsm | 20.00 / 0.600 / - | 22.00 / 0.700 / - | 2.00 / 0.100 / - |"), std::string::npos) << md;
   EXPECT_NE(md.find("| lvsm | 21.00 / 0.650 / 0.300 | (not run) | - / - / - |"), std::string::npos) << md;
   const auto csv = study::grid_csv(cells);
-  EXPECT_NE(csv.find("lvsm,25 scenes,25,21.000000,0.650000,0.300000\n"), std::string::npos) << csv;
-  EXPECT_NE(csv.find("uplvsm,25 scenes,25,20.000000,0.600000,\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("lvsm,25 scenes,25,0,21.000000,0.650000,0.300000\n"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("uplvsm,25 scenes,25,0,20.000000,0.600000,\n"), std::string::npos) << csv;
   io::PlotOptions po;
   po.log_x = true;
   auto png = study::grid_plot(cells, "psnr", po);
   EXPECT_EQ(png.sizes(), (std::vector<int64_t>{po.height, po.width, 3}));
   EXPECT_THROW(study::grid_plot(cells, "fid", po), std::invalid_argument);
+}
+
+// Two seeds of a cell: the table shows their mean and half their PSNR range; a missing LPIPS stays missing.
+TEST(StudyGrid, SeedsAreAveragedWithTheirSpread) {
+  std::vector<study::GridCell> runs = {
+      {"lvsm", "noise sd 0", 0, 20.0, 0.60, 0.30, 777},
+      {"lvsm", "noise sd 0.1", 1, 18.0, 0.50, std::nan(""), 777},
+      {"lvsm", "noise sd 0", 0, 21.0, 0.70, 0.20, 778},
+      {"lvsm", "noise sd 0.1", 1, 18.5, 0.55, std::nan(""), 778},
+  };
+  const auto cells = study::mean_over_seeds(runs);
+  ASSERT_EQ(cells.size(), 2u);
+  EXPECT_EQ(cells[0].setting, "noise sd 0");
+  EXPECT_DOUBLE_EQ(cells[0].psnr, 20.5);
+  EXPECT_DOUBLE_EQ(cells[0].psnr_spread, 0.5);
+  EXPECT_DOUBLE_EQ(cells[0].lpips, 0.25);
+  EXPECT_EQ(cells[0].runs, 2);
+  EXPECT_TRUE(std::isnan(cells[1].lpips));
+  const auto md = study::grid_markdown(cells, false);
+  EXPECT_NE(md.find("| lvsm | 20.50 ±0.50 / 0.650 / 0.250 | 18.25 ±0.25 / 0.525 / - |"), std::string::npos) << md;
+  EXPECT_NE(study::grid_csv(runs).find("lvsm,noise sd 0.1,1,778,18.500000,0.550000,\n"), std::string::npos);
 }

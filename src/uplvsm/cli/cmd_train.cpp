@@ -16,10 +16,6 @@
 
 namespace uplvsm::cli {
 
-namespace {
-
-// Held-out evaluation during training (training.eval_every): the test split's evaluation index, at most
-// eval.max_scenes scenes (default 16), with the run's target-pose protocol; results in <run>/eval/step_NNNNNNN/.
 std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluation(const Config& config,
                                                                                    const std::string& data,
                                                                                    const std::string& run,
@@ -53,6 +49,8 @@ std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluati
                           {"dir", opt.out_dir}};
   };
 }
+
+namespace {
 
 struct TrainArgs {
   CommonOptions common;

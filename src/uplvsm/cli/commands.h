@@ -3,6 +3,7 @@
 #include <torch/torch.h>
 #include <CLI/CLI.hpp>
 
+#include <functional>
 #include <string>
 
 #include "uplvsm/core/config.h"
@@ -58,5 +59,13 @@ void add_export_command(CLI::App& app);
 void add_study_command(CLI::App& app);
 // study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
 void add_study_grid_commands(CLI::App& study);
+
+// Held-out evaluation during training (training.eval_every): the test split's evaluation index, at most
+// eval.max_scenes scenes (default 16), with the run's target-pose protocol; results in <run>/eval/step_NNNNNNN/.
+// Empty (with a warning) when <data>/evaluation_index.json does not exist.
+std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluation(const Config& config,
+                                                                                   const std::string& data,
+                                                                                   const std::string& run,
+                                                                                   torch::Device device);
 
 }  // namespace uplvsm::cli

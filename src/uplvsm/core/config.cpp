@@ -164,8 +164,9 @@ void training_fields(C& c, F&& f) {
   f("amp", c.amp);
   f("target_poses", c.target_poses);
   f("max_train_scenes", c.max_train_scenes);
+  f("chunks_per_shuffle", c.chunks_per_shuffle);
   f("subset", c.subset);
-  f("pose_noise_variance", c.pose_noise_variance);
+  f("pose_noise_std", c.pose_noise_std);
   f("view_sampler", c.view_sampler);
   f("rotation_equivariance_weight", c.rotation_equivariance_weight);
   f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
@@ -224,6 +225,17 @@ json write_section(const C& c, Fields fields) {
   return out;
 }
 
+// training.pose_noise_variance (until d3badc2) drew N(0, value) on all views before the scene normalisation: files
+// written then carry it at 0, which reads as pose_noise_std 0; another value has no equal in the official knob.
+void reject_old_pose_noise(const json* old, const std::string& source) {
+  if (!old || (old->is_number() && old->get<double>() == 0)) return;
+  throw std::runtime_error(fmt::format(
+      "{}: training.pose_noise_variance was replaced (after commit d3badc2) by training.pose_noise_std, the official "
+      "noise_scale: a standard deviation, drawn after the scene normalisation; for the old noise set "
+      "pose_noise_std = sqrt({})",
+      source, old->dump()));
+}
+
 #define UPLVSM_FIELDS(fn) [](auto& c, auto&& f) { fn(c, f); }
 
 }  // namespace
@@ -251,7 +263,9 @@ Config config_from_json(const json& j, const std::string& source) {
       if (auto d = mr.child("dinov2"))
         read_section(*d, source + ": model.dinov2", c.model.dinov2, UPLVSM_FIELDS(dinov2_fields));
     });
-  if (auto t = r.child("training")) read_section(*t, source + ": training", c.training, UPLVSM_FIELDS(training_fields));
+  if (auto t = r.child("training"))
+    read_section(*t, source + ": training", c.training, UPLVSM_FIELDS(training_fields),
+                 [&](Reader& tr) { reject_old_pose_noise(tr.child("pose_noise_variance"), source); });
   if (auto d = r.child("dataset")) read_section(*d, source + ": dataset", c.dataset, UPLVSM_FIELDS(dataset_fields));
   if (auto e = r.child("eval")) read_section(*e, source + ": eval", c.eval, UPLVSM_FIELDS(eval_fields));
   r.finish();

@@ -149,12 +149,16 @@ struct TrainingConfig {
   TargetPoseChoice target_poses = TargetPoseChoice::Auto;
   // Nested training subsets (the scalability study): train on the first N scenes of the train split; 0: all.
   int64_t max_train_scenes = 0;
+  // Ours: an epoch visits the chunks this many at a time, shuffling their scenes together, so the chunk cache
+  // serves consecutive samples; 0: one shuffle over the whole split (the official order; a chunk read per sample).
+  int64_t chunks_per_shuffle = 2;
   // A subset manifest (`uplvsm dataset subset`: little / medium / large / full or custom): train on its scenes only.
   // max_train_scenes then counts within it. Empty: the whole train split.
   std::string subset;
-  // The pose-noise study: N(0, variance) added to the 7-D (t, q) encoding of every training camera (the official
-  // `noise_scale` knob); 0: clean cameras. Only variants that read training cameras are affected.
-  double pose_noise_variance = 0;
+  // The pose-noise study, the official `unposed.noise_scale`: N(0, pose_noise_std^2) (a standard deviation) added to
+  // the 7-D (t, q) encoding of the input and, drawn apart, the target cameras, in the scene frame of the sample's
+  // views (data/loader.h). 0: clean cameras. Only variants that read training cameras are affected.
+  double pose_noise_std = 0;
   // How training views are drawn from a scene: "ordered" (the official selector: two context frames min..max
   // frame_dist apart, targets between them; video datasets), "unordered" (any distinct frames; object renders
   // whose frames have no order), or "auto" (the dataset's dataset.json view_order; ordered without one).

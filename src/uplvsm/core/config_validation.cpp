@@ -147,8 +147,9 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.ema_decay >= 0 && tr.ema_decay < 1, s,
           fmt::format("training.ema_decay must be in [0, 1) (0: no weight average), got {}", tr.ema_decay));
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
-  require(tr.pose_noise_variance >= 0 && std::isfinite(tr.pose_noise_variance), s,
-          "training.pose_noise_variance must be a finite number >= 0");
+  require(tr.chunks_per_shuffle >= 0, s, "training.chunks_per_shuffle must be >= 0 (0: the whole split)");
+  require(tr.pose_noise_std >= 0 && std::isfinite(tr.pose_noise_std), s,
+          "training.pose_noise_std must be a finite number >= 0");
   require(tr.train_steps >= 1 && tr.warmup >= 0, s, "training.train_steps must be >= 1 and warmup >= 0");
   require(c.dataset.frames_per_scene >= tr.num_views, s, "dataset.frames_per_scene must be >= training.num_views");
   require(c.dataset.texture_scale > 0, s, "dataset.texture_scale must be > 0");

@@ -33,12 +33,11 @@ void shuffle(std::vector<T>& v, size_t begin, std::mt19937_64& rng) {
 }
 
 // Scene order of one epoch, chunk by chunk as pixelSplat's iterable dataset reads them: chunks in a seeded order,
-// taken kChunksPerShuffle at a time, the scenes of each such group shuffled together. Consecutive samples then
-// come from at most two groups, which the dataset's chunk cache holds; a plain permutation would re-read a random
-// chunk (~100 MB for RealEstate10K) for almost every scene. Identical on every rank.
-constexpr size_t kChunksPerShuffle = 2;
-
-std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_t seed, int64_t epoch) {
+// taken `per_shuffle` at a time (0: all), the scenes of each such group shuffled together. With 2, consecutive
+// samples come from at most two groups, which the dataset's chunk cache holds; a plain permutation re-reads a
+// random chunk (~100 MB for RealEstate10K) for almost every scene. Identical on every rank.
+std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_t seed, int64_t epoch,
+                                 int64_t per_shuffle) {
   // Each chunk is a contiguous range [begin, end) of scene indices; training may use only the first n scenes.
   std::vector<std::pair<int64_t, int64_t>> chunks;
   const auto& starts = dataset.chunk_starts();
@@ -48,24 +47,44 @@ std::vector<int64_t> epoch_order(const ChunkDataset& dataset, int64_t n, uint64_
   shuffle(chunks, 0, rng);
   std::vector<int64_t> order;
   order.reserve(static_cast<size_t>(n));
-  for (size_t g = 0; g < chunks.size(); g += kChunksPerShuffle) {
+  const size_t group = per_shuffle > 0 ? static_cast<size_t>(per_shuffle) : std::max<size_t>(chunks.size(), 1);
+  for (size_t g = 0; g < chunks.size(); g += group) {
     const size_t begin = order.size();
-    for (size_t k = g; k < std::min(g + kChunksPerShuffle, chunks.size()); ++k)
+    for (size_t k = g; k < std::min(g + group, chunks.size()); ++k)
       for (int64_t i = chunks[k].first; i < chunks[k].second; ++i) order.push_back(i);
     shuffle(order, begin, rng);
   }
   return order;
 }
 
-// Annotation noise: every camera's (t, q) encoding plus N(0, variance), decoded back (the quaternion renormalised).
-torch::Tensor perturb_cameras(const torch::Tensor& c2w, double variance, uint64_t seed) {
-  auto enc = geometry::c2w_to_pose_encoding(c2w.to(torch::kFloat64));
-  std::mt19937_64 rng(seed);
-  std::normal_distribution<double> normal(0.0, std::sqrt(variance));
-  std::vector<double> noise(static_cast<size_t>(enc.numel()));
+// The official dataset's preprocess_poses over a sample's sampled (distinct) views: centred on their mean camera,
+// axes from their mean viewing and up directions, translations scaled into [-1/1.35, 1/1.35]. Cameras that are not
+// finite (photos imported without poses, which no camera-reading model trains on) stay as read.
+torch::Tensor in_scene_frame(const torch::Tensor& c2w) {
+  if (!torch::isfinite(c2w).all().item<bool>()) return c2w;
+  return geometry::official_scene_normalize(c2w);
+}
+
+// Official noise_scale: the fp32 (t, q) encoding of every camera plus N(0, std^2), decoded back (the quaternion
+// renormalised).
+torch::Tensor with_pose_noise(const torch::Tensor& c2w, double std, std::mt19937_64& rng) {
+  auto enc = geometry::c2w_to_pose_encoding(c2w.to(torch::kFloat32));
+  std::normal_distribution<float> normal(0.0F, 1.0F);
+  std::vector<float> noise(static_cast<size_t>(enc.numel()));
   for (auto& x : noise) x = normal(rng);
-  enc = enc + torch::tensor(noise, torch::kFloat64).view(enc.sizes());
+  enc = enc + torch::tensor(noise, torch::kFloat32).view(enc.sizes()) * static_cast<float>(std);
   return geometry::pose_encoding_to_c2w(enc).to(c2w.dtype());
+}
+
+// The inputs' and the targets' cameras as the model is told them (official ProcessData.forward: split, then noise).
+void tell_cameras(TrainingBatch& batch, const LoaderOptions& opt) {
+  const auto& ti = batch.target_index;
+  batch.input_cameras = batch.c2w.narrow(1, 0, opt.num_input_views);
+  batch.target_cameras = batch.c2w.gather(1, ti.view({ti.size(0), ti.size(1), 1, 1}).expand({-1, -1, 4, 4}));
+  if (opt.pose_noise_std <= 0) return;
+  std::mt19937_64 rng(mix(opt.seed ^ 0x6e6f697365ULL, static_cast<uint64_t>(batch.step * opt.world_size + opt.rank)));
+  batch.input_cameras = with_pose_noise(batch.input_cameras, opt.pose_noise_std, rng);
+  batch.target_cameras = with_pose_noise(batch.target_cameras, opt.pose_noise_std, rng);
 }
 
 // The training views of a scene of `frames` frames at training step `step`; throws when it has too few.
@@ -103,7 +122,7 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
       const int64_t slot = g + attempt * 7919;  // a bad scene is replaced by another one of the order
       const int64_t epoch = slot / n;
       if (epoch != epoch_cached) {
-        perm = epoch_order(dataset, n, opt.seed, epoch);
+        perm = epoch_order(dataset, n, opt.seed, epoch, opt.chunks_per_shuffle);
         epoch_cached = epoch;
       }
       const int64_t scene = perm[slot % n];
@@ -113,7 +132,7 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
         auto views = dataset.load_views(scene, chosen, opt.preprocess);
         images.push_back(views.images);
         intrinsics.push_back(views.fxfycxcy);
-        c2ws.push_back(views.c2w);
+        c2ws.push_back(in_scene_frame(views.c2w));
         batch.keys.push_back(dataset.key(scene));
         batch.frames.push_back(chosen);
         // Official target_has_input=True: random.sample(range(V), num_target_views).
@@ -134,11 +153,8 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
   batch.images = torch::stack(images);
   batch.fxfycxcy = torch::stack(intrinsics);
   batch.c2w = torch::stack(c2ws);
-  if (opt.pose_noise_variance > 0)
-    batch.c2w =
-        perturb_cameras(batch.c2w, opt.pose_noise_variance,
-                        mix(opt.seed ^ 0x6e6f697365ULL, static_cast<uint64_t>(step * opt.world_size + opt.rank)));
   batch.target_index = torch::stack(targets);
+  tell_cameras(batch, opt);
   return batch;
 }
 
@@ -155,11 +171,13 @@ torch::Tensor TrainingBatch::target_fxfycxcy() const {
   return fxfycxcy.gather(1, target_index.unsqueeze(-1).expand({-1, -1, 4}));
 }
 
-torch::Tensor TrainingBatch::input_c2w(int64_t n) const { return c2w.narrow(1, 0, n); }
-
-torch::Tensor TrainingBatch::target_c2w() const {
-  return c2w.gather(1, target_index.view({target_index.size(0), target_index.size(1), 1, 1}).expand({-1, -1, 4, 4}));
+torch::Tensor TrainingBatch::input_c2w(int64_t n) const {
+  TORCH_CHECK(n <= input_cameras.size(1), "training batch: ", n, " input views asked, the loader told ",
+              input_cameras.size(1));
+  return input_cameras.narrow(1, 0, n);
 }
+
+torch::Tensor TrainingBatch::target_c2w() const { return target_cameras; }
 
 TrainingLoader::TrainingLoader(const ChunkDataset& dataset, LoaderOptions opt, int64_t first_step)
     : dataset_(dataset), opt_(std::move(opt)), next_to_hand_out_(first_step), next_to_build_(first_step) {

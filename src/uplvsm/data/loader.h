@@ -1,9 +1,10 @@
 // The training batch loader: for every step a batch that is a pure function of (seed, step, rank), so a resumed
-// run sees exactly the data the uninterrupted run would have seen, and ranks read disjoint shards. Scenes are
+// run sees exactly the data the uninterrupted run would have seen, and ranks read disjoint shards. Each sample's
+// cameras are put in the frame of its sampled views (the official dataset's preprocess_poses). Scenes are
 // visited in a seeded order per epoch that goes through the chunks two at a time (shuffled within each pair), so
-// the chunk cache serves consecutive samples; views follow the official selector; a bad scene (too few frames, a
-// wrong-size frame) is replaced by the next scene of the permutation and counted. Worker threads decode ahead
-// into a bounded queue.
+// the chunk cache serves consecutive samples (or shuffled over the whole split, as officially); views follow the
+// official selector; a bad scene (too few frames, a wrong-size frame) is replaced by the next scene of the permutation
+// and counted. Worker threads decode ahead into a bounded queue.
 #pragma once
 #include <torch/torch.h>
 
@@ -36,22 +37,31 @@ struct LoaderOptions {
   int threads = 2;
   int prefetch = 4;        // batches decoded ahead
   int64_t max_scenes = 0;  // train on the split's first N scenes only (nested subsets); 0: all
-  // N(0, variance) on the 7-D (t, q) encoding of every camera (pose-noise study), drawn from its own stream so the
-  // views chosen do not change with it; 0: the dataset's cameras.
-  double pose_noise_variance = 0;
+  // Chunks whose scenes are shuffled together in an epoch's order; 0: one shuffle over the whole split (the
+  // official order, which reads a random chunk for almost every sample).
+  int64_t chunks_per_shuffle = 2;
+  // The pose-noise study, as the official unposed.noise_scale: N(0, pose_noise_std^2) (a standard deviation) on the
+  // fp32 7-D (t, q) encoding of the input cameras and, drawn apart, the target cameras, after the split and the
+  // scene normalisation; from its own stream, so the views chosen do not change with it. 0: clean cameras.
+  double pose_noise_std = 0;
 };
 
 struct TrainingBatch {
   int64_t step = 0;
-  torch::Tensor images;        // [b, V, 3, H, W]
-  torch::Tensor fxfycxcy;      // [b, V, 4]
-  torch::Tensor c2w;           // [b, V, 4, 4]
+  torch::Tensor images;    // [b, V, 3, H, W]
+  torch::Tensor fxfycxcy;  // [b, V, 4]
+  torch::Tensor c2w;       // [b, V, 4, 4] clean, each sample in the frame of its V views (official preprocess_poses)
   torch::Tensor target_index;  // int64 [b, num_target_views]: views used as targets (official: may include inputs)
+  // The cameras the model is told: c2w's first num_input_views, and its targets gathered by target_index, each with
+  // its own pose noise (a target that repeats an input gets its own draw, as officially).
+  torch::Tensor input_cameras;   // [b, num_input_views, 4, 4]
+  torch::Tensor target_cameras;  // [b, num_target_views, 4, 4]
   std::vector<std::string> keys;
   std::vector<std::vector<int64_t>> frames;
   int64_t replaced_scenes = 0;  // bad scenes swapped for others while building this batch
 
-  // Inputs are the first num_input_views views; targets are gathered by target_index.
+  // Inputs are the first num_input_views views; targets are gathered by target_index. The c2w are the told ones
+  // (input_cameras, target_cameras).
   torch::Tensor input_images(int64_t n) const;
   torch::Tensor input_fxfycxcy(int64_t n) const;
   torch::Tensor target_images() const;

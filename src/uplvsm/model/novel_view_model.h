@@ -43,6 +43,9 @@ struct Views {
   torch::Tensor images;    // [b, v, 3, H, W] in [0, 1]
   torch::Tensor fxfycxcy;  // [b, v, 4] pixels
   torch::Tensor c2w;       // [b, v, 4, 4] or undefined
+  // c2w already in the official scene frame (the training loader's, over all the sample's views, before its pose
+  // noise): the posed models take them as they are instead of normalising over these inputs and targets.
+  bool in_scene_frame = false;
 };
 // One scene's views as a batch of one on `device` (c2w stays undefined where the scene has none).
 Views batch_of_one(const data::SceneViews& views, torch::Device device);

@@ -1,5 +1,7 @@
 #include "uplvsm/model/posed_lvsm.h"
 
+#include <tuple>
+
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/plucker.h"
@@ -43,9 +45,10 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
               images.sizes());
   const int64_t b = images.size(0), vi = images.size(1), H = targets.images.size(3), W = targets.images.size(4);
   const int64_t vt = targets.fxfycxcy.size(1);
-  auto [in_c2w, tg_c2w] =
-      scene_normalized(require_c2w(inputs, "input", TargetPoses::Dataset),
-                       require_c2w(targets, "target", TargetPoses::Dataset), normalize_with_targets);
+  auto in_c2w = require_c2w(inputs, "input", TargetPoses::Dataset);
+  auto tg_c2w = require_c2w(targets, "target", TargetPoses::Dataset);
+  if (!(inputs.in_scene_frame && targets.in_scene_frame))
+    std::tie(in_c2w, tg_c2w) = scene_normalized(in_c2w, tg_c2w, normalize_with_targets);
   auto tokens = tokenize(images);  // [b, vi, n, d]
   const int64_t n = tokens.size(2), d = tokens.size(3);
   const int64_t posed = posed_inputs == PosedInputs::All ? vi : 1;

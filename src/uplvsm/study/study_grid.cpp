@@ -49,6 +49,31 @@ std::vector<std::string> settings_of(const std::vector<GridCell>& cells) {
   return unique_in_order(cells, &GridCell::setting);
 }
 
+std::vector<GridCell> mean_over_seeds(const std::vector<GridCell>& runs) {
+  std::vector<GridCell> out;
+  for (const auto& series : series_of(runs))
+    for (const auto& setting : settings_of(runs)) {
+      std::vector<const GridCell*> group;
+      for (const auto& r : runs)
+        if (r.series == series && r.setting == setting) group.push_back(&r);
+      if (group.empty()) continue;
+      GridCell mean = *group.front();
+      mean.psnr = mean.ssim = mean.lpips = 0;
+      double lo = group.front()->psnr, hi = lo;
+      for (const auto* r : group) {
+        mean.psnr += r->psnr / static_cast<double>(group.size());
+        mean.ssim += r->ssim / static_cast<double>(group.size());
+        mean.lpips += r->lpips / static_cast<double>(group.size());  // NaN stays NaN: no made-up LPIPS
+        lo = std::min(lo, r->psnr);
+        hi = std::max(hi, r->psnr);
+      }
+      mean.runs = static_cast<int64_t>(group.size());
+      mean.psnr_spread = (hi - lo) / 2;
+      out.push_back(mean);
+    }
+  return out;
+}
+
 std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
   const auto series = series_of(cells);
   const auto settings = settings_of(cells);
@@ -70,7 +95,8 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
         lpips.push_back(std::nan(""));
         continue;
       }
-      out += fmt::format(" {:.2f} / {:.3f} / {} |", c->psnr, c->ssim, format_lpips(c->lpips));
+      const auto spread = c->runs > 1 ? fmt::format(" ±{:.2f}", c->psnr_spread) : std::string();
+      out += fmt::format(" {:.2f}{} / {:.3f} / {} |", c->psnr, spread, c->ssim, format_lpips(c->lpips));
       psnr.push_back(c->psnr);
       ssim.push_back(c->ssim);
       lpips.push_back(c->lpips);
@@ -88,9 +114,9 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
 }
 
 std::string grid_csv(const std::vector<GridCell>& cells) {
-  std::string out = "series,setting,x,psnr,ssim,lpips\n";
+  std::string out = "series,setting,x,seed,psnr,ssim,lpips\n";
   for (const auto& c : cells)
-    out += fmt::format("{},{},{},{:.6f},{:.6f},{}\n", c.series, c.setting, c.x, c.psnr, c.ssim,
+    out += fmt::format("{},{},{},{},{:.6f},{:.6f},{}\n", c.series, c.setting, c.x, c.seed, c.psnr, c.ssim,
                        std::isnan(c.lpips) ? std::string() : fmt::format("{:.6f}", c.lpips));
   return out;
 }

@@ -16,11 +16,18 @@ namespace uplvsm::study {
 
 struct GridCell {
   std::string series;   // e.g. "uplvsm"
-  std::string setting;  // e.g. "little (100 scenes)" or "noise 0.01"
-  double x = 0;         // the setting's value on the plot's x axis (scenes, noise variance)
+  std::string setting;  // e.g. "little (100 scenes)" or "noise sd 0.01"
+  double x = 0;         // the setting's value on the plot's x axis (scenes, noise level)
   double psnr = 0, ssim = 0;
   double lpips = std::numeric_limits<double>::quiet_NaN();  // NaN: LPIPS weights were not given
+  int64_t seed = 0;                                         // the run's training seed
+  int64_t runs = 1;                                         // seeds averaged into this cell (mean_over_seeds)
+  double psnr_spread = 0;                                   // half the PSNR range over those seeds
 };
+
+// One cell per (series, setting), in order of first appearance: the mean over its seeds' runs, with their count
+// and PSNR spread.
+std::vector<GridCell> mean_over_seeds(const std::vector<GridCell>& runs);
 
 // Mean change between consecutive settings, signed so that an improvement is positive (PSNR, SSIM up; LPIPS
 // down). With settings 4x apart this is the paper's average gain per 4x data: (last - first) / (settings - 1).
@@ -31,10 +38,11 @@ double average_gain(const std::vector<double>& values, bool higher_is_better);
 std::vector<std::string> series_of(const std::vector<GridCell>& cells);
 std::vector<std::string> settings_of(const std::vector<GridCell>& cells);
 
-// Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable), plus the
-// average-gain column when with_gain. Missing cells read "(not run)".
+// Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable; a mean over
+// several seeds shows "PSNR ±half-range"), plus the average-gain column when with_gain. Missing cells read
+// "(not run)".
 std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain);
-// One row per cell: series,setting,x,psnr,ssim,lpips (empty when unavailable).
+// One row per cell: series,setting,x,seed,psnr,ssim,lpips (empty when unavailable).
 std::string grid_csv(const std::vector<GridCell>& cells);
 // metric "psnr" | "ssim" | "lpips" against x, one line per series. uint8 [H, W, 3].
 torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& metric, io::PlotOptions options);

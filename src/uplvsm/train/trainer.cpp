@@ -52,7 +52,8 @@ data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& da
   o.seed = static_cast<uint64_t>(t.seed);
   o.threads = static_cast<int>(t.loader_threads);
   o.max_scenes = t.max_train_scenes;
-  o.pose_noise_variance = t.pose_noise_variance;
+  o.chunks_per_shuffle = t.chunks_per_shuffle;
+  o.pose_noise_std = t.pose_noise_std;
   if (comm) {
     o.rank = comm->rank();
     o.world_size = comm->world_size();
@@ -162,9 +163,9 @@ void prepare_training_data(data::ChunkDataset& dataset, const Config& config, co
   if (tc.max_train_scenes > dataset.size())
     throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
                                          tc.max_train_scenes, opt.data_root, dataset.size()));
-  if (tc.pose_noise_variance > 0)
-    spdlog::info("pose noise: N(0, {}) on the (t, q) of every training camera{}", tc.pose_noise_variance,
-                 reads_cameras ? "" : " (this UP-LVSM run never reads them)");
+  if (tc.pose_noise_std > 0)
+    spdlog::info("pose noise: N(0, {}^2) on the (t, q) of the input and target cameras (official noise_scale){}",
+                 tc.pose_noise_std, reads_cameras ? "" : " (this UP-LVSM run never reads them)");
 }
 
 // Everything a step needs besides its batches.
@@ -197,8 +198,9 @@ std::vector<MicroBatch> next_micro_batches(data::TrainingLoader& loader, const T
   auto dev = [&](const torch::Tensor& t) { return t.to(device); };
   for (int64_t i = 0; i < tc.grad_accum_steps; ++i) {
     auto batch = loader.next();
-    micro.push_back({{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))},
-                     {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())}});
+    // The loader's cameras are in the scene frame of all the sample's views (with their pose noise, if any).
+    micro.push_back({{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi)), true},
+                     {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w()), true}});
   }
   return micro;
 }

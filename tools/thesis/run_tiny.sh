@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# The paper's thesis at `tiny` on the CPU (docs/research/thesis.md): the pose-noise curve, whole-split against
+# chunk-pair shuffling, and the scaling table. Every study skips runs whose result.json exists and resumes a run
+# from its last checkpoint, so this script continues where it stopped (a fresh machine: the same command).
+#   tools/thesis/run_tiny.sh [pose-noise|shuffle|scaling|all]   (default all; OUT=out/thesis, THREADS=1)
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+UPLVSM=${UPLVSM:-build/uplvsm}
+OUT=${OUT:-out/thesis}
+THREADS=${THREADS:-1}
+STEPS=${STEPS:-8000}
+WHAT=${1:-all}
+COMMON=(--threads "$THREADS" --seeds 777 778 --set training.eval_every=1000 --set training.checkpoint_every=500)
+
+# 400 training and 48 test rooms (configs/tiny.json's dataset section), the data of every `tiny` figure.
+[ -f "$OUT/rooms/evaluation_index.json" ] || $UPLVSM make-dataset --config configs/tiny.json --out "$OUT/rooms"
+
+if [ "$WHAT" = shuffle ] || [ "$WHAT" = all ]; then
+  # Issue 64 item 7: chunk pairs (ours) against one shuffle over the whole split (official), UP-LVSM, same budget.
+  for per in 2 0; do
+    $UPLVSM study scaling --config configs/tiny.json --data "$OUT/rooms" --subsets full --steps 4000 \
+      "${COMMON[@]}" --set training.chunks_per_shuffle=$per --out "$OUT/shuffle_chunks$per"
+  done
+fi
+
+if [ "$WHAT" = pose-noise ] || [ "$WHAT" = all ]; then
+  # Both readings of the paper's levels: sd (the official noise_scale) 0.001 / 0.01 / 0.1 and variance 0.001 /
+  # 0.01 / 0.1 (sd 0.0316 / 0.1 / 0.316).
+  $UPLVSM study pose-noise --config configs/tiny.json configs/tiny_lvsm.json --data "$OUT/rooms" \
+    --noise-std 0 0.001 0.01 0.1 --noise-variance 0.001 0.01 0.1 --steps "$STEPS" "${COMMON[@]}" \
+    --out "$OUT/pose_noise"
+fi
+
+
+if [ "$WHAT" = scaling ] || [ "$WHAT" = all ]; then
+  # Nested subsets 4x apart; the budget grows 2x per subset (the steps, not the data, must not run out first).
+  [ -f "$OUT/rooms_8000/evaluation_index.json" ] || $UPLVSM make-dataset --config configs/tiny.json \
+    --train-scenes 8000 --out "$OUT/rooms_8000"
+  SCALE=(--data "$OUT/rooms_8000" --subsets 125 500 2000 8000 --steps 1000 --steps-growth 2)
+  $UPLVSM study scaling --config configs/tiny.json configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" \
+    "${COMMON[@]}" --out "$OUT/scaling"
+  # The posed models again with pose noise on their cameras (UP-LVSM never reads them).
+  $UPLVSM study scaling --config configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" --noise-std 0.1 \
+    "${COMMON[@]}" --out "$OUT/scaling_noise0.1"
+fi
