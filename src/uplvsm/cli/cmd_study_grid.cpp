@@ -34,6 +34,7 @@ struct GridArgs {
   std::vector<std::string> configs;
   std::string data, out, vgg19, lpips_net = "vgg", lpips_backbone, lpips_lin;
   int64_t steps = -1, eval_scenes = 0;
+  train::VggInput vgg19_input = train::VggInput::Auto;
 };
 
 struct GridRun {
@@ -58,6 +59,7 @@ void add_grid_options(CLI::App* cmd, GridArgs& a) {
       ->capture_default_str();
   cmd->add_option("--vgg19", a.vgg19, "VGG19 weights for the perceptual loss (as for `uplvsm train`)")
       ->check(CLI::ExistingFile);
+  add_vgg19_input_option(cmd, a.vgg19_input);
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -114,6 +116,7 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   topt.run_dir = dir.string();
   topt.device = device;
   topt.perceptual_weights = a.vgg19;
+  topt.perceptual_input = a.vgg19_input;
   auto trained = train::train(r.config, topt);
   if (trained.interrupted) throw std::runtime_error("study interrupted by a signal (rerun the same command to resume)");
 
