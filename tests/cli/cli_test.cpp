@@ -4,6 +4,9 @@
 #include <string>
 
 #include "test_util.h"
+#include "uplvsm/io/safetensors.h"
+#include "uplvsm/model/state_dict.h"
+#include "uplvsm/train/perceptual_loss.h"
 
 namespace {
 struct Run {
@@ -96,4 +99,23 @@ TEST(Cli, ConvertOfficialCheckpointAndVerify) {
   auto dino = run("convert --input " + uplvsm::test::fixture("dinov2/weights.pth") + " --output " + out);
   EXPECT_NE(dino.status, 0);
   EXPECT_NE(dino.output.find("give --config"), std::string::npos) << dino.output;
+}
+
+// An official checkpoint trained with the perceptual loss carries its MatConvNet VGG19: convert writes it beside the
+// model, marked, so `train --vgg19` prepares the loss's input for those weights without being told.
+TEST(Cli, ConvertMarksTheOfficialVgg19AsMatConvNetInput) {
+  UPLVSM_NEEDS_FIXTURES();
+  using namespace uplvsm;
+  auto dir = test::temp_dir("cli_convert_vgg");
+  auto tensors = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
+  for (const auto& [k, v] : model::state_dict(*train::PerceptualLoss()->vgg))
+    tensors["loss_computer.perceptual_loss_module.vgg." + k] = v;
+  const auto input = (dir / "with_vgg.safetensors").string(), out = (dir / "converted.safetensors").string();
+  io::write_safetensors(input, tensors);
+  auto r = run("convert --input " + input + " --output " + out);
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto vgg = (dir / "converted.vgg19.safetensors").string();
+  EXPECT_EQ(io::read_safetensors(vgg).metadata.at(train::kVggInputMetadataKey), "matconvnet");
+  EXPECT_EQ(train::load_perceptual_loss(vgg)->input, train::VggInput::MatConvNet);
+  test::remove_tree(dir);
 }

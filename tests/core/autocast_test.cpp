@@ -42,3 +42,19 @@ TEST(Autocast, LinearLayerCloseToFp32AndGradientsFp32) {
   y.to(torch::kFloat32).sum().backward();
   EXPECT_EQ(lin->weight.grad().scalar_type(), torch::kFloat32);  // fp32 master weights get fp32 gradients
 }
+
+// training.tf32 (the official use_tf32): both CUDA switches follow it on a CUDA device; on the CPU nothing moves.
+TEST(Autocast, Tf32SwitchActsOnCudaDevicesOnly) {
+  auto& context = at::globalContext();
+  const bool cublas = context.allowTF32CuBLAS(), cudnn = context.allowTF32CuDNN();
+  EXPECT_FALSE(set_cuda_tf32(torch::kCPU, !cublas));
+  EXPECT_EQ(context.allowTF32CuBLAS(), cublas);
+  EXPECT_EQ(context.allowTF32CuDNN(), cudnn);
+  for (bool on : {true, false}) {
+    EXPECT_TRUE(set_cuda_tf32(torch::Device(torch::kCUDA, 0), on));  // the flags exist without a GPU
+    EXPECT_EQ(context.allowTF32CuBLAS(), on);
+    EXPECT_EQ(context.allowTF32CuDNN(), on);
+  }
+  context.setAllowTF32CuBLAS(cublas);
+  context.setAllowTF32CuDNN(cudnn);
+}

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -144,6 +145,34 @@ TEST(Config, TokenizerAndDatasetKnobsAreValidated) {
   msg = message({{"dataset", {{"texture_scale", 0}}}});
   EXPECT_NE(msg.find("dataset.texture_scale must be > 0"), std::string::npos) << msg;
   EXPECT_NO_THROW(config_from_json({{"model", {{"dinov2", {{"pos_embed_init", "sincos"}}}}}}, "ok.json"));
+}
+
+// The paper's recipe (official config/uplvsm_x{224,518}.yaml: use_amp, amp_dtype bf16, use_tf32) trains under bf16
+// autocast with TF32 on CUDA; the other configs keep fp32 unless they say otherwise.
+TEST(Config, PaperConfigsTrainInBf16WithTf32) {
+  for (const char* name : {"paper_x224", "paper_x518"}) {
+    const auto c = load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json");
+    EXPECT_EQ(c.training.amp, Amp::Bf16) << name;
+    EXPECT_TRUE(c.training.tf32) << name;
+  }
+  const auto defaults = config_from_json(nlohmann::json::object(), "ok");
+  EXPECT_FALSE(defaults.training.tf32);
+  EXPECT_TRUE(config_from_json({{"training", {{"tf32", true}}}}, "ok").training.tf32);
+  EXPECT_EQ(config_to_json(config_from_json({{"training", {{"tf32", true}}}}, "ok"))["training"]["tf32"], true);
+}
+
+// grad_clip_norm 0 is the official "no clipping" (train_step); a negative or non-finite one is an error.
+TEST(Config, GradClipNormIsZeroOrPositive) {
+  auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
+  EXPECT_EQ(config_from_json({{"training", {{"grad_clip_norm", 0}}}}, "ok").training.grad_clip_norm, 0.0);
+  for (double bad : {-1.0, std::nan("")})
+    EXPECT_NE(message({{"training", {{"grad_clip_norm", bad}}}})
+                  .find("training.grad_clip_norm must be a finite "
+                        "number >= 0"),
+              std::string::npos)
+        << bad;
+  EXPECT_NE(message({{"training", {{"allowed_gradnorm_factor", 0}}}}).find("allowed_gradnorm_factor must be"),
+            std::string::npos);
 }
 
 TEST(Config, StructureLossWeightsAreCheckedAndRoundTrip) {

@@ -10,9 +10,11 @@
 
 #include "fake_scene.h"
 #include "test_util.h"
+#include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/eval/baselines.h"
 #include "uplvsm/eval/metrics.h"
+#include "uplvsm/io/image.h"
 #include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::eval {
@@ -127,6 +129,55 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   expect_baselines_recomputed(dataset, s, r);
   expect_result_files(out, s, r);
   if (!std::getenv("UPLVSM_KEEP_TEST_OUTPUT")) test::remove_tree(out);
+}
+
+// A JPEG of a horizontal ramp (so a resize shows), h x w, brightness `level`.
+torch::Tensor ramp_jpeg(int h, int w, int level) {
+  auto img = (torch::arange(w, torch::kFloat32) * (200.0 / w) + level).clamp(0, 255).to(torch::kUInt8);
+  auto bytes = io::encode_jpeg(img.view({1, w, 1}).expand({h, w, 3}).contiguous(), 95);
+  return torch::from_blob(bytes.data(), {static_cast<int64_t>(bytes.size())}, torch::kUInt8).clone();
+}
+
+// A scene whose target frame 4 is 30x32 while the others are 24x32 (frame 0's size): the official dataset resizes
+// every frame from its own size and crops it square, so the scene is scored, not dropped, and the frame counted.
+TEST(Evaluator, ScoresAFrameOfAnotherSizeResizedAsTheOfficial) {
+  const auto dir = test::temp_dir("eval_resized_frame");
+  data::RawScene s;
+  s.key = "abcd000000000001";
+  s.url = "test://resized";
+  s.timestamps = torch::arange(6, torch::kInt64);
+  s.cameras = torch::zeros({6, 18});
+  for (int i = 0; i < 6; ++i) {
+    s.cameras[i].slice(0, 0, 4) = torch::tensor({0.8, 1.1, 0.5, 0.5});
+    s.cameras[i][6] = s.cameras[i][11] = s.cameras[i][16] = 1;
+    s.cameras[i][17] = -0.1 * i;
+    s.images.push_back(ramp_jpeg(i == 4 ? 30 : 24, 32, 10 * i));
+  }
+  fs::create_directories(dir / "test");
+  data::write_chunk((dir / "test" / "000000.torch").string(), {s});
+  data::write_chunk_index((dir / "test").string(), {{s.key, "000000.torch"}});
+  data::write_eval_index((dir / "index.json").string(), {{s.key, {0, 5}, {2, 3, 4}, std::nullopt}});
+  torch::manual_seed(0);
+  auto net = model::make_model(tiny_config());
+  data::ChunkDataset dataset(dir.string(), "test");
+  EvalOptions opt;
+  opt.index_path = (dir / "index.json").string();
+  opt.out_dir = (dir / "out").string();
+  opt.num_visualised = 0;
+  const auto summary = evaluate(net, dataset, tiny_prep(), opt);
+  ASSERT_EQ(summary.scenes, 1);
+  EXPECT_EQ(summary.skipped_bad_frames, 0);
+  EXPECT_EQ(summary.resized_frames, 1);
+  std::ifstream f(dir / "out" / "metrics.json");
+  EXPECT_EQ(nlohmann::json::parse(f)["resized_frames"], 1);
+  // The target as the official preprocesses it (LANCZOS to 32 rows from its own 30x32, then the square crop),
+  // scored against its copy-nearest baseline (context frame 5).
+  const auto& bytes = s.images[4];
+  auto own = data::preprocess({io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), "frame 4")},
+                              s.cameras.slice(0, 4, 5), tiny_prep());
+  auto nearest = dataset.load_views(0, {5}, tiny_prep()).images;
+  EXPECT_NEAR(summary.per_scene[0].views[2].psnr_copy, psnr(nearest, own.images)[0].item<double>(), 1e-9);
+  test::remove_tree(dir);
 }
 
 TEST(Evaluator, LpipsOnlyWithItsWeights) {

@@ -39,6 +39,34 @@ TEST(Trajectory, SegmentsRepeatTheirBoundaries) {
   EXPECT_FLOAT_EQ(k[1][0].item<float>(), 15.0f);
 }
 
+// Keys estimated under bf16 autocast come out in bf16; the path between them is float32, so consecutive frames move
+// by even steps instead of snapping to bf16-representable poses (bf16 has 8 bits of mantissa: near 1, steps of
+// 2^-7 = 0.0078, coarser than 60 frames over a translation of 0.3).
+TEST(Trajectory, Bf16KeysGiveASmoothFloat32Path) {
+  const double s = std::sqrt(0.5);
+  auto keys =
+      torch::tensor({{1.0, 0.0, 0.5, 0.0, 0.0, 0.0, 1.0}, {1.3, 0.1, 0.5, 0.0, s, 0.0, s}}).to(torch::kBFloat16);
+  const int64_t n = 60;
+  auto path = render::interpolate_poses(keys, n);
+  EXPECT_EQ(path.scalar_type(), torch::kFloat32);
+  auto expected = render::interpolate_poses(keys.to(torch::kFloat64), n);
+  EXPECT_LE(test::max_abs_diff(path.to(torch::kFloat64), expected), 1e-6);
+  // Every step of tx is the same (0.3 / 59, bf16 keys' values): none is 0 (a frame repeated) or doubled (a jump).
+  auto steps = path.select(1, 0).diff();
+  const double step = (keys[1][0].item<double>() - keys[0][0].item<double>()) / static_cast<double>(n - 1);
+  EXPECT_LE((steps.to(torch::kFloat64) - step).abs().max().item<double>(), 1e-6);
+  // The rotation turns by the same angle between every pair of frames.
+  auto q = path.slice(1, 3, 7).to(torch::kFloat64);
+  auto angles = (q.slice(0, 1) * q.slice(0, 0, n - 1)).sum(1).abs().clamp_max(1.0).acos();
+  EXPECT_LE((angles - angles.mean()).abs().max().item<double>(), 1e-4);
+  EXPECT_GT(angles.min().item<double>(), 1e-3);
+  auto focal = torch::tensor({{1.0, 1.0, 0.5, 0.5}, {1.2, 1.2, 0.5, 0.5}}).to(torch::kBFloat16);
+  auto k = render::interpolate_intrinsics(focal, n);
+  EXPECT_EQ(k.scalar_type(), torch::kFloat32);
+  const double focal_step = (focal[1][0].item<double>() - focal[0][0].item<double>()) / static_cast<double>(n - 1);
+  EXPECT_LE((k.select(1, 0).diff().to(torch::kFloat64) - focal_step).abs().max().item<double>(), 1e-6);
+}
+
 TEST(Trajectory, RejectsBadShapes) {
   EXPECT_THROW(render::interpolate_poses(torch::zeros({1, 7}), 4), c10::Error);
   EXPECT_THROW(render::interpolate_poses(torch::zeros({2, 6}), 4), c10::Error);

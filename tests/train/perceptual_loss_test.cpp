@@ -1,5 +1,6 @@
 // The LVSM perceptual loss: a hand-computed case (identity first conv, everything after it zero), the ImageNet
-// preprocessing, a finite-difference gradient check, and loading VGG19 weights (and refusing a VGG16 file).
+// preprocessing for MatConvNet's and torchvision's weights, a finite-difference gradient check, and loading VGG19
+// weights (their input preparation from the file's marker or the caller, and refusing a VGG16 file).
 #include "uplvsm/train/perceptual_loss.h"
 
 #include <gtest/gtest.h>
@@ -16,8 +17,8 @@ namespace {
 
 // All conv weights and biases zero, then conv 0 copies the 3 input channels to its first 3 outputs (centre tap) and
 // conv 2 copies its 64 inputs: relu1_2 = relu(preprocessed input) on 3 of 64 channels; deeper features are 0.
-train::PerceptualLoss identity_first_block() {
-  train::PerceptualLoss loss;
+train::PerceptualLoss identity_first_block(train::VggInput input = train::VggInput::MatConvNet) {
+  train::PerceptualLoss loss(input);
   torch::NoGradGuard no_grad;
   for (auto& p : loss->parameters()) p.zero_();
   auto conv = [&](int64_t i) { return loss->vgg->features[size_t(i)]->as<torch::nn::Conv2dImpl>(); };
@@ -44,6 +45,26 @@ TEST(PerceptualLoss, HandComputedCase) {
   EXPECT_NEAR(loss->forward(pred.expand({2, 2, 3, 16, 16}), target.expand({2, 2, 3, 16, 16})).item<double>(), expected,
               1e-6);
   EXPECT_EQ(loss->forward(pred, pred).item<double>(), 0.0);
+}
+
+// torchvision's vgg19() weights see [0, 1] normalised by the ImageNet mean and std; the pixel term stays the official
+// 0..255 one.
+TEST(PerceptualLoss, TorchvisionWeightsSeeImageNetNormalisedInput) {
+  auto loss = identity_first_block(train::VggInput::TorchVision);
+  auto pred = torch::full({1, 3, 16, 16}, 0.5), target = torch::full({1, 3, 16, 16}, 0.25);
+  const auto pre = loss->preprocess(pred);
+  const double mean[3] = {0.485, 0.456, 0.406}, stdev[3] = {0.229, 0.224, 0.225};
+  double f1 = 0;  // relu1_2 of pred; the target's values are all negative -> 0
+  for (int c = 0; c < 3; ++c) {
+    const double expected = (0.5 - mean[c]) / stdev[c];
+    EXPECT_NEAR(pre[0][c][3][5].item<double>(), expected, 1e-6) << c;
+    f1 += std::max(expected, 0.0) - std::max((0.25 - mean[c]) / stdev[c], 0.0);
+  }
+  auto terms = loss->terms(pred, target);
+  EXPECT_NEAR(terms[0].item<double>(), 63.75 / 255.0, 1e-6);
+  EXPECT_NEAR(terms[1].item<double>(), f1 / 64.0 / 2.6 / 255.0, 1e-7);
+  // The official preparation of the same weights gives another relu1_2 term: the two are told apart.
+  EXPECT_GT(std::abs(identity_first_block()->terms(pred, target)[1].item<double>() - terms[1].item<double>()), 5e-4);
 }
 
 TEST(PerceptualLoss, SlicesAndWeightsAreLvsms) {
@@ -97,14 +118,42 @@ TEST(PerceptualLoss, LoadsVgg19Weights) {
   for (const auto& [k, v] : model::state_dict(*source->vgg)) tensors[k] = v;
   tensors["classifier.0.weight"] = torch::zeros({4, 4});  // torchvision files carry the classifier too
   io::write_safetensors(path, tensors);
-  auto loaded = train::load_perceptual_loss(path);
+  auto loaded = train::load_perceptual_loss(path, train::VggInput::TorchVision);
   for (const auto& [k, v] : model::state_dict(*loaded->vgg)) EXPECT_TRUE(torch::equal(v, tensors.at(k))) << k;
   EXPECT_FALSE(loaded->is_training());
+  EXPECT_EQ(loaded->input, train::VggInput::TorchVision);
+  test::remove_tree(dir);
+}
+
+// Which input the weights expect: the marker `uplvsm convert` writes decides, a caller's choice serves unmarked
+// files, and an unmarked file without one is refused naming the fix (the two kinds have the same names and shapes).
+TEST(PerceptualLoss, InputPreparationComesFromTheFileOrTheCaller) {
+  const auto dir = test::temp_dir("perceptual_input");
+  io::TensorMap tensors;
+  for (const auto& [k, v] : model::state_dict(*train::PerceptualLoss()->vgg)) tensors[k] = v;
+  const auto marked = (dir / "marked.safetensors").string(), unmarked = (dir / "plain.safetensors").string();
+  io::write_safetensors(marked, tensors, {{train::kVggInputMetadataKey, "matconvnet"}});
+  io::write_safetensors(unmarked, tensors);
+  using train::VggInput;
+  EXPECT_EQ(train::load_perceptual_loss(marked)->input, VggInput::MatConvNet);
+  EXPECT_EQ(train::resolve_vgg_input(marked, VggInput::MatConvNet), VggInput::MatConvNet);
+  auto contradiction = test::error_of([&] { train::resolve_vgg_input(marked, VggInput::TorchVision); });
+  EXPECT_NE(contradiction.find("marked as taking matconvnet input, not torchvision"), std::string::npos)
+      << contradiction;
+  EXPECT_EQ(train::resolve_vgg_input(unmarked, VggInput::TorchVision), VggInput::TorchVision);
+  EXPECT_EQ(train::resolve_vgg_input(unmarked, VggInput::MatConvNet), VggInput::MatConvNet);
+  auto refused = test::error_of([&] { train::load_perceptual_loss(unmarked); });
+  EXPECT_NE(refused.find("plain.safetensors: cannot tell which input"), std::string::npos) << refused;
+  EXPECT_NE(refused.find("--vgg19-input torchvision"), std::string::npos) << refused;
+  EXPECT_EQ(train::parse_vgg_input("torchvision"), VggInput::TorchVision);
+  EXPECT_THROW(train::parse_vgg_input("caffe"), std::runtime_error);
   test::remove_tree(dir);
 }
 
 TEST(PerceptualLoss, RefusesOtherVggWeights) {
   UPLVSM_NEEDS_FIXTURES();
-  auto err = test::error_of([] { train::load_perceptual_loss(test::fixture("lpips/vgg16_features.safetensors")); });
+  auto err = test::error_of([] {
+    train::load_perceptual_loss(test::fixture("lpips/vgg16_features.safetensors"), train::VggInput::TorchVision);
+  });
   EXPECT_NE(err.find("vgg16_features.safetensors"), std::string::npos) << err;
 }

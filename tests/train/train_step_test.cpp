@@ -152,6 +152,40 @@ TEST(TrainStep, ReleasesThePreviousStepsGradients) {
   }
 }
 
+// training.grad_clip_norm 0 is the official "no clipping": the gradients are left as they are, no step is skipped as
+// too large (the rule is grad_clip_norm x factor), the norm reads 0 (the official logs 0.0), and the weights learn.
+TEST(TrainStep, GradClipNormZeroLearnsWithoutClippingOrSkipping) {
+  torch::manual_seed(4);
+  model::UPLVSM net(test::micro_model());
+  net->train();
+  TrainingConfig tc;
+  tc.lr = 1e-3;
+  tc.warmup = 0;
+  tc.train_steps = 10;
+  tc.grad_clip_norm = 0;
+  std::unique_ptr<torch::optim::AdamW> optimizer;
+  auto ctx = step_context(net, tc, optimizer);
+  std::vector<torch::Tensor> before;
+  for (const auto& p : ctx.params) before.push_back(p.detach().clone());
+  train::TrainState state;
+  const std::vector<train::MicroBatch> batch{{random_views(2), random_views(2)}};
+  for (int k = 0; k < 3; ++k) {
+    const auto r = train::train_step(ctx, state, batch);
+    EXPECT_FALSE(r.skipped) << k;
+    EXPECT_EQ(r.grad_norm, 0.0) << k;
+  }
+  EXPECT_EQ(state.skipped_gradnorm, 0);
+  EXPECT_EQ(state.param_update_step, 3);
+  double moved = 0;
+  for (size_t i = 0; i < before.size(); ++i) moved += (ctx.params[i].detach() - before[i]).abs().sum().item<double>();
+  EXPECT_GT(moved, 1e-3);
+  // Unclipped: the last step's gradient is the raw one, not scaled to a norm of 0.
+  double norm = 0;
+  for (const auto& p : ctx.params)
+    if (p.grad().defined()) norm += p.grad().pow(2).sum().item<double>();
+  EXPECT_GT(std::sqrt(norm), 1e-3);
+}
+
 // training.l1_loss_weight, ssim_loss_weight and gradient_difference_weight add their terms to the step's loss: the
 // reported loss is w_l2 MSE + w_l1 mean|render - target| + w_ssim (1 - SSIM) + w_gd GDL, SSIM from the evaluation's
 // metric on the same render.

@@ -217,7 +217,7 @@ TEST(Trainer, PerceptualLossWithVgg19WeightsElseMseOnly) {
   for (const auto& [k, v] : model::state_dict(*vgg->vgg)) weights[k] = v;
   auto run = test::temp_dir("train_perceptual").string();
   const auto vgg_path = run + "/vgg19.safetensors";
-  io::write_safetensors(vgg_path, weights);
+  io::write_safetensors(vgg_path, weights, {{train::kVggInputMetadataKey, "matconvnet"}});
   auto opt = test::micro_run_options(run + "/run");
   opt.perceptual_weights = vgg_path;
   train::train(config, opt);

@@ -13,6 +13,7 @@
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/train/perceptual_loss.h"
 
 namespace uplvsm::cli {
 
@@ -52,7 +53,11 @@ void write_vgg19_extras(const model::PretrainedWeights& w, const std::string& ou
     if (k.rfind(prefix + "features.", 0) == 0) vgg[k.substr(prefix.size())] = v.contiguous();
   if (vgg.empty()) return;
   auto path = fs::path(output).replace_extension(".vgg19.safetensors").string();
-  io::write_safetensors(path, vgg, {{"source", w.path}, {"content", "VGG19 features of the perceptual loss"}});
+  // Marked, so the perceptual loss prepares MatConvNet's input for them (train/perceptual_loss.h).
+  io::write_safetensors(path, vgg,
+                        {{"source", w.path},
+                         {"content", "VGG19 features of the perceptual loss"},
+                         {train::kVggInputMetadataKey, train::to_string(train::VggInput::MatConvNet)}});
   std::cout << fmt::format("wrote the {} VGG19 feature tensors of the perceptual loss to {}\n", vgg.size(), path);
 }
 

@@ -38,6 +38,7 @@ struct GridArgs {
   int64_t steps = -1, eval_scenes = 0;
   std::vector<int64_t> seeds;          // empty: each config's training.seed
   std::vector<std::string> overrides;  // --set, applied to every config
+  train::VggInput vgg19_input = train::VggInput::Auto;
 };
 
 struct GridRun {
@@ -70,6 +71,7 @@ void add_grid_options(CLI::App* cmd, GridArgs& a) {
       ->capture_default_str();
   cmd->add_option("--vgg19", a.vgg19, "VGG19 weights for the perceptual loss (as for `uplvsm train`)")
       ->check(CLI::ExistingFile);
+  add_vgg19_input_option(cmd, a.vgg19_input);
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -134,6 +136,7 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   topt.run_dir = dir.string();
   topt.device = device;
   topt.perceptual_weights = a.vgg19;
+  topt.perceptual_input = a.vgg19_input;
   if (r.config.training.eval_every > 0)
     topt.periodic_eval = periodic_evaluation(r.config, a.data, dir.string(), device);
   auto trained = train::train(r.config, topt);

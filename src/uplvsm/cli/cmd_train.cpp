@@ -57,6 +57,7 @@ struct TrainArgs {
   std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
   std::vector<std::string> set;
   int64_t steps = -1, stop_after = -1;
+  train::VggInput vgg19_input = train::VggInput::Auto;
 };
 
 void add_train_options(CLI::App* cmd, TrainArgs& a) {
@@ -82,6 +83,7 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
                   "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); without it "
                   "a config with training.perceptual_loss_weight > 0 trains with MSE only")
       ->check(CLI::ExistingFile);
+  add_vgg19_input_option(cmd, a.vgg19_input);
   cmd->add_option("--amp", a.amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
       ->check(CLI::IsMember({"none", "bf16"}));
   cmd->add_option("--stage", a.stage,
@@ -128,6 +130,7 @@ train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
   opt.resume = a.resume;
   opt.init_weights = std::filesystem::is_directory(a.init) ? model::resolve_checkpoint(a.init) : a.init;
   opt.perceptual_weights = a.vgg19;
+  opt.perceptual_input = a.vgg19_input;
   // torchrun / SLURM launch variables make this process one rank of a data-parallel run.
   const auto env = train::distributed_env_from_environment();
   opt.device = train::rank_device(parse_device(a.common.device), env);

@@ -9,6 +9,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/model/novel_view_model.h"
+#include "uplvsm/train/perceptual_loss.h"
 
 namespace uplvsm::cli {
 
@@ -31,6 +32,8 @@ void add_model_options(CLI::App* cmd, ModelSource& src);
 // here, once; `help` says what the choice applies to in this command.
 CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help);
 CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help);
+// --vgg19-input (auto, matconvnet, torchvision): the input the --vgg19 weights expect (train/perceptual_loss.h).
+CLI::Option* add_vgg19_input_option(CLI::App* cmd, train::VggInput& input);
 
 // The scenes eval, render and serve read: a dataset root, its split and an evaluation index (default
 // <data>/evaluation_index.json).

@@ -49,6 +49,17 @@ CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help) {
       ->default_str(to_string(amp));
 }
 
+CLI::Option* add_vgg19_input_option(CLI::App* cmd, train::VggInput& input) {
+  return cmd
+      ->add_option_function<std::string>(
+          "--vgg19-input", [&input](const std::string& name) { input = train::parse_vgg_input(name); },
+          "the input the --vgg19 weights expect: matconvnet (the official checkpoint's, 255 x image - mean) or "
+          "torchvision (torchvision's vgg19(), [0, 1] normalised by the ImageNet mean and std); auto: the file's "
+          "marker (`uplvsm convert` marks the files it writes), an error without one")
+      ->check(CLI::IsMember({"auto", "matconvnet", "torchvision"}))
+      ->default_str(train::to_string(input));
+}
+
 CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help) {
   std::vector<std::string> names;
   for (auto c :

@@ -1,5 +1,6 @@
 #include "uplvsm/core/autocast.h"
 
+#include <ATen/Context.h>
 #include <ATen/autocast_mode.h>
 
 #include <stdexcept>
@@ -25,6 +26,13 @@ void set_dtype_on(bool cuda, at::ScalarType t) {
 #endif
 
 }  // namespace
+
+bool set_cuda_tf32(torch::Device device, bool on) {
+  if (!device.is_cuda()) return false;
+  at::globalContext().setAllowTF32CuBLAS(on);
+  at::globalContext().setAllowTF32CuDNN(on);
+  return true;
+}
 
 bool autocast_active(torch::Device device) { return is_enabled_on(device.is_cuda()); }
 

@@ -14,6 +14,11 @@ bool autocast_active(torch::Device device);
 // The lower-precision dtype autocast uses on `device`'s type (bf16 in every region AutocastGuard opens).
 at::ScalarType autocast_dtype(torch::Device device);
 
+// The official `use_tf32` (torch.backends.cuda.matmul.allow_tf32 and cudnn.allow_tf32, process-wide): on a CUDA
+// `device` both switches are set to `on` and true is returned; on any other device nothing changes (TF32 is a CUDA
+// tensor-core mode) and false is returned.
+bool set_cuda_tf32(torch::Device device, bool on);
+
 class AutocastGuard {
  public:
   // Inactive (a no-op) when `enabled` is false.

@@ -162,6 +162,7 @@ void training_fields(C& c, F&& f) {
   f("seed", c.seed);
   f("loader_threads", c.loader_threads);
   f("amp", c.amp);
+  f("tf32", c.tf32);
   f("target_poses", c.target_poses);
   f("max_train_scenes", c.max_train_scenes);
   f("chunks_per_shuffle", c.chunks_per_shuffle);

@@ -144,6 +144,9 @@ struct TrainingConfig {
   int64_t seed = 777;
   int64_t loader_threads = 2;
   Amp amp = Amp::None;
+  // TF32 tensor-core matmuls and convolutions for the run's fp32 work on CUDA (the official `use_tf32`: true in the
+  // paper's recipe); no effect on CPU.
+  bool tf32 = false;
   // Where targets' cameras come from (model::TargetPoses): "auto" (estimator for uplvsm, dataset for the posed
   // variants), "estimator", "mapper" (camera-control fine-tuning) or "dataset" (the SfM-target-pose ablation).
   TargetPoseChoice target_poses = TargetPoseChoice::Auto;

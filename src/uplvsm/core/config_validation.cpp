@@ -134,6 +134,12 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s,
           "training.num_views must be >= num_input_views and >= 2");
   require(tr.batch_size >= 1 && tr.grad_accum_steps >= 1, s, "training.batch_size and grad_accum_steps must be >= 1");
+  require(tr.grad_clip_norm >= 0 && std::isfinite(tr.grad_clip_norm), s,
+          fmt::format("training.grad_clip_norm must be a finite number >= 0 (0: no clipping and no skipping of "
+                      "large-norm steps, as the official), got {}",
+                      tr.grad_clip_norm));
+  require(tr.allowed_gradnorm_factor > 0 && std::isfinite(tr.allowed_gradnorm_factor), s,
+          "training.allowed_gradnorm_factor must be a finite number > 0");
   require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
           "training: need 1 <= min_frame_dist <= max_frame_dist");

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <tuple>
 
 #include <fmt/format.h>
@@ -411,7 +412,8 @@ RawScene ChunkDataset::scene(int64_t i) const {
   return scene_ref(i, holder);  // a copy sharing the tensors' storage (read-only use expected)
 }
 
-SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const {
+SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt,
+                                    int64_t* resized) const {
   ChunkPtr holder;
   const RawScene& s = scene_ref(i, holder);
   const LvsmSceneMetadata* lvsm = holder->lvsm.get();
@@ -427,15 +429,22 @@ SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frame
   auto [h0, w0] = io::image_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
   std::vector<torch::Tensor> decoded, cameras;
   decoded.reserve(frames.size());
+  std::optional<std::pair<int, int>> stacked;  // the output size of the first requested frame
+  int64_t other_sizes = 0;
   for (int64_t f : frames) {
     const auto bytes = f == 0 ? first : bytes_of(f);
     std::string what = fmt::format("{} frame {}", where, f);
     auto img = io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
     int h = static_cast<int>(img.size(0)), w = static_cast<int>(img.size(1));
-    if (h != h0 || w != w0)
+    const auto out = preprocessed_size(h, w, opt);
+    if (!stacked) stacked = out;
+    const bool other_size = h != h0 || w != w0;
+    if ((other_size && !resized) || out != *stacked)
       throw BadFrameError(
-          fmt::format("{}: frame is {}x{} but frame 0 is {}x{} (pixelSplat skips such frames)", what, h, w, h0, w0),
+          fmt::format("{}: frame is {}x{} but frame 0 is {}x{} ({})", what, h, w, h0, w0,
+                      resized ? "another output size without a square crop" : "pixelSplat skips such frames"),
           s.key, f, h0, w0, h, w);
+    other_sizes += other_size ? 1 : 0;
     auto row = lvsm ? lvsm_camera_row(*lvsm, f, h, w) : s.cameras[f];
     if (!torch::isfinite(row).all().item<bool>())
       throw std::runtime_error(fmt::format("{}: field 'cameras' has a NaN/Inf value", what));
@@ -444,6 +453,7 @@ SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frame
   }
   SceneViews views = preprocess(decoded, torch::stack(cameras), opt, where);
   views.frames = frames;
+  if (resized) *resized += other_sizes;
   return views;
 }
 

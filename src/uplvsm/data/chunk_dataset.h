@@ -98,7 +98,12 @@ class ChunkDataset {
   // Decodes the requested frames (any order, repeats allowed) and preprocesses them; SceneViews.frames = frames.
   // Throws BadFrameError for a frame whose size differs from frame 0, std::runtime_error for a frame index out
   // of range, an undecodable JPEG or a NaN/Inf camera (naming the scene key and frame).
-  SceneViews load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt) const;
+  // With `resized` given, a frame of another size than frame 0 is kept, as the official dataset keeps it: every
+  // frame is resized from its own size (preprocess), so it comes out as the others do; such frames are counted in
+  // *resized. BadFrameError then only for a frame whose output size would differ from the first requested frame's
+  // (another aspect ratio without a square crop: the frames could not be stacked).
+  SceneViews load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt,
+                        int64_t* resized = nullptr) const;
 
  private:
   struct Entry {

@@ -139,6 +139,13 @@ torch::Tensor preprocess_frame(const torch::Tensor& frame, const float* cam, con
 
 }  // namespace
 
+std::pair<int, int> preprocessed_size(int height, int width, const PreprocessOptions& opt) {
+  const int wr = resized_width(height, width, opt.image_size, opt.patch_size);
+  if (!opt.square_crop) return {opt.image_size, wr};
+  const int side = std::min(opt.image_size, wr);
+  return {side, side};
+}
+
 int resized_width(int height, int width, int image_size, int patch_size) {
   if (height <= 0 || width <= 0 || image_size <= 0 || patch_size <= 0)
     throw std::runtime_error(fmt::format("resized_width: bad sizes (image {}x{}, image_size {}, patch {})", height,

@@ -4,6 +4,7 @@
 #include <torch/torch.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "uplvsm/core/config.h"
@@ -35,6 +36,8 @@ SceneViews preprocess_photo(const torch::Tensor& hwc_u8, double fov_deg, const P
 
 // Wr = round(int(Hr / H0 * W0) / patch) * patch, with Python's round (half to even), as the official code.
 int resized_width(int height, int width, int image_size, int patch_size);
+// The [rows, columns] a height x width frame preprocesses to: [Hr, Wr], or the square crop's side twice.
+std::pair<int, int> preprocessed_size(int height, int width, const PreprocessOptions& opt);
 
 // PIL's Image.resize((out_w, out_h), Image.LANCZOS) on a uint8 [H,W,3] image, bit for bit (Pillow's
 // ImagingResample: separable, horizontal pass then vertical, support scaled by the downscale factor, coefficients

@@ -49,7 +49,7 @@ struct RunState {
   bool ordered_views = true;  // the dataset's frames follow a path: copy-nearest by frame index, else by direction
   std::vector<std::optional<SceneResult>> results;  // by Job::position
   std::vector<std::string> grids;
-  int64_t bad_frames = 0, done = 0;
+  int64_t bad_frames = 0, resized_frames = 0, done = 0;
   double psnr_sum = 0, ssim_sum = 0, lpips_sum = 0;
 };
 
@@ -101,7 +101,7 @@ std::vector<std::vector<const Job*>> make_batches(const std::vector<Job>& jobs, 
 // The scenes of one batch, decoded and preprocessed (on a helper thread while the previous batch runs).
 struct LoadedBatch {
   std::vector<Loaded> scenes;
-  int64_t bad_frames = 0;
+  int64_t bad_frames = 0, resized_frames = 0;
 };
 
 LoadedBatch load_batch(const data::ChunkDataset& dataset, const std::vector<const Job*>& batch,
@@ -111,9 +111,15 @@ LoadedBatch load_batch(const data::ChunkDataset& dataset, const std::vector<cons
     std::vector<int64_t> frames = job->entry.context;
     frames.insert(frames.end(), job->entry.target.begin(), job->entry.target.end());
     try {
-      out.scenes.push_back({job, dataset.load_views(job->dataset_index, frames, prep)});
+      // A frame of another size than frame 0 is resized from its own size, as the official dataset does (each
+      // frame on its own), and the scene scored; only frames that cannot be stacked drop the scene.
+      int64_t resized = 0;
+      out.scenes.push_back({job, dataset.load_views(job->dataset_index, frames, prep, &resized)});
+      if (resized > 0)
+        spdlog::info("eval: scene {}: {} frame(s) of another size than frame 0, resized as the official dataset does",
+                     job->entry.key, resized);
+      out.resized_frames += resized;
     } catch (const data::BadFrameError& e) {
-      // pixelSplat drops such frames; an evaluation entry names fixed frames, so the scene is dropped instead.
       spdlog::warn("eval: skipping scene {}: {}", job->entry.key, e.what());
       ++out.bad_frames;
     }
@@ -289,18 +295,22 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
 
 // Every shard's scenes, bad-frame counts and grids into every rank's state (results by index position).
 static void merge_shards(const EvalOptions& opt, RunState& state) {
-  nlohmann::json mine{{"bad_frames", state.bad_frames}, {"grids", state.grids}, {"scenes", nlohmann::json::array()}};
+  nlohmann::json mine{{"bad_frames", state.bad_frames},
+                      {"resized_frames", state.resized_frames},
+                      {"grids", state.grids},
+                      {"scenes", nlohmann::json::array()}};
   for (size_t pos = 0; pos < state.results.size(); ++pos)
     if (state.results[pos])
       mine["scenes"].push_back({{"position", pos}, {"scene", scene_to_json(*state.results[pos])}});
   const auto all = opt.gather(mine.dump());
   TORCH_CHECK(static_cast<int>(all.size()) == opt.shard_count, "eval: gathered ", all.size(), " shards, expected ",
               opt.shard_count);
-  state.bad_frames = 0;
+  state.bad_frames = state.resized_frames = 0;
   state.grids.clear();
   for (const auto& text : all) {
     const auto j = nlohmann::json::parse(text);
     state.bad_frames += j.at("bad_frames").get<int64_t>();
+    state.resized_frames += j.at("resized_frames").get<int64_t>();
     for (const auto& g : j.at("grids")) state.grids.push_back(g.get<std::string>());
     for (const auto& e : j.at("scenes"))
       state.results.at(e.at("position").get<size_t>()) = scene_from_json(e.at("scene"));
@@ -324,6 +334,7 @@ static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& datas
     LoadedBatch current = next.get();
     if (k + 1 < batches.size()) next = load(k + 1);  // decode the next batch while this one runs
     state.bad_frames += current.bad_frames;
+    state.resized_frames += current.resized_frames;
     if (!current.scenes.empty()) run_loaded(net, current.scenes, opt, state);
     state.done += static_cast<int64_t>(batches[k].size());
     const auto ok = static_cast<double>(state.done - state.bad_frames);
@@ -364,6 +375,7 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
   s.skipped_null = counts.skipped_null;
   s.skipped_missing = counts.skipped_missing;
   s.skipped_bad_frames = state.bad_frames;
+  s.resized_frames = state.resized_frames;
   s.scene_grids = std::move(state.grids);
   if (opt.lpips)
     s.lpips = {{"available", true}, {"net", opt.lpips->net == LpipsNet::Vgg ? "vgg" : "alex"}};

@@ -103,10 +103,11 @@ struct EvalSummary {
   std::map<std::string, int64_t> span_scenes;
   std::vector<SceneResult> per_scene;  // index (key) order
   double seconds = 0;
-  int64_t skipped_null = 0;              // null entries of the index
-  int64_t skipped_missing = 0;           // keys of the index absent from the dataset
-  int64_t skipped_bad_frames = 0;        // scenes with a frame of another size than frame 0 (pixelSplat skips them)
-  std::vector<std::string> scene_grids;  // paths of the PNG grids written
+  int64_t skipped_null = 0;        // null entries of the index
+  int64_t skipped_missing = 0;     // keys of the index absent from the dataset
+  int64_t skipped_bad_frames = 0;  // scenes with frames that preprocess to different sizes (no square crop)
+  int64_t resized_frames = 0;      // frames of another size than their scene's frame 0, resized as the official does
+  std::vector<std::string> scene_grids;           // paths of the PNG grids written
   nlohmann::json lpips = {{"available", false}};  // {"available", "net"}; set by evaluate()
 };
 

@@ -65,6 +65,7 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
   j["views"] = views;
   j["skipped"] = {
       {"null_entries", s.skipped_null}, {"missing_keys", s.skipped_missing}, {"bad_frames", s.skipped_bad_frames}};
+  j["resized_frames"] = s.resized_frames;  // scored, each resized from its own size as the official dataset does
   j["table"] = s.table;
   j["buckets"] = s.buckets;
   j["bucket_scenes"] = s.bucket_scenes;

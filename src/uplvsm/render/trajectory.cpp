@@ -14,6 +14,13 @@ namespace uplvsm::render {
 
 namespace {
 double fraction(int64_t i, int64_t n) { return n <= 1 ? 0.0 : static_cast<double>(i) / static_cast<double>(n - 1); }
+
+// A path is returned in float32 (float64 keys: float64), as the official render_video, never in the keys' lower
+// precision: keys estimated under bf16 autocast would snap every in-between frame to a bf16 pose, and the video
+// would step instead of moving smoothly.
+torch::ScalarType path_dtype(const torch::Tensor& keys) {
+  return keys.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
+}
 }  // namespace
 
 torch::Tensor interpolate_poses(const torch::Tensor& keys, int64_t n, double pivot_depth) {
@@ -37,19 +44,20 @@ torch::Tensor interpolate_poses(const torch::Tensor& keys, int64_t n, double piv
       frames.push_back(torch::cat({r0 * (1 - a) + r1 * a + orbit(q), q}));
     }
   }
-  return torch::stack(frames).to(keys.scalar_type());
+  return torch::stack(frames).to(path_dtype(keys));
 }
 
 torch::Tensor interpolate_intrinsics(const torch::Tensor& keys, int64_t n) {
   TORCH_CHECK(keys.dim() == 2 && keys.size(1) == 4 && keys.size(0) >= 2,
               "interpolate_intrinsics: expected [K >= 2, 4], got ", keys.sizes());
+  auto k = keys.to(torch::kFloat64);
   std::vector<torch::Tensor> frames;
-  for (int64_t s = 0; s + 1 < keys.size(0); ++s)
+  for (int64_t s = 0; s + 1 < k.size(0); ++s)
     for (int64_t i = 0; i < n; ++i) {
       double a = fraction(i, n);
-      frames.push_back(keys[s] * (1 - a) + keys[s + 1] * a);
+      frames.push_back(k[s] * (1 - a) + k[s + 1] * a);
     }
-  return torch::stack(frames);
+  return torch::stack(frames).to(path_dtype(keys));
 }
 
 torch::Tensor look_at_pose(const torch::Tensor& position_in, const torch::Tensor& target_in) {

@@ -3,7 +3,10 @@
 // relu3_2, relu4_2 and relu5_2 with the LVSM layer weights:
 //   loss = (L1(x) + L1(f1)/2.6 + L1(f2)/4.8 + L1(f3)/3.7 + L1(f4)/5.6 + 10 L1(f5)/1.5) / 255,  L1 = mean |a - b|.
 // Weights: a torchvision-format VGG19 file (`features.N.*`), e.g. the one `uplvsm convert` extracts from an official
-// checkpoint (`<output>.vgg19.safetensors`).
+// checkpoint (`<output>.vgg19.safetensors`). The input is prepared for the weights given: the official MatConvNet
+// weights see 255*img - mean, torchvision's own vgg19() weights see (img - mean) / std on [0, 1]; the pixel term is
+// the official one either way. The divisors were tuned on the MatConvNet weights, so with torchvision's the five
+// feature terms weigh differently from the paper's loss.
 #pragma once
 #include <torch/torch.h>
 
@@ -14,10 +17,18 @@
 
 namespace uplvsm::train {
 
-struct PerceptualLossImpl : torch::nn::Module {
-  PerceptualLossImpl();
+// What input a VGG19 weight file was trained on. Auto: read it from the file (the marker `uplvsm convert` writes).
+enum class VggInput { Auto, MatConvNet, TorchVision };
+VggInput parse_vgg_input(const std::string& name);  // "auto", "matconvnet", "torchvision"
+std::string to_string(VggInput input);
+// The safetensors metadata key (value "matconvnet" or "torchvision") that names a file's VggInput.
+inline constexpr const char* kVggInputMetadataKey = "vgg19_input";
 
-  // 255 * img - ImageNet mean (123.68, 116.779, 103.939), as the official _preprocess_images.
+struct PerceptualLossImpl : torch::nn::Module {
+  explicit PerceptualLossImpl(VggInput input = VggInput::MatConvNet);
+
+  // MatConvNet: 255 * img - ImageNet mean (123.68, 116.779, 103.939), as the official _preprocess_images.
+  // TorchVision: (img - (0.485, 0.456, 0.406)) / (0.229, 0.224, 0.225), as torchvision's VGG19_Weights transforms.
   torch::Tensor preprocess(const torch::Tensor& images01) const;
   // The five compared activations of a preprocessed [N, 3, H, W] batch.
   std::vector<torch::Tensor> features(const torch::Tensor& preprocessed);
@@ -27,6 +38,7 @@ struct PerceptualLossImpl : torch::nn::Module {
   torch::Tensor forward(const torch::Tensor& pred, const torch::Tensor& target);
 
   model::VggFeatures vgg{nullptr};
+  VggInput input;  // never Auto
 };
 TORCH_MODULE(PerceptualLoss);
 
@@ -35,10 +47,16 @@ const std::vector<int64_t>& perceptual_slice_ends();
 // Divisors of the six L1 terms before the common /255: 1, 2.6, 4.8, 3.7, 5.6, 1.5/10.
 const std::vector<double>& perceptual_term_divisors();
 
+// The input preparation for the weights in `path`: the file's marker, else `requested`. A file without a marker
+// (torchvision's .pth, or a file converted before the marker existed) needs `requested`: the two kinds hold the same
+// tensors under the same names and cannot be told apart reliably, so Auto is refused with an error naming the choice.
+// A marker that contradicts `requested` is an error too.
+VggInput resolve_vgg_input(const std::string& path, VggInput requested);
 // A frozen, eval-mode perceptual loss with VGG19 weights from `path` (errors name the file and key).
-PerceptualLoss load_perceptual_loss(const std::string& path);
+PerceptualLoss load_perceptual_loss(const std::string& path, VggInput requested = VggInput::Auto);
 // What a run with training.perceptual_loss_weight = `weight` uses: the loss on `device` from `weights_path`, or null
 // (MSE only) when the weight is 0 or no weights were given, with a warning naming what is unused or missing.
-PerceptualLoss perceptual_loss_for(double weight, const std::string& weights_path, torch::Device device);
+PerceptualLoss perceptual_loss_for(double weight, const std::string& weights_path, torch::Device device,
+                                   VggInput requested = VggInput::Auto);
 
 }  // namespace uplvsm::train

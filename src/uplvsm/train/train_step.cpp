@@ -186,8 +186,9 @@ void apply_update(StepContext& ctx, TrainState& state, StepResult& r) {
   }
   for (auto& p : ctx.params)
     if (p.grad().defined()) p.grad().nan_to_num_(0.0, 1e-6, -1e-6);
-  r.grad_norm = torch::nn::utils::clip_grad_norm_(ctx.params, tc.grad_clip_norm);
-  if (r.grad_norm > tc.grad_clip_norm * tc.allowed_gradnorm_factor) {
+  // Official: grad_clip_norm 0 turns off clipping and the skip rule alike, and the logged norm is 0 (not measured).
+  if (tc.grad_clip_norm > 0) r.grad_norm = torch::nn::utils::clip_grad_norm_(ctx.params, tc.grad_clip_norm);
+  if (tc.grad_clip_norm > 0 && r.grad_norm > tc.grad_clip_norm * tc.allowed_gradnorm_factor) {
     ++state.skipped_gradnorm;  // official: skip the update, still advance the schedule
     r.skipped = true;
   } else {

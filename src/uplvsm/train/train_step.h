@@ -5,6 +5,7 @@
 //   [data parallel: average gradients and losses]
 //   non-finite loss: no update, schedule does not move; else nan_to_num(grads) -> clip (norm returned BEFORE
 //   clipping) -> skip the update when norm > clip x factor -> AdamW at the scheduled LR; the schedule moves.
+//   grad_clip_norm 0: neither the clip nor the skip rule (the norm is reported as 0), as the official.
 #pragma once
 #include <torch/torch.h>
 
@@ -39,7 +40,7 @@ struct StepContext {
 struct StepResult {
   double loss = 0, mse = 0;  // averaged over micro-batches (and ranks)
   double lr = 0;             // the learning rate this step used (scheduled; also when the update was skipped)
-  double grad_norm = 0;      // total norm before clipping (0 on a non-finite loss)
+  double grad_norm = 0;      // total norm before clipping (0 on a non-finite loss or with clipping off)
   bool skipped = false;      // no parameter update (non-finite loss, or gradient norm above clip x factor)
   bool stop = false;         // some rank asked to stop (a signal); agreed by every rank
 };

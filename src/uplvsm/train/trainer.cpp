@@ -178,10 +178,12 @@ StepContext make_step_context(model::NovelViewModelImpl& net, torch::optim::Opti
   ctx.params = trainable_parameters(net);
   ctx.training = tc;
   ctx.target_poses = model::resolve_target_poses(tc.target_poses, net);
-  ctx.perceptual = perceptual_loss_for(tc.perceptual_loss_weight, opt.perceptual_weights, opt.device);
+  ctx.perceptual =
+      perceptual_loss_for(tc.perceptual_loss_weight, opt.perceptual_weights, opt.device, opt.perceptual_input);
   ctx.bf16 = tc.amp == Amp::Bf16;
   ctx.comm = opt.comm.get();
   if (ctx.bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
+  if (set_cuda_tf32(opt.device, tc.tf32)) spdlog::info("TF32 matmuls and convolutions: {}", tc.tf32 ? "on" : "off");
   spdlog::info("{} ({} variant), target poses from {}", net.name(), to_string(config.model.variant),
                model::to_string(ctx.target_poses));
   net.set_grad_checkpoint_every(tc.grad_checkpoint_every);

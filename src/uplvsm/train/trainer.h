@@ -17,6 +17,7 @@
 #include "uplvsm/data/loader.h"
 #include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/train/distributed.h"
+#include "uplvsm/train/perceptual_loss.h"
 
 namespace uplvsm::train {
 
@@ -29,6 +30,7 @@ struct TrainOptions {
   // VGG19 weights (torchvision `features.N.*`) for the perceptual loss; without them a config asking for the
   // perceptual loss trains with MSE only, with a warning.
   std::string perceptual_weights;
+  VggInput perceptual_input = VggInput::Auto;  // the input those weights expect (Auto: the file's marker)
   torch::Device device = torch::kCPU;
   int64_t stop_after_steps = -1;  // stop (with a checkpoint) after this many steps of this invocation
   bool progress = true;
