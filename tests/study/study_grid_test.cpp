@@ -1,7 +1,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 
+#include "test_util.h"
+#include "uplvsm/study/grid_report.h"
 #include "uplvsm/study/study_grid.h"
 
 using namespace uplvsm;
@@ -56,4 +61,28 @@ TEST(StudyGrid, SeedsAreAveragedWithTheirSpread) {
   const auto md = study::grid_markdown(cells, false);
   EXPECT_NE(md.find("| lvsm | 20.50 ±0.50 / 0.650 / 0.250 | 18.25 ±0.25 / 0.525 / - |"), std::string::npos) << md;
   EXPECT_NE(study::grid_csv(runs).find("lvsm,noise sd 0.1,1,778,18.500000,0.550000,\n"), std::string::npos);
+}
+
+// The report a grid leaves: the table over seeds, every run in table.csv, a plot per metric, and held-out curves
+// from the runs' periodic evaluations (a run without them adds no curve; no run with them, no curves files).
+TEST(StudyGrid, ReportWritesTablePlotsAndHeldOutCurves) {
+  const auto dir = test::temp_dir("grid_report");
+  std::ofstream(dir / "a.jsonl") << "{\"step\": 10, \"loss\": 0.1}\n"
+                                 << "{\"step\": 500, \"eval\": {\"psnr\": 21.5}}\n"
+                                 << "{\"step\": 1000, \"eval\": {\"psnr\": 22.25}}\n";
+  std::vector<study::GridCell> runs = {{"lvsm", "noise sd 0", 0, 22.25, 0.6, std::nan(""), 777},
+                                       {"uplvsm", "noise sd 0", 0, 21.0, 0.5, std::nan(""), 777}};
+  std::vector<study::RunCurve> curves = {{"lvsm", "noise sd 0", (dir / "a.jsonl").string(), 777},
+                                         {"uplvsm", "noise sd 0", (dir / "missing.jsonl").string(), 777}};
+  const auto table = study::write_grid_report(runs, curves, dir.string(), {"Pose noise", "level"}, "Two runs.");
+  EXPECT_NE(table.find("| lvsm | 22.25 / 0.600 / - |"), std::string::npos) << table;
+  for (const auto* file : {"table.md", "table.csv", "psnr.png", "ssim.png", "curves.csv", "curves.png", "README.md"})
+    EXPECT_TRUE(std::filesystem::exists(dir / file)) << file;
+  EXPECT_FALSE(std::filesystem::exists(dir / "lpips.png"));
+  std::ifstream csv(dir / "curves.csv");
+  const std::string text((std::istreambuf_iterator<char>(csv)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text, "series,setting,seed,step,psnr\nlvsm,noise sd 0,777,500,21.500000\nlvsm,noise sd 0,777,1000,22.250000\n");
+  const auto empty = test::temp_dir("grid_report_no_curves");
+  study::write_grid_report(runs, {curves[1]}, empty.string(), {"Pose noise", "level"}, "No curves.");
+  EXPECT_FALSE(std::filesystem::exists(empty / "curves.png"));
 }

@@ -22,6 +22,7 @@
 #include "uplvsm/io/image.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/study/grid_report.h"
 #include "uplvsm/study/study_grid.h"
 #include "uplvsm/train/trainer.h"
 
@@ -173,76 +174,14 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   return cell_from_json(j);
 }
 
-// A run's held-out PSNR by step (training.eval_every's lines of its metrics.jsonl); empty without them.
-io::Series held_out_curve(const GridRun& r, const GridArgs& a) {
-  io::Series curve{fmt::format("{} {} s{}", r.series, r.setting, r.config.training.seed), {}, {}};
-  std::ifstream in(fs::path(a.out) / "runs" / r.dir_name / "metrics.jsonl");
-  for (std::string line; std::getline(in, line);) {
-    auto j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
-    if (j.is_discarded() || !j.contains("eval") || !j["eval"].contains("psnr")) continue;
-    curve.x.push_back(j["step"].get<double>());
-    curve.y.push_back(j["eval"]["psnr"].get<double>());
-  }
-  return curve;
-}
-
-// curves.csv and curves.png: every trained run's held-out PSNR against the step, to show where it levels off.
-void write_curves(const std::vector<GridRun>& runs, const GridArgs& a, const std::string& title) {
-  std::vector<io::Series> curves;
-  std::string csv = "series,setting,seed,step,psnr\n";
-  for (const auto& r : runs) {
-    if (!r.same_as.empty()) continue;
-    auto c = held_out_curve(r, a);
-    for (size_t i = 0; i < c.x.size(); ++i)
-      csv += fmt::format("{},{},{},{:g},{:.6f}\n", r.series, r.setting, r.config.training.seed, c.x[i], c.y[i]);
-    if (!c.x.empty()) curves.push_back(std::move(c));
-  }
-  if (curves.empty()) return;
-  io::write_file_atomic((fs::path(a.out) / "curves.csv").string(), csv.data(), csv.size());
-  io::PlotOptions po;
-  po.title = title + ": held-out PSNR during training";
-  po.xlabel = "step";
-  po.ylabel = "psnr";
-  po.width = 1200;
-  po.height = 720;
-  io::write_png((fs::path(a.out) / "curves.png").string(), io::plot_lines(curves, po));
-}
-
-struct GridFigure {
-  std::string title, xlabel;
-  bool log_x = false, with_gain = false;
-};
-
-void write_grid_outputs(const std::vector<study::GridCell>& runs, const GridArgs& a, const GridFigure& fig,
-                        const std::string& description) {
-  const fs::path out(a.out);
-  const auto cells = study::mean_over_seeds(runs);
-  const auto table = study::grid_markdown(cells, fig.with_gain);
-  const auto csv = study::grid_csv(runs);
-  io::write_file_atomic((out / "table.md").string(), table.data(), table.size());
-  io::write_file_atomic((out / "table.csv").string(), csv.data(), csv.size());
-  std::string readme =
-      "# " + fig.title + "\n\n" + description + "\n\nPSNR / SSIM / LPIPS on the test set " +
-      "(per-scene mean, then mean over scenes; over seeds, the mean ± half the range). Every run: " + "table.csv.\n\n" +
-      table + "\n";
-  bool any_lpips = false;
-  for (const auto& c : cells) any_lpips |= !std::isnan(c.lpips);
-  for (std::string metric : {"psnr", "ssim", "lpips"}) {
-    if (metric == "lpips" && !any_lpips) continue;
-    io::PlotOptions po;
-    po.width = 960;
-    po.height = 600;
-    po.title = fig.title + ": " + metric;
-    po.xlabel = fig.xlabel;
-    po.ylabel = metric;
-    po.log_x = fig.log_x;
-    io::write_png((out / (metric + ".png")).string(), study::grid_plot(cells, metric, po));
-    readme += "![" + metric + "](" + metric + ".png)\n";
-  }
-  if (fs::exists(out / "curves.png"))
-    readme += "\nHeld-out PSNR during training (curves.csv):\n\n![curves](curves.png)\n";
-  io::write_file_atomic((out / "README.md").string(), readme.data(), readme.size());
-  std::cout << "\n" << table << fmt::format("\nstudy results -> {}/README.md\n", a.out);
+// The trained runs' periodic evaluations, for the report's curves (a run standing in for others counts once).
+std::vector<study::RunCurve> run_curves(const std::vector<GridRun>& runs, const GridArgs& a) {
+  std::vector<study::RunCurve> curves;
+  for (const auto& r : runs)
+    if (r.same_as.empty())
+      curves.push_back({r.series, r.setting, (fs::path(a.out) / "runs" / r.dir_name / "metrics.jsonl").string(),
+                        r.config.training.seed});
+  return curves;
 }
 
 // Every run once per --seeds seed (its directory named after the seed); as given without --seeds.
@@ -259,7 +198,7 @@ std::vector<GridRun> for_each_seed(const std::vector<GridRun>& runs, const std::
   return out;
 }
 
-void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, const GridFigure& fig,
+void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, const study::GridFigure& fig,
               const std::string& description) {
   apply_common_options(a.common);
   const auto runs = for_each_seed(grid, a.seeds);
@@ -289,8 +228,8 @@ void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, const GridFig
                  format_duration(elapsed), format_duration(elapsed / (i + 1) * (runs.size() - i - 1)), runs[i].series,
                  runs[i].setting, cells.back().psnr, cells.back().ssim);
   }
-  write_curves(runs, a, fig.title);
-  write_grid_outputs(cells, a, fig, description);
+  const auto table = study::write_grid_report(cells, run_curves(runs, a), a.out, fig, description);
+  std::cout << "\n" << table << fmt::format("\nstudy results -> {}/README.md\n", a.out);
 }
 
 // "100", "full" -> scene counts (0: every training scene), checked against the train split's size.

@@ -1,0 +1,31 @@
+// What a grid study (`uplvsm study scaling`, `study pose-noise`) leaves in its folder for a person to read:
+// table.md and table.csv, one plot per metric against the setting, the trained runs' held-out curves (curves.csv,
+// curves.png) and a README.md that shows them all.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "uplvsm/study/study_grid.h"
+
+namespace uplvsm::study {
+
+struct GridFigure {
+  std::string title, xlabel;
+  bool log_x = false, with_gain = false;
+};
+
+// One trained run's periodic evaluations: its legend label and its metrics.jsonl.
+struct RunCurve {
+  std::string series, setting, metrics_path;
+  int64_t seed = 0;
+};
+
+// A run's held-out PSNR by step (the "eval" lines of its metrics.jsonl); empty without them.
+io::Series held_out_curve(const RunCurve& run);
+
+// Writes the files above into out_dir from every run's cell (seeds averaged for the table and plots, each run in
+// table.csv) and the runs' curves (curves.* only where some run has periodic evaluations). Returns the table.
+std::string write_grid_report(const std::vector<GridCell>& runs, const std::vector<RunCurve>& curves,
+                              const std::string& out_dir, const GridFigure& fig, const std::string& description);
+
+}  // namespace uplvsm::study
