@@ -182,3 +182,42 @@ def test_readme_quick_start_renders_two_photos(tmp_path):
     if size:
         assert [listing[0]["width"], listing[0]["height"]] == [int(size.group(1)), int(size.group(2))], (
             "the quick start's image size is not what render wrote")
+
+
+def config_keys_in_code():
+    """Every config key the reader accepts: the `f("key", ...)` lines of each `<section>_fields` list in
+    src/uplvsm/core/config.cpp (the one list both reading and writing use), plus the top-level `name`."""
+    source = (REPO / "src" / "uplvsm" / "core" / "config.cpp").read_text()
+    sections = {"transformer": "model.transformer", "dinov2": "model.dinov2", "model": "model",
+                "training": "training", "dataset": "dataset", "eval": "eval"}
+    keys = {"name"} if re.search(r'r\.get\("name"', source) else set()
+    for name, body in re.findall(r"void (\w+)_fields\(C& c, F&& f\) \{\n(.*?)^\}", source, flags=re.S | re.M):
+        assert name in sections, f"config.cpp has a field list docs/config.md does not know: {name}_fields"
+        keys |= {f"{sections[name]}.{key}" for key in re.findall(r'f\("(\w+)"', body)}
+    assert len(keys) > 50, "config.cpp's field lists were not found: parsing broke?"
+    return keys
+
+
+def config_keys_documented():
+    """(section.key, ...) of every row of docs/config.md's key tables: the section from the heading (`## `model``),
+    the keys from the row's first cell (`a`, `b` documents both)."""
+    documented, section = [], None
+    for line in (REPO / "docs" / "config.md").read_text().splitlines():
+        heading = re.match(r"#{2,3} `([\w.]+)`", line)
+        if heading:
+            section = heading.group(1)
+        elif line.startswith("#"):
+            section = None
+        elif section and line.startswith("| `"):
+            cell = line.split("|")[1]
+            documented += [key if section == "name" else f"{section}.{key}" for key in re.findall(r"`(\w+)`", cell)]
+    return documented
+
+
+def test_every_config_key_is_documented_once():
+    code, documented = config_keys_in_code(), config_keys_documented()
+    twice = sorted({key for key in documented if documented.count(key) > 1})
+    assert not twice, "docs/config.md documents these keys more than once: " + ", ".join(twice)
+    missing, stale = sorted(code - set(documented)), sorted(set(documented) - code)
+    assert not missing, "config keys docs/config.md does not document: " + ", ".join(missing)
+    assert not stale, "docs/config.md documents keys the config does not have: " + ", ".join(stale)
