@@ -221,3 +221,28 @@ def test_every_config_key_is_documented_once():
     missing, stale = sorted(code - set(documented)), sorted(set(documented) - code)
     assert not missing, "config keys docs/config.md does not document: " + ", ".join(missing)
     assert not stale, "docs/config.md documents keys the config does not have: " + ", ".join(stale)
+
+
+def anchors_of(page):
+    """GitHub's heading anchors of a page: lower case, punctuation dropped, spaces to hyphens."""
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M)
+    return {re.sub(r"[^\w\- ]", "", h.strip().lower()).replace(" ", "-") for h in re.findall(r"^#+ (.*)$", text, re.M)}
+
+
+def test_relative_links_resolve():
+    """Every relative link of README.md, docs/ and docs/research/ names a file that exists, and a `#anchor` a heading
+    of that page."""
+    pages = [REPO / "README.md"] + sorted((REPO / "docs").rglob("*.md"))
+    broken = []
+    for page in pages:
+        text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M)
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"[a-z]+:", target):
+                continue  # https:, mailto:
+            path, _, anchor = target.partition("#")
+            file = (page.parent / path).resolve() if path else page
+            if not file.exists():
+                broken.append(f"{page.relative_to(REPO)}: {target} (no such file)")
+            elif anchor and file.suffix == ".md" and anchor not in anchors_of(file):
+                broken.append(f"{page.relative_to(REPO)}: {target} (no such heading)")
+    assert not broken, "\n".join(broken)
