@@ -14,7 +14,8 @@ import pytest
 
 REPO = pathlib.Path(os.environ.get("UPLVSM_SOURCE_DIR", pathlib.Path(__file__).resolve().parents[2]))
 CLI = os.environ.get("UPLVSM_CLI", str(REPO / "build" / "uplvsm"))
-PAGES = [REPO / "README.md"] + sorted((REPO / "docs").glob("*.md"))
+# The user pages and the lab notebook (docs/research/): its commands are records of what ran, and still run.
+PAGES = [REPO / "README.md"] + sorted((REPO / "docs").rglob("*.md"))
 EXAMPLE = REPO / "examples" / "render_two_photos"
 
 
