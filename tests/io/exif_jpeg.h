@@ -4,6 +4,7 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -65,7 +66,8 @@ inline bool is_red_over_blue(torch::Tensor img) {
   if (img.is_floating_point()) img = img.permute({1, 2, 0}).mul(255);
   img = img.to(torch::kFloat32);
   const int64_t h = img.size(0), band = std::max<int64_t>(1, h / 5);
-  const auto top = img.slice(0, 0, band).mean({0, 1}), bottom = img.slice(0, h - band).mean({0, 1});
+  const std::vector<int64_t> rows_and_columns = {0, 1};
+  const auto top = img.slice(0, 0, band).mean(rows_and_columns), bottom = img.slice(0, h - band).mean(rows_and_columns);
   return top[0].item<float>() > 200 && top[2].item<float>() < 55 && bottom[2].item<float>() > 200 &&
          bottom[0].item<float>() < 55;
 }
