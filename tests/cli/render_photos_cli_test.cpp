@@ -16,7 +16,7 @@ using namespace uplvsm;
 
 namespace {
 
-fs::path write_bytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
+fs::path save_file(const fs::path& path, const std::vector<uint8_t>& bytes) {
   std::ofstream(path, std::ios::binary)
       .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
   return path;
@@ -24,8 +24,8 @@ fs::path write_bytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
 
 // A 48 x 80 portrait (red over blue) stored sideways, with a 26 mm (35 mm equivalent) focal length.
 fs::path write_portrait(const fs::path& dir) {
-  return write_bytes(dir / "portrait.jpg",
-                     test::jpeg_with_exif(test::stored_for_orientation_6(test::red_over_blue(80, 48)), 6, 26));
+  return save_file(dir / "portrait.jpg",
+                   test::jpeg_with_exif(test::stored_for_orientation_6(test::red_over_blue(80, 48)), 6, 26));
 }
 
 std::string render_args(const std::string& checkpoint, const fs::path& a, const fs::path& b, const fs::path& out) {
@@ -63,7 +63,7 @@ TEST(RenderPhotosCli, PhotosAreCheckedBeforeTheCheckpointIsRead) {
   const auto dir = test::temp_dir("cli_render_photo_first");
   const auto portrait = write_portrait(dir);
   const auto checkpoint = (dir / "no_such_checkpoint.pt").string();
-  const auto text = write_bytes(dir / "notes.jpg", {'n', 'o', 't', 'e', 's'});
+  const auto text = save_file(dir / "notes.jpg", {'n', 'o', 't', 'e', 's'});
   for (const auto& bad : {dir / "mistyped.jpg", text}) {
     std::string out;
     EXPECT_NE(test::run_cli(render_args(checkpoint, portrait, bad, dir / "v"), &out), 0);

@@ -77,9 +77,12 @@ TEST(LoadPhotos, ExifOrientationTurnsThePhotoUprightAndExifFocalLengthGivesTheFi
 
   auto views = data::photo_views(photos, {28, 14, true});
   EXPECT_TRUE(test::is_red_over_blue(views.images[0]));
-  // The preprocessed view's camera has that field of view: fx = (W/2) / tan(fov/2) with W the resized width (28
-  // rows: 48 * 28 / 80 = 16.8 columns, rounded to the patch size: 14; then cropped to 14 x 14).
-  EXPECT_NEAR(views.fxfycxcy[0][0].item<double>(), 7.0 / std::tan(fov * M_PI / 360), 1e-3);
+  // A portrait photo fills the 28 x 28 square (resized to 28 columns, not rows), and the view's camera has the
+  // photo's field of view across them: fx = 14 / tan(fov / 2), the principal point at the centre.
+  EXPECT_EQ(views.images.sizes(), torch::IntArrayRef({2, 3, 28, 28}));
+  EXPECT_NEAR(views.fxfycxcy[0][0].item<double>(), 14.0 / std::tan(fov * M_PI / 360), 1e-3);
+  EXPECT_NEAR(views.fxfycxcy[0][2].item<double>(), 14.0, 1e-4);
+  EXPECT_NEAR(views.fxfycxcy[0][3].item<double>(), 14.0, 1e-4);
   auto json = data::to_json(info, "--fov");
   EXPECT_EQ(json["exif_orientation"], 6);
   EXPECT_EQ(json["fov_source"], "exif");
@@ -113,4 +116,13 @@ TEST(LoadPhotos, ReadPhotosNamesTheBadFile) {
     const auto msg = test::error_of([&] { data::read_photos({ok, bad}, std::nullopt); });
     EXPECT_NE(msg.find(bad), std::string::npos) << msg;
   }
+}
+
+// With a square crop a portrait and a landscape photo make views of the same (the model's) size.
+TEST(LoadPhotos, PortraitAndLandscapePhotosFillTheSameSquare) {
+  const auto dir = test::temp_dir("load_photos_mixed");
+  const auto portrait = write_photo(dir, "portrait.png", 90, 40), landscape = write_photo(dir, "landscape.png", 40, 70);
+  auto views = data::load_photos({portrait, landscape}, std::nullopt, {28, 14, true});
+  EXPECT_EQ(views.images.sizes(), torch::IntArrayRef({2, 3, 28, 28}));
+  EXPECT_TRUE(torch::allclose(views.fxfycxcy.slice(1, 2), torch::full({2, 2}, 14.0f)));
 }

@@ -30,6 +30,22 @@ void set_exif_fov(const io::ExifTags& tags, int stored_w, int stored_h, PhotoInf
   info.exif_tag = focal->tag;
 }
 
+// One photo as a view. The official preprocessing resizes to image_size rows, so with a square crop a portrait photo
+// (narrower than tall) would become a square smaller than image_size, and smaller than a landscape photo's: a portrait
+// photo is preprocessed transposed (a landscape photo of its vertical field of view) and transposed back, so that
+// every photo fills image_size x image_size whichever way it was held.
+SceneViews photo_view(const Photo& photo, const PreprocessOptions& opt) {
+  const auto& img = photo.hwc_u8;
+  const double width = static_cast<double>(img.size(1)), height = static_cast<double>(img.size(0));
+  if (!opt.square_crop || width >= height) return preprocess_photo(img, photo.info.fov_deg, opt, photo.info.name);
+  const double vertical_fov =
+      2.0 * std::atan(std::tan(photo.info.fov_deg * M_PI / 360.0) * height / width) * 180 / M_PI;
+  auto view = preprocess_photo(img.transpose(0, 1).contiguous(), vertical_fov, opt, photo.info.name);
+  view.images = view.images.transpose(2, 3).contiguous();
+  view.fxfycxcy = view.fxfycxcy.index_select(1, torch::tensor({1, 0, 3, 2}));  // x and y trade places
+  return view;
+}
+
 }  // namespace
 
 Photo decode_photo(const uint8_t* data, size_t size, std::optional<double> fov_deg, const std::string& what) {
@@ -74,7 +90,7 @@ SceneViews photo_views(const std::vector<Photo>& photos, const PreprocessOptions
   if (photos.empty()) throw std::invalid_argument("load_photos: no photo given");
   std::vector<torch::Tensor> images, fxfycxcy, c2w;
   for (const auto& photo : photos) {
-    auto view = preprocess_photo(photo.hwc_u8, photo.info.fov_deg, opt, photo.info.name);
+    auto view = photo_view(photo, opt);
     if (!images.empty() && view.images.sizes() != images[0].sizes())
       throw std::runtime_error(photo.info.name + ": preprocessed to " + c10::str(view.images.sizes()) + ", but " +
                                photos[0].info.name + " to " + c10::str(images[0].sizes()) +

@@ -48,8 +48,9 @@ Photo decode_photo(const uint8_t* data, size_t size, std::optional<double> fov_d
 // at once. Errors name the file: missing, unreadable, not a JPEG/PNG, or corrupt.
 std::vector<Photo> read_photos(const std::vector<std::string>& paths, std::optional<double> fov_deg);
 
-// Photos -> views: images [V, 3, H, W], fxfycxcy [V, 4] pixels, c2w [V, 4, 4] identity, frames 0..V-1. Errors name
-// the photo whose preprocessed size differs from the first's.
+// Photos -> views: images [V, 3, H, W], fxfycxcy [V, 4] pixels, c2w [V, 4, 4] identity, frames 0..V-1. With a square
+// crop every photo, portrait or landscape, fills image_size x image_size (a portrait photo is resized to image_size
+// columns, not rows). Errors name the photo whose preprocessed size differs from the first's (no square crop).
 SceneViews photo_views(const std::vector<Photo>& photos, const PreprocessOptions& opt);
 
 // read_photos then photo_views. `fov_degrees` given: every photo gets it; nullopt: EXIF, else 60 degrees.

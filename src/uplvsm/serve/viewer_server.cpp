@@ -234,21 +234,19 @@ nlohmann::json ViewerServer::open_upload(const httplib::Request& req) {
     // An empty field is the page's "automatic": EXIF, else the default.
     if (text.find_first_not_of(" \t") != std::string::npos) fov = parse_number(text, "fov", 1, 179);
   }
-  const auto prep = model_.preprocess_options();
-  std::vector<torch::Tensor> images, intrinsics;
   auto session = std::make_shared<Session>();
   session->name = "upload";
   session->photos = nlohmann::json::array();
+  std::vector<data::Photo> photos;
   for (const char* field : {"image0", "image1"}) {
     if (!req.has_file(field)) throw HttpError(400, std::string("upload: missing the photo field ") + field);
-    auto photo = decode_upload(req.get_file_value(field).content, options_.uploads, fov, field);
-    auto views = data::preprocess_photo(photo.hwc_u8, photo.info.fov_deg, prep, field);
-    images.push_back(views.images);
-    intrinsics.push_back(views.fxfycxcy);
-    spdlog::info("serve: upload {}", data::describe_photo(photo.info, "the FoV field"));
-    session->photos.push_back(data::to_json(photo.info, "the FoV field"));
+    photos.push_back(decode_upload(req.get_file_value(field).content, options_.uploads, fov, field));
+    spdlog::info("serve: upload {}", data::describe_photo(photos.back().info, "the FoV field"));
+    session->photos.push_back(data::to_json(photos.back().info, "the FoV field"));
   }
-  data::SceneViews views{torch::cat(images), torch::cat(intrinsics), torch::Tensor(), {0, 1}};
+  // Square views of the model's size, as `render --images` makes them; the unposed photos have no cameras.
+  auto views = data::photo_views(photos, model_.preprocess_options());
+  views.c2w = torch::Tensor();
   open_session(session, views, false);
   return describe(*session);
 }
