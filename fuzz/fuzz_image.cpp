@@ -1,9 +1,11 @@
 // libFuzzer target: JPEG and PNG bytes through the header reader and the decoder, under a pixel limit (as every
-// decode in uplvsm is), and the EXIF focal length lookup of `dataset import`. Any exception is a clean rejection;
-// a crash, a sanitizer report, a hang or an allocation beyond the limit is a bug.
+// decode in uplvsm is), the EXIF focal length lookup of `dataset import`, and a user's photo as `render --images`
+// and the viewer's uploads read it (decoded, turned upright by its EXIF orientation, its field of view from EXIF).
+// Any exception is a clean rejection; a crash, a sanitizer report, a hang or an allocation beyond the limit is a bug.
 #include <cstdint>
 #include <exception>
 
+#include "uplvsm/data/photo.h"
 #include "uplvsm/data/scene_import.h"
 #include "uplvsm/io/image.h"
 
@@ -16,7 +18,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   } catch (const std::exception&) {
   }
   try {
-    uplvsm::io::decode_image(data, size, "fuzz");
+    uplvsm::data::decode_photo(data, size, std::nullopt, "fuzz");
   } catch (const std::exception&) {
   }
   return 0;

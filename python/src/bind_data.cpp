@@ -99,9 +99,10 @@ void bind_photos(py::module_& m) {
       },
       py::arg("paths"), py::arg("image_size") = 224, py::arg("fov") = 60.0, py::arg("patch_size") = 14,
       py::arg("square_crop") = true,
-      R"(Your own photos (JPEG/PNG paths) as views of one scene, preprocessed like the training data (PIL-exact
-LANCZOS resize to image_size rows, centred square crop), with a pinhole camera of horizontal field of view `fov`
-degrees: {"images": [V, 3, H, W], "fxfycxcy": [V, 4] pixels, "c2w": [V, 4, 4] identity, "frames": [V]}.)");
+      R"(Your own photos (JPEG/PNG paths, turned upright by their EXIF orientation) as views of one scene, preprocessed
+like the training data (PIL-exact LANCZOS resize to image_size rows, centred square crop), with a pinhole camera of
+horizontal field of view `fov` degrees: {"images": [V, 3, H, W], "fxfycxcy": [V, 4] pixels, "c2w": [V, 4, 4]
+identity, "frames": [V]}.)");
 }
 
 }  // namespace

@@ -2,7 +2,8 @@
 // picks a scene, checks camera.js's interpolation about a pivot, drags the camera and checks that a new, different
 // frame arrived; moves the slider, plays a preset
 // (with a camera mapper), records a path and downloads it as camera-path JSON (which `uplvsm render --trajectory`
-// must accept) and MP4, uploads two photos, saves a screenshot, then stops the server with SIGINT (clean exit).
+// must accept) and MP4, uploads two photos (one a portrait phone photo stored sideways with EXIF orientation 6, which
+// must arrive upright), saves screenshots, then stops the server with SIGINT (clean exit).
 //
 // node viewer_browser_test.mjs --cli build/uplvsm --source . --work DIR [--checkpoint CK --data DS]
 //   [--screenshot out.png] [--chromium /usr/bin/chromium]
@@ -103,6 +104,54 @@ const pixels = () => page.$eval('#frame', (c) => {
 });
 const meanDiff = (a, b) => a.reduce((s, v, i) => s + Math.abs(v - b[i]), 0) / a.length;
 
+// An EXIF APP1 segment written by hand: a little-endian TIFF header, IFD0 with Orientation and the pointer to the EXIF
+// IFD, which holds FocalLengthIn35mmFilm (as tests/io/exif_jpeg.h).
+function exifApp1(orientation, focal35) {
+  const b = [0x49, 0x49];
+  const u16 = (v) => b.push(v & 255, (v >> 8) & 255);
+  const u32 = (v) => { u16(v & 0xffff); u16(v >>> 16); };
+  u16(42); u32(8);
+  u16(2); u16(0x0112); u16(3); u32(1); u16(orientation); u16(0);
+  u16(0x8769); u16(4); u32(1); u32(38); u32(0);
+  u16(1); u16(0xa405); u16(3); u32(1); u16(focal35); u16(0); u32(0);
+  const len = 2 + 6 + b.length;
+  return Buffer.from([0xff, 0xe1, len >> 8, len & 255, 0x45, 0x78, 0x69, 0x66, 0, 0, ...b]);
+}
+// A phone's portrait photo, red over blue, 64 wide and 96 tall, stored sideways as a phone does (turned 90 degrees
+// counter-clockwise: red on the left) in a JPEG the page's canvas encodes, with Orientation 6 ("turn clockwise").
+async function portraitJpeg() {
+  const dataUrl = await page.evaluate(() => {
+    const c = document.createElement('canvas');
+    c.width = 96;
+    c.height = 64;
+    const ctx = c.getContext('2d');
+    ctx.fillStyle = '#ff0000';
+    ctx.fillRect(0, 0, 48, 64);
+    ctx.fillStyle = '#0000ff';
+    ctx.fillRect(48, 0, 48, 64);
+    return c.toDataURL('image/jpeg', 0.95);
+  });
+  const jpeg = Buffer.from(dataUrl.split(',')[1], 'base64');
+  return Buffer.concat([jpeg.subarray(0, 2), exifApp1(6, 26), jpeg.subarray(2)]);
+}
+// The mean colour of the top and bottom fifths of an <img> on the page, as decoded by the browser.
+const imageBands = (selector) => page.$eval(selector, async (img) => {
+  await img.decode();
+  const c = document.createElement('canvas');
+  c.width = img.naturalWidth;
+  c.height = img.naturalHeight;
+  const ctx = c.getContext('2d');
+  ctx.drawImage(img, 0, 0);
+  const band = Math.max(1, Math.floor(c.height / 5));
+  const mean = (y0) => {
+    const d = ctx.getImageData(0, y0, c.width, band).data;
+    const m = [0, 0, 0];
+    for (let i = 0; i < d.length; i += 4) for (let k = 0; k < 3; k++) m[k] += d[i + k] / (d.length / 4);
+    return m.map(Math.round);
+  };
+  return { top: mean(0), bottom: mean(c.height - band) };
+});
+
 try {
   await page.goto(url);
   const info = await (await page.request.get(url + 'api/info')).json();
@@ -189,7 +238,7 @@ try {
     await page.waitForTimeout(1000);  // the rest of the preset
   }
 
-  // Upload two photos: the inputs of the open scene, as JPEG files.
+  // Upload two photos: a portrait phone photo stored sideways, and the second input of the open scene as a JPEG file.
   const inputs = await page.$$eval('.inputs img', (imgs) => imgs.map((i) => i.src));
   const files = [];
   for (const [i, src] of inputs.entries()) {
@@ -197,6 +246,8 @@ try {
     fs.writeFileSync(f, Buffer.from(await (await page.request.get(src)).body()));
     files.push(f);
   }
+  files[0] = path.join(work, 'portrait_exif6.jpg');
+  fs.writeFileSync(files[0], await portraitJpeg());
   await page.click('#tab-upload');
   await page.setInputFiles('#drop0 input', files[0]);
   await page.setInputFiles('#drop1 input', files[1]);
@@ -205,6 +256,15 @@ try {
   await page.waitForFunction((n) => Number(document.querySelector('#frame').dataset.frames) > n, beforeUpload, { timeout: 60000 }).catch(() => {});
   check((await framesShown()) > beforeUpload, 'two uploaded photos open as a scene');
   check(!(await page.textContent('#status')).includes('error'), 'no error shown: ' + (await page.textContent('#status')));
+  const bands = await imageBands('#input0');
+  check(bands.top[0] > 200 && bands.top[2] < 55 && bands.bottom[2] > 200 && bands.bottom[0] < 55,
+    `the portrait photo with EXIF orientation 6 arrives upright: red at the top ${bands.top}, blue below ${bands.bottom}`);
+  const notes = await page.textContent('#photo-notes');
+  check(/turned upright \(EXIF orientation 6\)/.test(notes) && /from EXIF FocalLengthIn35mmFilm/.test(notes) &&
+    /60\.0°, the default/.test(notes), 'the page says how each photo was turned and where its field of view came from: ' + notes);
+  const uploadShot = screenshot.replace(/(\.png)?$/, '_upload.png');
+  await page.screenshot({ path: uploadShot });
+  check(fs.statSync(uploadShot).size > 10000, 'screenshot after the upload saved: ' + uploadShot);
   check(errors.length === 0, 'no page errors' + (errors.length ? ': ' + errors.join(' | ') : ''));
   check(foreign.length === 0, 'every request stays on the viewer\'s own origin' + (foreign.length ? ': ' + foreign.join(' ') : ''));
 } catch (e) {

@@ -8,11 +8,13 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <cmath>
 #include <thread>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "io/exif_jpeg.h"
 #include "serve_test_util.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/video.h"
@@ -239,19 +241,54 @@ TEST_F(ViewerServerTest, UploadsTwoPhotosAndRendersThem) {
   EXPECT_EQ(cli.Get("/api/info")->status, 200);
 }
 
+// A portrait phone photo stored sideways with EXIF orientation 6: the session's input (what the model sees and the
+// page shows) is upright, and the photo's field of view comes from its EXIF focal length unless the fov field is set.
+TEST_F(ViewerServerTest, UploadedPhotosAreTurnedUprightByTheirExifOrientation) {
+  const auto jpeg = jpeg_with_exif(stored_for_orientation_6(red_over_blue(96, 64)), 6, 26);
+  const std::string portrait(jpeg.begin(), jpeg.end());
+  auto cli = server_->client();
+  httplib::MultipartFormDataItems form = {{"image0", portrait, "portrait.jpg", "image/jpeg"},
+                                          {"image1", portrait, "portrait.jpg", "image/jpeg"},
+                                          {"fov", "", "", ""}};
+  auto r = cli.Post("/api/upload", form);
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  auto s = json::parse(r->body);
+  auto input = cli.Get(s["inputs"][0].get<std::string>().c_str());
+  ASSERT_TRUE(input);
+  ASSERT_EQ(input->status, 200);
+  const auto shown = io::decode_image(reinterpret_cast<const uint8_t*>(input->body.data()), input->body.size(), "in0");
+  EXPECT_TRUE(is_red_over_blue(shown));
+  ASSERT_EQ(s["photos"].size(), 2u);
+  EXPECT_EQ(s["photos"][0]["exif_orientation"], 6);
+  EXPECT_EQ(s["photos"][0]["fov_source"], "exif");
+  EXPECT_NEAR(s["photos"][0]["fov_deg"].get<double>(), 2 * std::atan(32.0 / (26.0 / 36.0 * 96)) * 180 / M_PI, 1e-9);
+  form[2].content = "50";
+  r = cli.Post("/api/upload", form);
+  ASSERT_TRUE(r);
+  ASSERT_EQ(r->status, 200) << r->body;
+  s = json::parse(r->body);
+  EXPECT_EQ(s["photos"][1]["fov_source"], "explicit");
+  EXPECT_EQ(s["photos"][1]["fov_deg"], 50.0);
+  EXPECT_NE(s["photos"][1]["note"].get<std::string>().find("from the FoV field (overrides"), std::string::npos);
+  // Dataset scenes have no photos to describe.
+  EXPECT_TRUE(open_scene()["photos"].is_null());
+}
+
 // An upload is decoded under the process-wide decompression-bomb limit (--max-image-pixels) when it is lower than
 // the server's own, refused from the header with 413.
 TEST(DecodeUpload, TheProcessPixelLimitAppliesWhenLower) {
   const auto png = io::encode_png(torch::zeros({40, 30, 3}, torch::kUInt8));
   const std::string bytes(png.begin(), png.end());
   serve::UploadLimits limits;
-  EXPECT_EQ(serve::decode_upload(bytes, limits, "image0").sizes(), (std::vector<int64_t>{40, 30, 3}));
+  EXPECT_EQ(serve::decode_upload(bytes, limits, std::nullopt, "image0").hwc_u8.sizes(),
+            (std::vector<int64_t>{40, 30, 3}));
   const int64_t before = io::max_image_pixels();
   io::set_max_image_pixels(1000);
   int status = 0;
   std::string msg;
   try {
-    serve::decode_upload(bytes, limits, "image0");
+    serve::decode_upload(bytes, limits, std::nullopt, "image0");
   } catch (const serve::HttpError& e) {
     status = e.status;
     msg = e.what();

@@ -94,6 +94,17 @@
     updateRecordUi();
     reset();
     status(`${s.name}: ${s.width}×${s.height}, scene latents cached`);
+    showPhotoNotes(s.photos);
+  }
+  // Uploads: how each photo was turned upright and where its field of view came from (EXIF, the FoV field, 60°).
+  function showPhotoNotes(photos) {
+    const list = $('photo-notes');
+    list.textContent = '';
+    for (const p of photos || []) {
+      const li = document.createElement('li');
+      li.textContent = p.note;
+      list.append(li);
+    }
   }
 
   // ---- camera ------------------------------------------------------------------------------------------------

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -41,7 +42,8 @@ struct RenderArgs {
   bool side_by_side = false;
   std::vector<std::string> images;
   int64_t scenes = 1, frames = 24;
-  double fps = 12, fov = 60;
+  double fps = 12;
+  std::optional<double> fov;  // --images: given, it wins over the photos' EXIF focal length
 };
 
 // The camera path of the video and its pixel intrinsics: real cameras in camera-control units, or latent poses
@@ -136,7 +138,9 @@ void add_render_options(CLI::App* cmd, RenderArgs& a) {
                            "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
   cmd->add_option("--scenes", a.scenes, "how many dataset scenes to render")->capture_default_str();
   cmd->add_option("--images", a.images, "two image files (JPEG/PNG) instead of dataset scenes")->expected(2);
-  cmd->add_option("--fov", a.fov, "horizontal field of view in degrees for --images")->capture_default_str();
+  cmd->add_option_function<double>(
+      "--fov", [&a](double fov) { a.fov = fov; },
+      "horizontal field of view in degrees for --images (default: each photo's EXIF focal length, else 60)");
   cmd->add_option("--frames", a.frames, "frames of the video")
       ->check(CLI::Range(int64_t{2}, render::kMaxVideoFrames))
       ->capture_default_str();
@@ -177,19 +181,33 @@ void render_dataset_scenes(model::NovelViewModel& net, const RenderArgs& a, cons
   if (done == 0) throw std::runtime_error("render: no scene of " + index + " is in " + src.data + "/" + src.split);
 }
 
+// The photos of --images, decoded and turned upright before the checkpoint is loaded (seconds and gigabytes for a
+// large model): a mistyped path or a file that is not a photo is reported at once. Each photo's orientation and
+// field of view go to the log.
+std::vector<data::Photo> read_render_photos(const RenderArgs& a) {
+  if (a.images.empty()) return {};
+  auto photos = data::read_photos(a.images, a.fov);
+  for (const auto& p : photos) spdlog::info("render: {}", data::describe_photo(p.info, "--fov"));
+  return photos;
+}
+
 void run_render(const RenderArgs& a) {
   apply_common_options(a.common);
   if (a.images.empty() == a.source.data.empty())
     throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
+  if (a.fov && a.images.empty()) spdlog::warn("render: --fov applies to --images only; the --data scenes keep theirs");
+  const auto photos = read_render_photos(a);
   Config config;
   auto net =
       model::load_model_with_config_file(a.model.checkpoint, a.model.config, parse_device(a.common.device), &config);
   const auto prep = data::square_preprocess_options(config);
   nlohmann::json listing = nlohmann::json::array();
-  if (!a.images.empty())
-    render_one(net, data::load_photos(a.images, a.fov, prep), false, a.out, a, listing, "images");
-  else
+  if (!photos.empty()) {
+    render_one(net, data::photo_views(photos, prep), false, a.out, a, listing, "images");
+    for (const auto& p : photos) listing.back()["inputs"].push_back(data::to_json(p.info, "--fov"));
+  } else {
     render_dataset_scenes(net, a, prep, listing);
+  }
   fs::create_directories(a.out);
   std::ofstream(fs::path(a.out) / "videos.json") << listing.dump(2) << "\n";
   std::cout << fmt::format("rendered {} video(s) into {}\n", listing.size(), a.out);

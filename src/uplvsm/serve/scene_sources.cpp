@@ -63,7 +63,8 @@ std::vector<uint8_t> SceneCatalog::thumbnail(const CatalogScene& scene) {
   return thumbnails_.emplace(scene.id, std::move(jpeg)).first->second;
 }
 
-torch::Tensor decode_upload(const std::string& bytes, const UploadLimits& limits, const std::string& what) {
+data::Photo decode_upload(const std::string& bytes, const UploadLimits& limits, std::optional<double> fov_deg,
+                          const std::string& what) {
   if (bytes.size() > limits.max_file_bytes)
     throw HttpError(413, fmt::format("{}: {} bytes, more than the {} bytes allowed per photo", what, bytes.size(),
                                      limits.max_file_bytes));
@@ -82,7 +83,7 @@ torch::Tensor decode_upload(const std::string& bytes, const UploadLimits& limits
   if (h * w > max_pixels)
     throw HttpError(413, fmt::format("{}: {}x{} pixels, more than the {} allowed", what, w, h, max_pixels));
   try {
-    return io::decode_image(data, bytes.size(), what);
+    return data::decode_photo(data, bytes.size(), fov_deg, what);
   } catch (const std::exception& e) {
     throw HttpError(400, e.what());
   }

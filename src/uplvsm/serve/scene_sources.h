@@ -8,9 +8,11 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "uplvsm/data/photo.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/scene.h"
 
@@ -57,10 +59,12 @@ struct UploadLimits {
   int64_t max_pixels = 40'000'000;  // width x height, read from the header before decoding
 };
 
-// One uploaded photo (PNG or JPEG bytes) -> uint8 [H, W, 3]. Throws HttpError: 413 for a file or image over the
-// limits (max_pixels, or io::max_image_pixels() when lower), 400 for anything that is not a decodable PNG/JPEG.
-// `what` names the form field in messages.
-torch::Tensor decode_upload(const std::string& bytes, const UploadLimits& limits, const std::string& what);
+// One uploaded photo (PNG or JPEG bytes) -> upright uint8 [H, W, 3] and its field of view (data::decode_photo: the
+// EXIF orientation applied; `fov_deg` when given, else the EXIF focal length's, else 60 degrees). Throws HttpError:
+// 413 for a file or image over the limits (max_pixels, or io::max_image_pixels() when lower), 400 for anything that
+// is not a decodable PNG/JPEG. `what` names the form field in messages.
+data::Photo decode_upload(const std::string& bytes, const UploadLimits& limits, std::optional<double> fov_deg,
+                          const std::string& what);
 
 // Two views (inputs 0 and 1) side by side as one JPEG.
 std::vector<uint8_t> views_jpeg(const torch::Tensor& images, int quality = 90);

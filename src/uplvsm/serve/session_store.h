@@ -12,6 +12,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include <nlohmann/json.hpp>
+
 #include "uplvsm/serve/viewer_model.h"
 
 namespace uplvsm::serve {
@@ -21,6 +23,7 @@ struct Session {
   std::string name;  // the scene's name or "upload"
   SceneEncoding scene;
   std::vector<std::vector<uint8_t>> input_jpegs;  // the two preprocessed inputs, as shown on the page
+  nlohmann::json photos;                          // uploads: each photo's orientation and field of view (to_json)
   double created = 0;
 
   int64_t bytes() const;

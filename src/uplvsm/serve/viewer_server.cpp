@@ -4,10 +4,12 @@
 #include <unistd.h>
 
 #include <fstream>
+#include <optional>
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/data/photo.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/io/image.h"
 #include "uplvsm/serve/http_error.h"
@@ -202,7 +204,8 @@ nlohmann::json ViewerServer::describe(const Session& s) const {
                       {"key_real", e.key_real.defined() ? pose_rows(e.key_real) : nlohmann::json()},
                       {"key_real_estimated", e.key_real_estimated},
                       {"latent_pivot_depth", model_.config().model.transformer.latent_pivot_depth},
-                      {"inputs", {"/api/sessions/" + s.id + "/inputs/0", "/api/sessions/" + s.id + "/inputs/1"}}};
+                      {"inputs", {"/api/sessions/" + s.id + "/inputs/0", "/api/sessions/" + s.id + "/inputs/1"}},
+                      {"photos", s.photos}};
   return j;
 }
 
@@ -217,6 +220,35 @@ std::string ViewerServer::open_session(std::shared_ptr<Session> session, const d
   spdlog::info("serve: session {}… for {} ({} sessions open)", id.substr(0, 8), session->name,
                sessions_.stats().sessions);
   return id;
+}
+
+// Two uploaded photos as a session: each turned upright by its EXIF orientation; the field of view from the "fov"
+// field when it holds a number (it wins), else each photo's EXIF focal length, else 60 degrees. What was done with
+// each photo is logged and returned in the session description ("photos"), for the page to show.
+nlohmann::json ViewerServer::open_upload(const httplib::Request& req) {
+  if (!req.is_multipart_form_data())
+    throw HttpError(400, "upload: expected multipart/form-data with the fields image0, image1 (and fov)");
+  std::optional<double> fov;
+  if (req.has_file("fov")) {
+    const auto& text = req.get_file_value("fov").content;
+    // An empty field is the page's "automatic": EXIF, else the default.
+    if (text.find_first_not_of(" \t") != std::string::npos) fov = parse_number(text, "fov", 1, 179);
+  }
+  auto session = std::make_shared<Session>();
+  session->name = "upload";
+  session->photos = nlohmann::json::array();
+  std::vector<data::Photo> photos;
+  for (const char* field : {"image0", "image1"}) {
+    if (!req.has_file(field)) throw HttpError(400, std::string("upload: missing the photo field ") + field);
+    photos.push_back(decode_upload(req.get_file_value(field).content, options_.uploads, fov, field));
+    spdlog::info("serve: upload {}", data::describe_photo(photos.back().info, "the FoV field"));
+    session->photos.push_back(data::to_json(photos.back().info, "the FoV field"));
+  }
+  // Square views of the model's size, as `render --images` makes them; the unposed photos have no cameras.
+  auto views = data::photo_views(photos, model_.preprocess_options());
+  views.c2w = torch::Tensor();
+  open_session(session, views, false);
+  return describe(*session);
 }
 
 void ViewerServer::session_routes() {
@@ -235,25 +267,7 @@ void ViewerServer::session_routes() {
                 send_json(res, describe(*session));
               }));
   http_->Post("/api/upload", guarded([this](const httplib::Request& req, httplib::Response& res) {
-                if (!req.is_multipart_form_data())
-                  throw HttpError(400, "upload: expected multipart/form-data with the fields image0, image1 (and fov)");
-                double fov = 60;
-                if (req.has_file("fov")) fov = parse_number(req.get_file_value("fov").content, "fov", 1, 179);
-                const auto prep = model_.preprocess_options();
-                std::vector<torch::Tensor> images, intrinsics;
-                for (const char* field : {"image0", "image1"}) {
-                  if (!req.has_file(field))
-                    throw HttpError(400, std::string("upload: missing the photo field ") + field);
-                  auto photo = decode_upload(req.get_file_value(field).content, options_.uploads, field);
-                  auto views = data::preprocess_photo(photo, fov, prep, field);
-                  images.push_back(views.images);
-                  intrinsics.push_back(views.fxfycxcy);
-                }
-                data::SceneViews views{torch::cat(images), torch::cat(intrinsics), torch::Tensor(), {0, 1}};
-                auto session = std::make_shared<Session>();
-                session->name = "upload";
-                open_session(session, views, false);
-                send_json(res, describe(*session));
+                send_json(res, open_upload(req));
               }));
   http_->Get(R"(/api/sessions/([^/]+))", guarded([this](const httplib::Request& req, httplib::Response& res) {
                send_json(res, describe(*session_of(req.matches[1])));

@@ -73,6 +73,7 @@ class ViewerServer {
   std::shared_ptr<Session> session_of(const std::string& id);
   nlohmann::json describe(const Session& s) const;
   std::string open_session(std::shared_ptr<Session> session, const data::SceneViews& views, bool posed);
+  nlohmann::json open_upload(const httplib::Request& req);
   void frame(const httplib::Request& req, httplib::Response& res);
   void video(const httplib::Request& req, httplib::Response& res);
   void preset(const httplib::Request& req, httplib::Response& res);

@@ -1,0 +1,43 @@
+// The EXIF block of a user's JPEG (libexif): the orientation tag (how the camera held the sensor: the decoded pixels
+// must be turned upright before use) and the focal-length tags (the camera's field of view). One reader for
+// `uplvsm dataset import` (data/scene_import_exif.cpp), `render --images` and the viewer's uploads (data/photo.h).
+// Untrusted bytes: anything missing, malformed or out of range reads as absent, never as an error.
+#pragma once
+#include <torch/torch.h>
+
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+
+namespace uplvsm::io {
+
+struct ExifTags {
+  int orientation = 1;                             // 1..8 (TIFF/EXIF Orientation); 1 (as stored) when absent or invalid
+  std::optional<double> focal_length_35mm;         // FocalLengthIn35mmFilm (mm), > 0
+  std::optional<double> focal_length_mm;           // FocalLength (mm), > 0
+  std::optional<double> focal_plane_x_resolution;  // FocalPlaneXResolution (pixels per unit), > 0
+  std::optional<double> focal_plane_resolution_unit;  // FocalPlaneResolutionUnit: 2 inch, 3 cm, 4 mm
+  std::optional<double> pixel_x_dimension;            // PixelXDimension: the width the camera wrote
+};
+
+// The tags of the JPEG's APP1 "Exif" segment; defaults (orientation 1, no focal length) for PNG, a JPEG without
+// EXIF, or a block libexif cannot read.
+ExifTags read_exif(const uint8_t* data, size_t size);
+
+// The focal length in pixels of the image as stored (width x height before any orientation is applied: the
+// focal-plane resolution refers to the sensor's axes), and the tag it came from: FocalLengthIn35mmFilm
+// (f35 / 36 * max(W, H): the 35 mm equivalent refers to the 36 mm long side), else FocalLength with
+// FocalPlaneXResolution and FocalPlaneResolutionUnit (rescaled when PixelXDimension names another width).
+struct ExifFocal {
+  double pixels = 0;
+  std::string tag;  // "FocalLengthIn35mmFilm" or "FocalLength+FocalPlaneXResolution"
+};
+std::optional<ExifFocal> exif_focal_pixels(const ExifTags& tags, int width, int height);
+
+// uint8 [H, W, C] as stored -> as it is meant to be seen, for each of the 8 EXIF orientations (PIL's
+// ImageOps.exif_transpose): 2 mirror, 3 rotate 180, 4 flip, 5 transpose, 6 rotate 90 clockwise, 7 transverse,
+// 8 rotate 90 counter-clockwise (5..8 swap width and height). 1 or an invalid value returns the input.
+torch::Tensor apply_exif_orientation(const torch::Tensor& hwc, int orientation);
+
+}  // namespace uplvsm::io
