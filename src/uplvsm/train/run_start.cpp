@@ -3,7 +3,6 @@
 #include <optional>
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/data/chunk_dataset.h"
