@@ -20,7 +20,7 @@ set(UPLVSM_PUBLIC_HEADERS
     model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h model/pretrained_weights.h
     model/checkpoint_io.h model/state_dict.h model/flops.h model/dinov2.h model/transformer.h model/rgb_head.h
     model/latent_plucker_learner.h model/pose_mapper.h model/pose_tokenizer.h model/vgg_features.h
-    model/cast_once_linear.h model/correspondence_displacement.h model/pose_error_feedback.h
+    model/cast_once_linear.h
     eval/metrics.h eval/lpips.h
     render/renderer.h render/trajectory.h)
 foreach(header ${UPLVSM_PUBLIC_HEADERS})

@@ -107,31 +107,3 @@ TEST(Camera, IntrinsicsPixelsNormalised) {
   EXPECT_DOUBLE_EQ(K[2][2].item<double>(), 1.0);
 }
 
-TEST(Camera, PivotTranslationIsTheCentreOfACameraOrbitingThePivot) {
-  // Independently: the c2w of a camera turned by R about p is T(p) Rot(R) T(-p) applied to the identity camera, so
-  // its centre is T(p) Rot(R) T(-p) (0, 0, 0, 1). The pivot stays where it was, in front of both cameras.
-  torch::manual_seed(8);
-  auto q = torch::randn({6, 4});
-  q = q / q.norm(2, 1, true);
-  const double d = 2.5;
-  auto shift = [](double z) {
-    auto T = torch::eye(4);
-    T[2][3] = z;
-    return T;
-  };
-  auto expected = torch::empty({6, 3});
-  for (int64_t i = 0; i < 6; ++i) {
-    auto rot = torch::eye(4);
-    rot.slice(0, 0, 3).slice(1, 0, 3).copy_(geometry::quat_to_rotation(q[i]));
-    auto c2w = shift(d).matmul(rot).matmul(shift(-d));
-    expected[i] = c2w.matmul(torch::tensor({0.0f, 0.0f, 0.0f, 1.0f})).narrow(0, 0, 3);
-  }
-  auto t = geometry::pivot_translation(q, d);
-  EXPECT_TRUE(torch::allclose(t, expected, 1e-5, 1e-6)) << t << expected;
-  // The pivot is d in front of the turned camera too: centre + R (0, 0, d) = (0, 0, d).
-  auto R = geometry::quat_to_rotation(q);
-  auto pivot_seen = t + d * R.select(-1, 2);
-  EXPECT_TRUE(torch::allclose(pivot_seen, torch::tensor({0.0f, 0.0f, 2.5f}).expand({6, 3}), 1e-5, 1e-5));
-  // No turn, no move.
-  EXPECT_EQ(geometry::pivot_translation(torch::tensor({{0.0f, 0.0f, 0.0f, 1.0f}}), d).abs().max().item<float>(), 0.0f);
-}

@@ -19,13 +19,9 @@ TEST(MemoryEstimate, ParameterCountFromTheConfigEqualsTheBuiltModel) {
   no_qk_norm.dinov2.num_register_tokens = 0;
   no_qk_norm.dinov2.mlp_ratio = 2;
   configs.push_back(no_qk_norm);
-  auto correspondence = test::micro_model();
-  correspondence.keep_image_tokens = true;
-  correspondence.transformer.estimator_correspondence = true;
-  configs.push_back(correspondence);
-  auto feedback = test::micro_model();
-  feedback.transformer.pose_error_feedback_steps = 2;
-  configs.push_back(feedback);
+  auto image_tokens = test::micro_model();
+  image_tokens.keep_image_tokens = true;
+  configs.push_back(image_tokens);
   for (std::string name : {"tiny", "tiny_ptlvsm", "tiny_lvsm", "tiny_mapper"})
     configs.push_back(load_config(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name + ".json").model);
   for (const auto& c : configs) {

@@ -197,25 +197,3 @@ TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
   EXPECT_EQ(render::side_by_side(images, frames).sizes(), (std::vector<int64_t>{5, 3, 32, 96}));
 }
 
-TEST(Trajectory, WithAPivotTheTranslationOrbitsAndTheRestIsLinear) {
-  // Keys: the identity camera and one turned 90 degrees about y around the pivot (0, 0, 2), moved on by a residual.
-  // Halfway the camera has turned 45 degrees, sits on the circle of radius 2 about the pivot (plus half the
-  // residual), and still looks at the pivot; the official linear path would cut the chord, 1.41 from the pivot.
-  const double d = 2.0, s = std::sqrt(0.5);
-  auto q1 = torch::tensor({0.0, s, 0.0, s}, torch::kFloat64);
-  auto residual = torch::tensor({0.2, -0.4, 0.0}, torch::kFloat64);
-  auto t1 = geometry::pivot_translation(q1, d) + residual;
-  auto keys = torch::stack({torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat64), torch::cat({t1, q1})});
-  auto path = render::interpolate_poses(keys, 5, d);
-  EXPECT_LE(test::max_abs_diff(path[0], keys[0]), 1e-12);
-  EXPECT_LE(test::max_abs_diff(path[4], keys[1]), 1e-12);
-  auto centre = path[2].slice(0, 0, 3) - 0.5 * residual;
-  auto pivot = torch::tensor({0.0, 0.0, d}, torch::kFloat64);
-  EXPECT_NEAR((centre - pivot).norm().item<double>(), d, 1e-9);
-  auto forward = geometry::quat_to_rotation(path[2].slice(0, 3, 7)).select(-1, 2);
-  EXPECT_LE(test::max_abs_diff(centre + d * forward, pivot), 1e-9);
-  EXPECT_NEAR(2.0 * std::acos(path[2][6].item<double>()) * 180.0 / M_PI, 45.0, 1e-9);
-  // Without the pivot the same keys give the official chord.
-  auto chord = render::interpolate_poses(keys, 5);
-  EXPECT_LE(test::max_abs_diff(chord[2].slice(0, 0, 3), 0.5 * t1), 1e-12);
-}

@@ -11,8 +11,8 @@
 #     weights (`git show 5a58744:models/demo.safetensors > .gpuinit/third_stage.safetensors`, carried), with
 #     configs/demo_gradient_difference_long_gpu.json; leaves longer.safetensors and logs.
 #   PHASE=encdec: UP-LVSM's encoder-decoder told every camera on the ceiling's budget
-#     (configs/demo_lvsm_encdec_same_budget_gpu.json; SETS adds --set's, e.g. "--set
-#     model.transformer.n_latent_vectors=1"): the architecture's own ceiling at the demo size, the split of the
+#     (the ceiling's config with the shipped UP-LVSM's model and model.encoder_cameras, ENCDEC below; SETS adds
+#     --set's, e.g. "--set model.transformer.n_latent_vectors=1"): the architecture's own ceiling at the demo size, the split of the
 #     decoder's 1.84 dB that docs/demo.md ("Where the gap is, at the demo size") measured on a short CPU schedule only;
 #     leaves encdec.safetensors and logs.
 # On 2026-11-28 (an H200) the ceiling reached step 5030 of 5375 in a 570-s call (the CLI built in 96 s; the tests beside
@@ -58,8 +58,12 @@ if [ "$PHASE" = ceiling ]; then
 elif [ "$PHASE" = encdec ]; then
   [ -f $DS/test/index.json ] || render_demo_dataset $DS || exit 1
   log "the encoder-decoder told every camera, on the ceiling's budget ${SETS:-}"
-  # shellcheck disable=SC2086  # SETS is a list of words
-  train encdec --config configs/demo_lvsm_encdec_same_budget_gpu.json --run /tmp/run_encdec ${SETS:-}
+  ENCDEC="--set model.variant=uplvsm --set model.encoder_cameras=true --set model.keep_image_tokens=true \
+    --set model.transformer.encoder_n_layer=3 --set model.transformer.estimator_n_layer=1 \
+    --set model.transformer.decoder_n_layer=3 --set model.transformer.n_latent_vectors=256 \
+    --set training.target_poses=dataset"
+  # shellcheck disable=SC2086  # ENCDEC and SETS are lists of words
+  train encdec --config configs/demo_lvsm_same_budget_gpu.json --run /tmp/run_encdec $ENCDEC ${SETS:-}
   keep_run encdec
 else
   [ -f $DS/test/index.json ] || render_demo_dataset $DS || exit 1

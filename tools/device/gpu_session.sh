@@ -22,7 +22,7 @@ render_demo_dataset $DS || exit 1
 
 RUNS=(up imgtok lvsm)
 declare -A CFG=([up]="--config configs/demo.json" [imgtok]="--config configs/demo.json --set model.keep_image_tokens=true"
-                [lvsm]="--config configs/demo_lvsm.json")
+                [lvsm]="--config configs/demo.json --set model.variant=lvsm --set model.transformer.n_layer=7")
 COMMON="--data $DS --device cuda --set training.batch_size=$BATCH --set training.loader_threads=4 \
   --set training.eval_every=0 --set training.checkpoint_every=500 --set training.keep_checkpoints=1"
 log "speed probe: 60 steps of each, side by side"

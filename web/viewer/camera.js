@@ -1,6 +1,5 @@
 // Camera poses as the model reads them: [tx, ty, tz, qx, qy, qz, qw] (scalar-last quaternion), camera-to-world in
-// OpenCV axes (x right, y down, z forward). Interpolation matches `uplvsm render` (linear translation, slerp;
-// the translation's orbit about the pivot for a model with latent_pivot_depth).
+// OpenCV axes (x right, y down, z forward). Interpolation matches `uplvsm render` (linear translation, slerp).
 'use strict';
 const Cam = (() => {
   const qmul = (a, b) => [
@@ -27,13 +26,9 @@ const Cam = (() => {
     const wa = Math.sin((1 - t) * th) / s, wb = Math.sin(t * th) / s;
     return a.map((v, i) => wa * v + wb * b[i]);
   };
-  // `pivot` > 0 (a latent camera that orbits: model.transformer.latent_pivot_depth): the translation's orbit part
-  // (0, 0, d) - R (0, 0, d) follows the slerped rotation and the rest is linear, as `uplvsm render` does.
-  const orbit = (q, d) => (d ? [0, 0, d].map((v, i) => v - rotate(q, [0, 0, d])[i]) : [0, 0, 0]);
-  const interpolate = (p0, p1, t, pivot = 0) => {
-    const q0 = qnorm(p0.slice(3)), q1 = qnorm(p1.slice(3)), q = slerp(q0, q1, t);
-    const o0 = orbit(q0, pivot), o1 = orbit(q1, pivot), o = orbit(q, pivot);
-    const pos = [0, 1, 2].map((i) => (p0[i] - o0[i]) * (1 - t) + (p1[i] - o1[i]) * t + o[i]);
+  const interpolate = (p0, p1, t) => {
+    const q = slerp(qnorm(p0.slice(3)), qnorm(p1.slice(3)), t);
+    const pos = [0, 1, 2].map((i) => p0[i] * (1 - t) + p1[i] * t);
     return pos.concat(q);
   };
   const add = (a, b) => a.map((v, i) => v + b[i]);

@@ -7,7 +7,7 @@
   const MAX_IN_FLIGHT = 2;
   const MAX_PATH = 600;
   const st = {
-    info: null, session: null, space: 'latent', keys: null, pivot: 0, unit: 1,
+    info: null, session: null, space: 'latent', keys: null, unit: 1,
     cam: null, t: 0, override: null,
     seq: 0, shown: 0, inFlight: 0, dirty: false, frames: 0, dropped: 0, lastMs: null,
     recording: false, path: [], playing: false, current: null,
@@ -79,7 +79,6 @@
     st.session = s;
     st.space = s.has_mapper ? 'real' : 'latent';
     st.keys = st.space === 'real' ? s.key_real : s.key_latent;
-    st.pivot = st.space === 'real' ? 0 : (s.latent_pivot_depth || 0);
     const d = st.keys[1].slice(0, 3).map((v, i) => v - st.keys[0][i]);
     st.unit = st.space === 'real' ? 1 : Math.max(Math.hypot(...d), 1e-3);
     $('input0').src = s.inputs[0] + '?' + s.session;
@@ -110,7 +109,7 @@
   // ---- camera ------------------------------------------------------------------------------------------------
   function pose() {
     if (st.override) return st.override;
-    return Cam.compose(Cam.interpolate(st.keys[0], st.keys[1], st.t, st.pivot), st.cam, st.unit);
+    return Cam.compose(Cam.interpolate(st.keys[0], st.keys[1], st.t), st.cam, st.unit);
   }
   function reset() {
     st.cam = freshCam();

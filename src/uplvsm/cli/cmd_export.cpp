@@ -1,6 +1,5 @@
 // `uplvsm export`: a training checkpoint (or a run's latest) -> the weights a user needs: model tensors + config,
 // without the optimiser state (a third of the size), as shipped in models/.
-#include <algorithm>
 #include <filesystem>
 #include <iostream>
 
@@ -8,7 +7,6 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/train/weight_ema.h"
 
 namespace uplvsm::cli {
 
@@ -36,15 +34,10 @@ void add_export_command(CLI::App& app) {
     model::write_checkpoint(a->out, ck.config, state, ck.model, {});
     int64_t params = 0;
     for (const auto& [name, tensor] : ck.model) params += tensor.numel();
-    const bool averaged = std::any_of(ck.optimizer.begin(), ck.optimizer.end(), [](const auto& item) {
-      return item.first.rfind(train::kOnlineWeightsKind, 0) == 0;
-    });
     std::cout << fmt::format(
-        "wrote {} ({}, step {}, {} tensors, {} parameters, {:.1f} MB; {} optimiser tensors left "
-        "out){}\n",
-        a->out, ck.config.name, state.value("step", 0), ck.model.size(), params,
-        std::filesystem::file_size(a->out) / 1e6, ck.optimizer.size(),
-        averaged ? "; the weights are the run's weight average (training.ema_decay)" : "");
+        "wrote {} ({}, step {}, {} tensors, {} parameters, {:.1f} MB; {} optimiser tensors left out)\n", a->out,
+        ck.config.name, state.value("step", 0), ck.model.size(), params, std::filesystem::file_size(a->out) / 1e6,
+        ck.optimizer.size());
   });
 }
 

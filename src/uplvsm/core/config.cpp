@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 
 #include "uplvsm/core/json_input.h"
+#include "uplvsm/core/retired_keys.h"
 
 namespace uplvsm {
 
@@ -39,10 +40,12 @@ json json_value(const T& v) {
   return v;
 }
 
-// Reads known fields of one JSON object and rejects the rest, naming the offending path.
+// Reads known fields of one JSON object and rejects the rest (retired keys at their old default aside), naming the
+// offending path: `source` (the file) and `section` ("training", "model.transformer"; "" at the top).
 class Reader {
  public:
-  Reader(const json& j, std::string path) : j_(j), path_(std::move(path)) {
+  Reader(const json& j, const std::string& source, std::string section = "")
+      : j_(j), path_(section.empty() ? source : source + ": " + section), section_(std::move(section)) {
     if (!j_.is_object()) throw std::runtime_error(fmt::format("{}: expected a JSON object", path_));
   }
   template <typename T>
@@ -70,12 +73,13 @@ class Reader {
   }
   void finish() const {
     for (const auto& [k, v] : j_.items())
-      if (!seen_.count(k)) throw std::runtime_error(fmt::format("{}: unknown field '{}'", path_, k));
+      if (!seen_.count(k) && !accept_retired_key(section_, k, v, path_))
+        throw std::runtime_error(fmt::format("{}: unknown field '{}'", path_, k));
   }
 
  private:
   const json& j_;
-  std::string path_;
+  std::string path_, section_;
   std::set<std::string> seen_;
 };
 
@@ -92,12 +96,7 @@ void transformer_fields(C& c, F&& f) {
   f("qk_norm_eps", c.qk_norm_eps);
   f("special_init", c.special_init);
   f("depth_init", c.depth_init);
-  f("identity_rotation_init", c.identity_rotation_init);
   f("rotation_only_latent_camera", c.rotation_only_latent_camera);
-  f("latent_rotation_gain", c.latent_rotation_gain);
-  f("latent_pivot_depth", c.latent_pivot_depth);
-  f("estimator_correspondence", c.estimator_correspondence);
-  f("pose_error_feedback_steps", c.pose_error_feedback_steps);
 }
 
 template <typename C, typename F>
@@ -123,7 +122,6 @@ void model_fields(C& c, F&& f) {
   f("pose_mapper", c.pose_mapper);
   f("encoder_cameras", c.encoder_cameras);
   f("keep_image_tokens", c.keep_image_tokens);
-  f("estimator_half_view", c.estimator_half_view);
   f("encoder_latent_cameras", c.encoder_latent_cameras);
   f("image_size", c.image_size);
   f("patch_size", c.patch_size);
@@ -151,10 +149,7 @@ void training_fields(C& c, F&& f) {
   f("frame_dist_curriculum_steps", c.frame_dist_curriculum_steps);
   f("l2_loss_weight", c.l2_loss_weight);
   f("perceptual_loss_weight", c.perceptual_loss_weight);
-  f("l1_loss_weight", c.l1_loss_weight);
-  f("ssim_loss_weight", c.ssim_loss_weight);
   f("gradient_difference_weight", c.gradient_difference_weight);
-  f("ema_decay", c.ema_decay);
   f("checkpoint_every", c.checkpoint_every);
   f("keep_checkpoints", c.keep_checkpoints);
   f("log_every", c.log_every);
@@ -169,19 +164,6 @@ void training_fields(C& c, F&& f) {
   f("subset", c.subset);
   f("pose_noise_std", c.pose_noise_std);
   f("view_sampler", c.view_sampler);
-  f("rotation_equivariance_weight", c.rotation_equivariance_weight);
-  f("rotation_equivariance_degrees", c.rotation_equivariance_degrees);
-  f("turned_view_weight", c.turned_view_weight);
-  f("turned_view_degrees", c.turned_view_degrees);
-  f("rotation_alignment_weight", c.rotation_alignment_weight);
-  f("rotation_alignment_blur", c.rotation_alignment_blur);
-  f("latent_translation_warmup_steps", c.latent_translation_warmup_steps);
-  f("latent_translation_weight", c.latent_translation_weight);
-  f("init_new_blocks_identity", c.init_new_blocks_identity);
-  f("fitted_pose_steps", c.fitted_pose_steps);
-  f("fitted_pose_lr", c.fitted_pose_lr);
-  f("fitted_pose_weight", c.fitted_pose_weight);
-  f("render_at_fitted_poses", c.render_at_fitted_poses);
 }
 
 template <typename C, typename F>
@@ -201,22 +183,22 @@ void dataset_fields(C& c, F&& f) {
 
 template <typename C, typename F>
 void eval_fields(C& c, F&& f) {
-  f("num_target_views", c.num_target_views);
   f("max_scenes", c.max_scenes);
 }
 
 // Reads one flat section; `children` reads nested sections before the unknown-field check.
 template <typename C, typename Fields, typename Children>
-void read_section(const json& j, const std::string& path, C& c, Fields fields, Children children) {
-  Reader r(j, path);
+void read_section(const json& j, const std::string& source, const std::string& section, C& c, Fields fields,
+                  Children children) {
+  Reader r(j, source, section);
   fields(c, [&](const char* key, auto& member) { r.get(key, member); });
   children(r);
   r.finish();
 }
 
 template <typename C, typename Fields>
-void read_section(const json& j, const std::string& path, C& c, Fields fields) {
-  read_section(j, path, c, fields, [](Reader&) {});
+void read_section(const json& j, const std::string& source, const std::string& section, C& c, Fields fields) {
+  read_section(j, source, section, c, fields, [](Reader&) {});
 }
 
 template <typename C, typename Fields>
@@ -224,17 +206,6 @@ json write_section(const C& c, Fields fields) {
   json out = json::object();
   fields(c, [&](const char* key, const auto& member) { out[key] = json_value(member); });
   return out;
-}
-
-// training.pose_noise_variance (until d3badc2) drew N(0, value) on all views before the scene normalisation: files
-// written then carry it at 0, which reads as pose_noise_std 0; another value has no equal in the official knob.
-void reject_old_pose_noise(const json* old, const std::string& source) {
-  if (!old || (old->is_number() && old->get<double>() == 0)) return;
-  throw std::runtime_error(fmt::format(
-      "{}: training.pose_noise_variance was replaced (after commit d3badc2) by training.pose_noise_std, the official "
-      "noise_scale: a standard deviation, drawn after the scene normalisation; for the old noise set "
-      "pose_noise_std = sqrt({})",
-      source, old->dump()));
 }
 
 #define UPLVSM_FIELDS(fn) [](auto& c, auto&& f) { fn(c, f); }
@@ -258,17 +229,15 @@ Config config_from_json(const json& j, const std::string& source) {
   Reader r(j, source);
   r.get("name", c.name);
   if (auto m = r.child("model"))
-    read_section(*m, source + ": model", c.model, UPLVSM_FIELDS(model_fields), [&](Reader& mr) {
+    read_section(*m, source, "model", c.model, UPLVSM_FIELDS(model_fields), [&](Reader& mr) {
       if (auto t = mr.child("transformer"))
-        read_section(*t, source + ": model.transformer", c.model.transformer, UPLVSM_FIELDS(transformer_fields));
+        read_section(*t, source, "model.transformer", c.model.transformer, UPLVSM_FIELDS(transformer_fields));
       if (auto d = mr.child("dinov2"))
-        read_section(*d, source + ": model.dinov2", c.model.dinov2, UPLVSM_FIELDS(dinov2_fields));
+        read_section(*d, source, "model.dinov2", c.model.dinov2, UPLVSM_FIELDS(dinov2_fields));
     });
-  if (auto t = r.child("training"))
-    read_section(*t, source + ": training", c.training, UPLVSM_FIELDS(training_fields),
-                 [&](Reader& tr) { reject_old_pose_noise(tr.child("pose_noise_variance"), source); });
-  if (auto d = r.child("dataset")) read_section(*d, source + ": dataset", c.dataset, UPLVSM_FIELDS(dataset_fields));
-  if (auto e = r.child("eval")) read_section(*e, source + ": eval", c.eval, UPLVSM_FIELDS(eval_fields));
+  if (auto t = r.child("training")) read_section(*t, source, "training", c.training, UPLVSM_FIELDS(training_fields));
+  if (auto d = r.child("dataset")) read_section(*d, source, "dataset", c.dataset, UPLVSM_FIELDS(dataset_fields));
+  if (auto e = r.child("eval")) read_section(*e, source, "eval", c.eval, UPLVSM_FIELDS(eval_fields));
   r.finish();
   validate_config(c, source);
   return c;
@@ -286,8 +255,12 @@ Config apply_config_overrides(const Config& c, const std::vector<std::string>& a
     for (size_t start = 0;;) {
       const size_t dot = path.find('.', start);
       const std::string key = path.substr(start, dot == std::string::npos ? std::string::npos : dot - start);
-      if (!node->is_object() || !node->contains(key))
-        throw std::runtime_error(fmt::format("--set '{}': the config has no field '{}'", a, path));
+      if (!node->is_object() || !node->contains(key)) {
+        const auto* retired =
+            dot == std::string::npos ? find_retired_key(path.substr(0, start ? start - 1 : 0), key) : nullptr;
+        throw std::runtime_error(fmt::format("--set '{}': the config has no field '{}'{}", a, path,
+                                             retired ? "; " + retired_key_note(*retired) : ""));
+      }
       node = &(*node)[key];
       if (dot == std::string::npos) break;
       start = dot + 1;

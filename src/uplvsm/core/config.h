@@ -1,6 +1,7 @@
 // The run configuration: model, training and built-in dataset settings, read from configs/*.json. Field names
 // follow the official UP-LVSM YAML where one exists (transformer.encoder_n_layer, training.min_frame_dist, ...).
-// Unknown keys are errors, so a typo never silently falls back to a default.
+// Unknown keys are errors, so a typo never silently falls back to a default; keys of levers removed since
+// (core/retired_keys.h) are accepted at their old default, so files written before still load.
 #pragma once
 #include <nlohmann/json.hpp>
 
@@ -34,30 +35,9 @@ struct TransformerConfig {
   double qk_norm_eps = 1e-3;  // official UP-LVSM; LVSM uses 1e-5
   bool special_init = true;
   bool depth_init = true;
-  // Not in the paper: start the estimator's quaternion head at the identity rotation (its output bias (0, 0, 0, 1),
-  // scalar-last) instead of the official zero bias, whose tiny random outputs normalise to arbitrary rotations.
-  bool identity_rotation_init = false;
   // Not in the paper: a latent camera that only turns. The estimator's translation is zero in training and
   // inference (its head stays in the checkpoint, unused), so every camera change must be explained by a rotation.
   bool rotation_only_latent_camera = false;
-  // Not in the paper: the quaternion head's vector part (x, y, z) is multiplied by this before normalisation, so an
-  // output change turns the latent camera this many times as far (1: the official head). A lever that makes a
-  // turn as cheap to learn as a move; the translation, read by a linear layer, can grow at no cost.
-  double latent_rotation_gain = 1.0;
-  // Not in the paper: the latent camera turns about a pivot this far in front of input view 0 (the latent world's
-  // origin camera), on its optical axis, instead of about its own centre: t = (I - R) (0, 0, d) is added to the
-  // translation head's output. 0 (the official camera) turns in place, as a camera walking through a room does; a
-  // pivot > 0 makes a turn an orbit, as a camera circling an object does, so a rotation-only latent camera
-  // (rotation_only_latent_camera) can explain an orbit. A length in the latent world's own units.
-  double latent_pivot_depth = 0.0;
-  // Not in the paper (needs model.keep_image_tokens): the estimator also reads where each target patch finds its
-  // content in input view 0 (model/correspondence_displacement.h), so a global shift of the image (a turn) is
-  // visible to it, not averaged away by the mean pooling. Starts as the official estimator (its output layer at 0).
-  bool estimator_correspondence = false;
-  // Not in the paper (model/pose_error_feedback.h): after its one-shot reading, the estimator is shown the render at
-  // its pose beside the target this many times and reads a correction each time (iterative error feedback). Starts
-  // as the one-shot estimator; 0 is the official model.
-  int64_t pose_error_feedback_steps = 0;
 };
 
 struct Dinov2Config {
@@ -89,11 +69,6 @@ struct ModelConfig {
   // estimator and the decoder attend to (official: discarded, only the latents are kept). A lever against the latent
   // bottleneck at small scale (docs/demo.md); the weights are the same, so any checkpoint loads either way.
   bool keep_image_tokens = false;
-  // Not in the paper (a partial peek against latent poses that carry the target's content;
-  // train/estimator_half_view.h): uplvsm's estimator reads one half of each target, the other half black — in
-  // training the left or the right, drawn per target, with the rendering loss on the other half only; elsewhere the
-  // left half. false: official.
-  bool estimator_half_view = false;
   // Not in the paper (RayZer's design, Jiang et al. 2025: the inputs' predicted cameras feed the scene
   // reconstruction): uplvsm's encoder runs twice, the second time with input views 1.. carrying the Plücker rays of
   // the latent poses the estimator reads from them in the first pass's scene (view 0 the identity marker), so one
@@ -126,17 +101,8 @@ struct TrainingConfig {
   int64_t frame_dist_curriculum_steps = 0;
   double l2_loss_weight = 1.0;
   double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (TrainOptions::perceptual_weights)
-  // Not in the paper: structure-aware photometric terms that need no weights (3D Gaussian Splatting uses
-  // 0.8 L1 + 0.2 (1 - SSIM)): mean |render - target| and 1 - SSIM (train/structural_dissimilarity_loss.h). 0: off.
-  double l1_loss_weight = 0.0;
-  double ssim_loss_weight = 0.0;
   // Not in the paper: the gradient difference loss (train/gradient_difference_loss.h), against the blur. 0: off.
   double gradient_difference_weight = 0.0;
-  // Not in the paper: an exponential moving average of the weights (train/weight_ema.h), updated after every applied
-  // update with min(ema_decay, (1 + n) / (10 + n)) at its n-th update. What a run's checkpoints hand to every reader
-  // (eval, export, --init) and what its periodic evaluations score; the trained weights stay in the checkpoint's
-  // optimiser state, for the resume. 0: off (the official recipe).
-  double ema_decay = 0.0;
   int64_t checkpoint_every = 4000;
   int64_t keep_checkpoints = 3;
   int64_t log_every = 10;
@@ -166,44 +132,6 @@ struct TrainingConfig {
   // frame_dist apart, targets between them; video datasets), "unordered" (any distinct frames; object renders
   // whose frames have no order), or "auto" (the dataset's dataset.json view_order; ordered without one).
   std::string view_sampler = "auto";
-  // Self-supervised rotation signal for UP-LVSM's estimator (geometry/camera_rotation_warp.h): every target is also
-  // warped as its camera turned by a random yaw within ±rotation_equivariance_degrees, and the latent pose of the
-  // warped image must equal the unwarped one's turned by that angle (both seen through the same fixed central band).
-  // Its weight in the loss; 0: off (the official recipe).
-  double rotation_equivariance_weight = 0;
-  double rotation_equivariance_degrees = 10;
-  // Not in the paper: a rendering signal for turns (train/turned_view_loss.h). Every target is also rendered from its
-  // latent pose turned by a random yaw within ±turned_view_degrees and scored against the target warped as its camera
-  // turned by that yaw (on the pixels the warp keeps). Its weight in the loss; 0: off (the official recipe).
-  double turned_view_weight = 0;
-  double turned_view_degrees = 10;
-  // Not in the paper: a direct teacher for the latent rotation (train/rotation_alignment_loss.h): input view 0
-  // warped by each target's latent rotation must look like the target (parallax ignored). Its weight; 0: off.
-  double rotation_alignment_weight = 0;
-  // Gaussian blur (sigma, pixels) of both images before that comparison: a photometric alignment only sees shifts of
-  // about its images' blur, so this widens its basin to the view changes the data has (coarse-to-fine). 0: sharp.
-  double rotation_alignment_blur = 0;
-  // Not in the paper: UP-LVSM's latent camera starts as a pure rotation. The estimator's translation is multiplied
-  // by step / latent_translation_warmup_steps (0 at the start, 1 from then on), so early camera changes can only be
-  // explained by turning the camera. 0: off (the official recipe).
-  int64_t latent_translation_warmup_steps = 0;
-  // Not in the paper: makes a latent move cost more than a turn. Adds weight * mean |t|^2 of the estimated target
-  // translations to the loss; 0: off (the official recipe).
-  double latent_translation_weight = 0;
-  // Not in the paper: with `--init`, transformer blocks this config has and the weights lack (a deeper stack) start as
-  // the identity (model/function_preserving_deepening.h) instead of failing the strict load. false: strict.
-  bool init_new_blocks_identity = false;
-  // Not in the paper: the decoder trained at latent poses fitted to their targets (model/latent_pose_refinement.h).
-  // Each target's estimated pose is refined by fitted_pose_steps Adam steps (fitted_pose_lr) on its render's error,
-  // keeping each view's best pose, the render is scored at that pose, and the estimator is pulled towards it by
-  // fitted_pose_weight x the squared distance between the two 7-D poses, averaged over targets. 0 steps: off (the
-  // official recipe).
-  int64_t fitted_pose_steps = 0;
-  double fitted_pose_lr = 1e-2;
-  double fitted_pose_weight = 1.0;
-  // false: the render is scored at the estimator's poses as in the official recipe, and the fit only teaches the
-  // estimator (through the pull).
-  bool render_at_fitted_poses = true;
 };
 
 struct DatasetConfig {
@@ -224,7 +152,6 @@ struct DatasetConfig {
 };
 
 struct EvalConfig {
-  int64_t num_target_views = 3;
   int64_t max_scenes = 0;  // 0: all
 };
 

@@ -19,15 +19,6 @@ void validate_model(const ModelConfig& m, const std::string& s) {
   const auto& t = m.transformer;
   require(!m.pose_mapper || m.variant == Variant::UPLVSM, s,
           "model.pose_mapper: only the uplvsm variant has latent poses to map to");
-  require(!m.transformer.estimator_correspondence || (m.variant == Variant::UPLVSM && m.keep_image_tokens), s,
-          "model.transformer.estimator_correspondence reads input view 0's image tokens: it needs the uplvsm variant "
-          "and model.keep_image_tokens: true");
-  require(t.pose_error_feedback_steps == 0 || (m.variant == Variant::UPLVSM && !m.estimator_half_view), s,
-          "model.transformer.pose_error_feedback_steps corrects the estimator's latent poses from the whole target: it "
-          "needs the uplvsm variant without model.estimator_half_view");
-  require(t.pose_error_feedback_steps >= 0 && t.pose_error_feedback_steps <= 8, s,
-          fmt::format("model.transformer.pose_error_feedback_steps must be in [0, 8], got {}",
-                      t.pose_error_feedback_steps));
   require(!m.keep_image_tokens || m.variant == Variant::UPLVSM, s,
           "model.keep_image_tokens: only the uplvsm variant has an encoder whose image tokens it could keep");
   require(m.patch_size > 0 && m.image_size > 0 && m.image_size % m.patch_size == 0, s,
@@ -38,13 +29,6 @@ void validate_model(const ModelConfig& m, const std::string& s) {
   require(t.encoder_n_layer >= 1 && t.estimator_n_layer >= 1 && t.decoder_n_layer >= 1 && t.n_layer >= 1, s,
           "model.transformer: every stack needs at least one layer");
   require(t.n_latent_vectors >= 1, s, "model.transformer.n_latent_vectors must be >= 1");
-  require(std::isfinite(t.latent_rotation_gain) && t.latent_rotation_gain > 0, s,
-          "model.transformer.latent_rotation_gain must be a finite number > 0");
-  require(std::isfinite(t.latent_pivot_depth) && t.latent_pivot_depth >= 0, s,
-          "model.transformer.latent_pivot_depth must be a finite number >= 0");
-  require(t.latent_pivot_depth == 0 || t.pose_error_feedback_steps == 0, s,
-          "model.transformer.latent_pivot_depth: the error-feedback correction (pose_error_feedback_steps) moves the "
-          "translation on its own, not about the pivot; use one or the other");
   require(m.dinov2.embed_dim == t.d, s,
           fmt::format("model.dinov2.embed_dim ({}) must equal model.transformer.d ({}): DINOv2 tokens are used "
                       "directly as transformer tokens",
@@ -55,12 +39,6 @@ void validate_model(const ModelConfig& m, const std::string& s) {
           "model.dinov2.pos_embed_init must be 'normal' or 'sincos', got '" + m.dinov2.pos_embed_init + "'");
   require(m.dinov2.pos_embed_init != "sincos" || m.dinov2.embed_dim % 4 == 0, s,
           "model.dinov2.pos_embed_init 'sincos' needs embed_dim divisible by 4");
-}
-
-// Whether UP-LVSM's estimator supplies the training targets' latent poses (what the latent-pose terms act on).
-bool estimates_target_poses(const ModelConfig& m, const TrainingConfig& tr) {
-  return m.variant == Variant::UPLVSM &&
-         (tr.target_poses == TargetPoseChoice::Auto || tr.target_poses == TargetPoseChoice::Estimator);
 }
 
 // Where the target cameras come from, against what the model can do with them.
@@ -74,58 +52,9 @@ void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const
   require(!m.encoder_cameras || (m.variant == Variant::UPLVSM && tp == TargetPoseChoice::Dataset), s,
           "model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
           "training.target_poses 'dataset'");
-  require(!m.estimator_half_view || m.variant == Variant::UPLVSM, s,
-          "model.estimator_half_view: only the uplvsm variant has an estimator to show half a view");
-  require(!m.estimator_half_view || !estimates_target_poses(m, tr) ||
-              (tr.perceptual_loss_weight == 0 && tr.l1_loss_weight == 0 && tr.ssim_loss_weight == 0 &&
-               tr.gradient_difference_weight == 0),
-          s,
-          "model.estimator_half_view: training scores half of each target with the MSE alone; set "
-          "training.perceptual_loss_weight, l1_loss_weight, ssim_loss_weight and gradient_difference_weight to 0");
   require(!m.encoder_latent_cameras || (m.variant == Variant::UPLVSM && !m.encoder_cameras), s,
           "model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras has latent cameras "
           "to give its encoder");
-}
-
-// The training terms on latent poses (not in the paper): their ranges, and only where the estimator supplies them.
-void validate_latent_pose_terms(const ModelConfig& m, const TrainingConfig& tr, const std::string& s) {
-  const bool estimated_poses = estimates_target_poses(m, tr);
-  auto only_with_estimated_poses = [&](bool used, const std::string& field, const std::string& what) {
-    require(!used || estimated_poses, s,
-            field + ": only a UP-LVSM whose target poses come from its estimator has " + what);
-  };
-  require(tr.rotation_equivariance_weight >= 0 && tr.rotation_equivariance_degrees > 0 &&
-              tr.rotation_equivariance_degrees <= 30,
-          s, "training.rotation_equivariance_weight must be >= 0 and rotation_equivariance_degrees in (0, 30]");
-  only_with_estimated_poses(tr.rotation_equivariance_weight != 0, "training.rotation_equivariance_weight",
-                            "latent poses to make equivariant");
-  require(tr.turned_view_weight >= 0 && std::isfinite(tr.turned_view_weight) && tr.turned_view_degrees > 0 &&
-              tr.turned_view_degrees <= 30,
-          s, "training.turned_view_weight must be a finite number >= 0 and turned_view_degrees in (0, 30]");
-  only_with_estimated_poses(tr.turned_view_weight != 0, "training.turned_view_weight", "latent poses to turn");
-  require(tr.rotation_alignment_weight >= 0 && std::isfinite(tr.rotation_alignment_weight), s,
-          "training.rotation_alignment_weight must be a finite number >= 0");
-  require(tr.rotation_alignment_blur >= 0 && tr.rotation_alignment_blur <= 64, s,
-          "training.rotation_alignment_blur must be a blur in pixels in [0, 64]");
-  require(tr.rotation_alignment_blur == 0 || tr.rotation_alignment_weight > 0, s,
-          "training.rotation_alignment_blur needs training.rotation_alignment_weight > 0");
-  only_with_estimated_poses(tr.rotation_alignment_weight != 0, "training.rotation_alignment_weight",
-                            "latent rotations to align");
-  require(tr.latent_translation_warmup_steps >= 0, s, "training.latent_translation_warmup_steps must be >= 0");
-  require(tr.latent_translation_weight >= 0 && std::isfinite(tr.latent_translation_weight), s,
-          "training.latent_translation_weight must be a finite number >= 0");
-  only_with_estimated_poses(tr.latent_translation_warmup_steps != 0 || tr.latent_translation_weight != 0,
-                            "training.latent_translation_warmup_steps / latent_translation_weight",
-                            "a latent translation to warm up or weigh");
-  require(tr.fitted_pose_steps >= 0 && tr.fitted_pose_steps <= 1000 && tr.fitted_pose_lr > 0 &&
-              std::isfinite(tr.fitted_pose_lr) && tr.fitted_pose_weight >= 0 && std::isfinite(tr.fitted_pose_weight),
-          s,
-          "training.fitted_pose_steps must be in [0, 1000] (0: off), fitted_pose_lr a finite number > 0 and "
-          "fitted_pose_weight a finite number >= 0");
-  only_with_estimated_poses(tr.fitted_pose_steps != 0, "training.fitted_pose_steps", "latent poses to fit");
-  require(tr.fitted_pose_steps == 0 || !m.estimator_half_view, s,
-          "training.fitted_pose_steps: fits each pose to its whole target, which model.estimator_half_view hides "
-          "half of; use one or the other");
 }
 
 void validate_training(const Config& c, const std::string& s) {
@@ -144,14 +73,8 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
           "training: need 1 <= min_frame_dist <= max_frame_dist");
   require(tr.frame_dist_curriculum_steps >= 0, s, "training.frame_dist_curriculum_steps must be >= 0");
-  for (const double w : {tr.l1_loss_weight, tr.ssim_loss_weight, tr.gradient_difference_weight})
-    require(w >= 0 && std::isfinite(w), s,
-            "training.l1_loss_weight, ssim_loss_weight and gradient_difference_weight must be finite numbers >= 0 "
-            "(0: off)");
-  require(tr.ssim_loss_weight == 0 || c.model.image_size >= 11, s,
-          "training.ssim_loss_weight needs model.image_size >= 11 (SSIM's 11x11 window)");
-  require(tr.ema_decay >= 0 && tr.ema_decay < 1, s,
-          fmt::format("training.ema_decay must be in [0, 1) (0: no weight average), got {}", tr.ema_decay));
+  require(tr.gradient_difference_weight >= 0 && std::isfinite(tr.gradient_difference_weight), s,
+          "training.gradient_difference_weight must be a finite number >= 0 (0: off)");
   require(tr.max_train_scenes >= 0, s, "training.max_train_scenes must be >= 0 (0: every scene of the train split)");
   require(tr.chunks_per_shuffle >= 0, s, "training.chunks_per_shuffle must be >= 0 (0: the whole split)");
   require(tr.pose_noise_std >= 0 && std::isfinite(tr.pose_noise_std), s,
@@ -171,7 +94,6 @@ void validate_config(const Config& c, const std::string& s) {
   validate_model(c.model, s);
   validate_training(c, s);
   validate_target_poses(c.model, c.training, s);
-  validate_latent_pose_terms(c.model, c.training, s);
 }
 
 }  // namespace uplvsm

@@ -1,6 +1,4 @@
-// SSIM's definition, one copy for the two sibling layers that use it: the evaluation metric (eval/metrics.h,
-// scikit-image's structural_similarity) and the training loss (train/structural_dissimilarity_loss.h). Here because
-// train and eval may not include each other.
+// SSIM's definition (scikit-image's structural_similarity), used by the evaluation metric (eval/metrics.h).
 #pragma once
 #include <cmath>
 #include <cstdint>

@@ -14,14 +14,6 @@ torch::Tensor pad_to_4x4(const torch::Tensor& T34) {
   return torch::cat({T34, row}, -2);
 }
 
-torch::Tensor pivot_translation(const torch::Tensor& q_xyzw, double d) {
-  // The turned camera's centre p + R (0 - p) = p - R p, where R p is d times R's third column.
-  auto R = quat_to_rotation(q_xyzw.scalar_type() == torch::kDouble ? q_xyzw : q_xyzw.to(torch::kFloat32));
-  auto pivot = torch::zeros({3}, R.options());
-  pivot[2] = d;
-  return (pivot - d * R.select(-1, 2)).to(q_xyzw.scalar_type());
-}
-
 torch::Tensor identity_c2w(at::IntArrayRef batch, const torch::TensorOptions& options) {
   auto shape = batch.vec();
   shape.push_back(4);

@@ -12,11 +12,6 @@ torch::Tensor pose_encoding_to_c2w(const torch::Tensor& enc);
 // [..., 4, 4] or [..., 3, 4] c2w -> [..., 7] with qw >= 0 (official c2w_to_pose_encoding).
 torch::Tensor c2w_to_pose_encoding(const torch::Tensor& c2w);
 
-// The c2w translation [..., 3] of a camera turned by unit quaternions q_xyzw [..., 4] about the point d in front of
-// the identity camera, (0, 0, d): its centre (I - R) (0, 0, d), so the pivot stays on its optical axis, d ahead
-// (an orbit; d = 0 turns in place). Computed in fp32 (fp64 for fp64 q), returned in q's dtype.
-torch::Tensor pivot_translation(const torch::Tensor& q_xyzw, double d);
-
 // Inverse of a rigid [..., 4, 4] transform via R^T (exact for rotations; use torch::linalg_inv for general ones).
 torch::Tensor invert_rigid(const torch::Tensor& T);
 // [..., 3, 4] -> [..., 4, 4] with the row [0, 0, 0, 1].

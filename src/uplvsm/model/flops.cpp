@@ -52,12 +52,6 @@ FlopCount uplvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t inpu
   f.decoder = b * vt * transformer_stack_flops(t.decoder_n_layer, n + scene, n, t.d, 4 * t.d);
   const double pose_heads = 2.0 * 2 * (t.d * (t.d / 2.0) + (t.d / 2.0) * 3.5);
   f.other = b * (s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head + pose_heads));  // marker on view 0
-  if (t.pose_error_feedback_steps > 0) {  // per step and target: a render at the pose, the estimator again, the
-    const double steps = static_cast<double>(t.pose_error_feedback_steps);  // feedback's embedding (12 channels)
-    f.estimator *= 1.0 + steps;
-    f.decoder *= 1.0 + steps;
-    f.other += b * vt * steps * (3.0 * s.plucker_tokens + s.rgb_head + pose_heads);
-  }
   if (c.encoder_latent_cameras && input_views > 1) {  // the inputs' latent cameras, then the encoder again
     const double posed = vi - 1.0;
     f.encoder *= 2.0;

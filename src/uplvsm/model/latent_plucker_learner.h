@@ -1,13 +1,12 @@
 // The Latent Plücker Learner's estimator (official `ViTEstimator`): the target view's image tokens together with
 // the scene latents go through a few transformer blocks; the image-token outputs are mean-pooled and two small MLP
 // heads give a translation (3) and a quaternion (4, scalar-last, normalised in fp32): the 7-D latent pose (c2w in
-// input view 0's frame). With model.transformer.latent_pivot_depth the turn is about a pivot in front of view 0.
+// input view 0's frame).
 // It never sees a ground-truth pose: the rendering loss is its only teacher.
 #pragma once
 #include <torch/torch.h>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/correspondence_displacement.h"
 #include "uplvsm/model/dinov2.h"
 #include "uplvsm/model/transformer.h"
 
@@ -23,16 +22,8 @@ struct LatentPluckerLearnerImpl : torch::nn::Module {
 
   torch::nn::ModuleList transformer_estimator{nullptr};
   DinoMlp absT_head{nullptr}, quaR_head{nullptr};
-  // model.transformer.estimator_correspondence: reads view 0's image tokens, the first n rows after the
-  // n_latents scene latents (model.keep_image_tokens); null otherwise.
-  CorrespondenceReadout correspondence{nullptr};
-  int64_t n_latents = 0;
   int64_t grad_checkpoint_every = 0;  // see run_stack
   bool rotation_only = false;         // model.transformer.rotation_only_latent_camera
-  double rotation_gain = 1.0;         // model.transformer.latent_rotation_gain
-  double pivot_depth = 0.0;           // model.transformer.latent_pivot_depth
-  // Multiplies the translation head's output (training.latent_translation_warmup_steps); 1 outside training.
-  double translation_scale = 1.0;
 };
 TORCH_MODULE(LatentPluckerLearner);
 

@@ -21,20 +21,13 @@ torch::Tensor refine_latent_poses(UPLVSMImpl& model, const torch::Tensor& scene_
   auto latents = scene_latents.detach();
   auto poses = start.detach().to(torch::kFloat32).clone().set_requires_grad(true);
   torch::optim::Adam adam({poses}, torch::optim::AdamOptions(refinement.lr));
-  torch::Tensor best, best_error;  // [b, v, 7] and [b, v]: each view's lowest-error pose so far
   for (int64_t step = 0; step < refinement.steps; ++step) {
     auto render = model.render_views(latents, poses, targets.fxfycxcy, H, W);
     auto error = per_view_mse(render, targets.images);
-    if (refinement.keep_best) {
-      auto current = poses.detach().clone();
-      auto better = best.defined() ? (error.detach() < best_error) : torch::ones_like(error, torch::kBool);
-      best = best.defined() ? torch::where(better.unsqueeze(-1), current, best) : current;
-      best_error = best_error.defined() ? torch::where(better, error.detach(), best_error) : error.detach();
-    }
     poses.mutable_grad() = torch::autograd::grad({error.sum()}, {poses})[0];
     adam.step();
   }
-  return best.defined() ? best : poses.detach();
+  return poses.detach();
 }
 
 }  // namespace uplvsm::model

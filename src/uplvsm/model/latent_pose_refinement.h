@@ -1,6 +1,6 @@
 // Refining latent poses against their targets: each target's 7-D latent pose is moved by Adam steps on its render's
 // squared error against that target, the model's weights untouched. Used by evaluation (eval/target_pose_refinement,
-// a protocol beside the paper's) and by training (training.fitted_pose_steps: the decoder trained at fitted poses).
+// a protocol beside the paper's: `uplvsm eval --refine-poses`).
 // Only the 7 numbers of each pose move, so a refined render cannot copy its target's content.
 #pragma once
 #include <torch/torch.h>
@@ -14,10 +14,6 @@ namespace uplvsm::model {
 struct PoseRefinement {
   int64_t steps = 0;  // Adam steps per batch of targets; 0: the poses as they are
   double lr = 1e-2;   // on the latent translation and the (unnormalised) quaternion alike
-  // Return each view's pose of lowest error among those rendered (the start and the first steps-1 updates) rather
-  // than the last: with few steps Adam moves every number by about lr per step whether or not the error falls, so the
-  // last pose can be worse than the start; the best one never is.
-  bool keep_best = false;
 };
 
 // Mean squared error of each render against its target [b, v] (what the refinement lowers, one pose per view).

@@ -41,8 +41,6 @@ int64_t parameter_count(const ModelConfig& c) {
          t.d;
     n += stack_parameters(t.estimator_n_layer, t) + head_parameters(t.d, t.d / 2, 3) + head_parameters(t.d, t.d / 2, 4);
     if (c.pose_mapper) n += 7 * 7 + 7;
-    if (t.estimator_correspondence) n += 2 * t.d * t.d_head + head_parameters(4, t.d / 2, t.d);
-    if (t.pose_error_feedback_steps > 0) n += 12 * p * p * t.d + head_parameters(t.d, t.d / 2, 7);
   }
   return n + t.d + t.d * p * p * 3;  // image_token_decoder: LayerNorm, Linear
 }
@@ -53,8 +51,7 @@ TrainingMemory training_memory(const Config& config) {
   const auto& tc = config.training;
   TrainingMemory m;
   m.parameters = parameter_count(c);
-  // + 4 bytes for the weight average's copy (training.ema_decay).
-  m.state_bytes = (tc.ema_decay > 0 ? 20.0 : 16.0) * static_cast<double>(m.parameters);
+  m.state_bytes = 16.0 * static_cast<double>(m.parameters);
   const double b = static_cast<double>(tc.batch_size), vi = static_cast<double>(tc.num_input_views),
                vt = static_cast<double>(tc.num_target_views);
   const double grid = static_cast<double>(c.image_size / c.patch_size), n = grid * grid,

@@ -13,7 +13,7 @@ int64_t parameter_count(const ModelConfig& config);
 
 struct TrainingMemory {
   int64_t parameters = 0;
-  // fp32 weights, gradients and AdamW's two moments: 16 bytes per parameter (20 with training.ema_decay's average)
+  // fp32 weights, gradients and AdamW's two moments: 16 bytes per parameter
   double state_bytes = 0;
   double activation_bytes = 0;  // tensors kept for the backward of one micro-batch (a lower bound)
   double total() const { return state_bytes + activation_bytes; }

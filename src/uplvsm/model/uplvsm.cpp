@@ -21,8 +21,6 @@ UPLVSMImpl::UPLVSMImpl(const ModelConfig& c) : NovelViewModelImpl(c) {
   transformer_input_layernorm_decoder =
       register_module("transformer_input_layernorm_decoder", LayerNorm(t.d, 1e-5, false));
   estimator = register_module("estimator", LatentPluckerLearner(t));
-  if (t.pose_error_feedback_steps > 0)
-    pose_error_feedback = register_module("pose_error_feedback", PoseErrorFeedback(c.patch_size, t.d));
   if (c.pose_mapper) pose_mapper = register_module("pose_mapper", PoseMapper());
   register_rgb_head();
 }
@@ -72,22 +70,11 @@ torch::Tensor UPLVSMImpl::encode_tokens(const torch::Tensor& tokens, const torch
   return all_rows && !config.keep_image_tokens ? z.index({Slice(), Slice(0, L)}) : z;
 }
 
-torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& images, const torch::Tensor& scene_latents,
+torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                          ForwardTrace* trace) {
-  if (config.estimator_half_view && images.dim() == 5) {  // estimate_poses_seeing checks the shape
-    const int64_t W = images.size(4);
-    auto left = (torch::arange(W, images.options().dtype(torch::kInt64)) < W / 2).to(images.scalar_type());
-    return estimate_poses_seeing(images, left.view({1, 1, 1, 1, W}), scene_latents, trace);
-  }
-  return estimate_poses_seeing(images, {}, scene_latents, trace);
-}
-
-torch::Tensor UPLVSMImpl::estimate_poses_seeing(const torch::Tensor& target_images, const torch::Tensor& seen,
-                                                const torch::Tensor& scene_latents, ForwardTrace* trace) {
   TORCH_CHECK(target_images.dim() == 5 && target_images.size(2) == 3,
               "estimate_poses: target images must be [b, v, 3, H, W], got ", target_images.sizes());
-  const auto images = seen.defined() ? target_images * seen : target_images;
-  return estimate_poses_from_tokens(tokenize(images), scene_latents, trace);
+  return estimate_poses_from_tokens(tokenize(target_images), scene_latents, trace);
 }
 
 torch::Tensor UPLVSMImpl::estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
@@ -102,35 +89,10 @@ torch::Tensor UPLVSMImpl::estimate_poses_from_tokens(const torch::Tensor& tokens
   return estimator->heads(pooled).view({b, v, 7});
 }
 
-torch::Tensor UPLVSMImpl::estimate_poses_with_feedback(const Views& targets, const torch::Tensor& scene_latents,
-                                                       ForwardTrace* trace) {
-  if (!pose_error_feedback) return estimate_poses(targets.images, scene_latents, trace);
-  TORCH_CHECK(targets.images.dim() == 5 && targets.images.size(2) == 3,
-              "estimate_poses: target images must be [b, v, 3, H, W], got ", targets.images.sizes());
-  const int64_t b = targets.images.size(0), v = targets.images.size(1), H = targets.images.size(3),
-                W = targets.images.size(4);
-  auto tokens = tokenize(targets.images);
-  auto poses = estimate_poses_from_tokens(tokens, scene_latents, trace).to(torch::kFloat32);
-  const auto latents_per_view = repeat_per_view(scene_latents, v);
-  for (int64_t k = 0; k < config.transformer.pose_error_feedback_steps; ++k) {
-    auto rays = geometry::plucker_rays(geometry::pose_encoding_to_c2w(poses), targets.fxfycxcy, H, W);
-    torch::Tensor render;
-    {  // the error is evidence for the estimator, not a path for gradients into the decoder
-      torch::NoGradGuard no_grad;
-      render = render_rays(scene_latents, rays.detach());
-    }
-    auto fed_back = tokens.flatten(0, 1) +
-                    pose_error_feedback->embed(targets.images.flatten(0, 1), render.flatten(0, 1), rays.flatten(0, 1));
-    auto pooled = estimator->pooled(fed_back.to(tokens.scalar_type()), latents_per_view);
-    poses = pose_error_feedback->correct(poses.flatten(0, 1), pooled, estimator->rotation_only).view({b, v, 7});
-  }
-  return poses;
-}
-
 UPLVSMImpl::EncodedInputs UPLVSMImpl::encode_with_input_poses(const torch::Tensor& images,
                                                               const torch::Tensor& fxfycxcy) {
   auto latents = encode_scene(images, fxfycxcy);
-  return {latents, estimate_poses_with_feedback({images, fxfycxcy, {}}, latents)};
+  return {latents, estimate_poses(images, latents)};
 }
 
 torch::Tensor UPLVSMImpl::render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
@@ -157,7 +119,7 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
                                               const torch::Tensor& scene_latents, TargetPoses source,
                                               ForwardTrace* trace) {
   switch (source) {
-    case TargetPoses::Estimator: return estimate_poses_with_feedback(targets, scene_latents, trace);
+    case TargetPoses::Estimator: return estimate_poses(targets.images, scene_latents, trace);
     case TargetPoses::Dataset:
       return geometry::camera_control_poses(require_c2w(inputs, "input", source),
                                             require_c2w(targets, "target", source));

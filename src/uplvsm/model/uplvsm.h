@@ -5,8 +5,6 @@
 //        (model.encoder_latent_cameras, not official: T[view i>0] += tokenizer(Plücker(pose(Estimator(T_i, S))))
 //        and S = Encoder([latents ; T])[:L] again: the inputs' latent cameras in the encoder, as RayZer)
 //   e  = Estimator(DINOv2(target), S)                            7-D latent pose per target
-//        (model.transformer.pose_error_feedback_steps, not official: k times e = e + Estimator(DINOv2(target) +
-//        embed(render at e, target - render, Plücker(e)), S) through a correction head; iterative error feedback)
 //   Q  = target_pose_tokenizer(Plücker(pose(e), intrinsics))
 //   img = sigmoid(head(Decoder(LN([Q ; S]))[:n]))
 // Where a target's pose comes from (estimator, a camera mapper, dataset cameras) is one seam, TargetPoses:
@@ -17,7 +15,6 @@
 
 #include "uplvsm/model/latent_plucker_learner.h"
 #include "uplvsm/model/novel_view_model.h"
-#include "uplvsm/model/pose_error_feedback.h"
 #include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/transformer.h"
 
@@ -40,13 +37,9 @@ struct UPLVSMImpl : NovelViewModelImpl {
   // The scene latents of `inputs` as render() makes them: encode_scene, or with model.encoder_cameras every input
   // view's real camera (its c2w is then required).
   torch::Tensor encode(const Views& inputs, ForwardTrace* trace = nullptr);
-  // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner); with
-  // model.estimator_half_view, of their left halves.
+  // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner).
   torch::Tensor estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                ForwardTrace* trace = nullptr);
-  // The same of the parts `seen` ([b, v_t, 1, H, W], 1 where the estimator sees) of the targets, the rest black.
-  torch::Tensor estimate_poses_seeing(const torch::Tensor& target_images, const torch::Tensor& seen,
-                                      const torch::Tensor& scene_latents, ForwardTrace* trace = nullptr);
   // The same from the targets' DINOv2 tokens [b, v_t, n, d].
   torch::Tensor estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
                                            ForwardTrace* trace = nullptr);
@@ -55,10 +48,6 @@ struct UPLVSMImpl : NovelViewModelImpl {
   struct EncodedInputs {
     torch::Tensor latents, input_poses;
   };
-  // The estimator's latent poses of `targets` (their images and intrinsics), each corrected
-  // model.transformer.pose_error_feedback_steps times from the render at it (model/pose_error_feedback.h).
-  torch::Tensor estimate_poses_with_feedback(const Views& targets, const torch::Tensor& scene_latents,
-                                             ForwardTrace* trace = nullptr);
   EncodedInputs encode_with_input_poses(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy);
   // Renders [b, v_t, 3, H, W] from latent poses [b, v_t, 7] and target intrinsics [b, v_t, 4].
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
@@ -92,7 +81,6 @@ struct UPLVSMImpl : NovelViewModelImpl {
   torch::nn::ModuleList transformer_encoder{nullptr}, transformer_decoder{nullptr};
   LayerNorm transformer_input_layernorm_decoder{nullptr};
   LatentPluckerLearner estimator{nullptr};
-  PoseErrorFeedback pose_error_feedback{nullptr};  // registered when config.transformer.pose_error_feedback_steps
   PoseMapper pose_mapper{nullptr};  // camera control, an option of UP-LVSM: registered when config.pose_mapper
 };
 TORCH_MODULE(UPLVSM);

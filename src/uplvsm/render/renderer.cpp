@@ -43,7 +43,7 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   const int64_t H = images.size(2), W = images.size(3);
   const auto scene = net->encode_with_input_poses(inputs, k);
   auto key_poses = scene.input_poses[0];  // [2, 7]
-  auto poses = interpolate_poses(key_poses, num_frames, net->estimator->pivot_depth);
+  auto poses = interpolate_poses(key_poses, num_frames);
   auto intrinsics = interpolate_intrinsics(k[0], num_frames);
   return {decode_path(net, scene.latents, poses, intrinsics, H, W, chunk), poses.cpu(), key_poses.cpu()};
 }

@@ -23,25 +23,21 @@ torch::ScalarType path_dtype(const torch::Tensor& keys) {
 }
 }  // namespace
 
-torch::Tensor interpolate_poses(const torch::Tensor& keys, int64_t n, double pivot_depth) {
+torch::Tensor interpolate_poses(const torch::Tensor& keys, int64_t n) {
   TORCH_CHECK(keys.dim() == 2 && keys.size(1) == 7 && keys.size(0) >= 2,
               "interpolate_poses: expected [K >= 2, 7] key poses, got ", keys.sizes());
   TORCH_CHECK(n >= 1, "interpolate_poses: frames per segment must be >= 1");
   auto k = keys.to(torch::kFloat64);
-  // The orbit about the pivot follows the slerped rotation; what is left of the translation is interpolated linearly.
-  auto orbit = [pivot_depth](const torch::Tensor& q) {
-    return pivot_depth == 0.0 ? torch::zeros({3}, q.options()) : geometry::pivot_translation(q, pivot_depth);
-  };
   std::vector<torch::Tensor> frames;
   for (int64_t s = 0; s + 1 < k.size(0); ++s) {
     auto q0 = k[s].slice(0, 3, 7), q1 = k[s + 1].slice(0, 3, 7);
     q0 = q0 / q0.norm();
     q1 = q1 / q1.norm();
-    auto r0 = k[s].slice(0, 0, 3) - orbit(q0), r1 = k[s + 1].slice(0, 0, 3) - orbit(q1);
+    auto t0 = k[s].slice(0, 0, 3), t1 = k[s + 1].slice(0, 0, 3);
     for (int64_t i = 0; i < n; ++i) {
       double a = fraction(i, n);
       auto q = geometry::quat_slerp(q0, q1, a);
-      frames.push_back(torch::cat({r0 * (1 - a) + r1 * a + orbit(q), q}));
+      frames.push_back(torch::cat({t0 * (1 - a) + t1 * a, q}));
     }
   }
   return torch::stack(frames).to(path_dtype(keys));

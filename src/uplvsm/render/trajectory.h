@@ -14,9 +14,7 @@ namespace uplvsm::render {
 // keys [K, 7] -> [(K - 1) * frames_per_segment, 7]; each segment samples t = linspace(0, 1, frames_per_segment).
 // Computed in float64 and returned in float32 (float64 for float64 keys), whatever the keys' precision (bf16 keys
 // from an autocast forward give a smooth path, not one snapped to bf16 poses).
-// With pivot_depth d > 0 (a latent camera that orbits, model.transformer.latent_pivot_depth) the translation's
-// orbit part (I - R) (0, 0, d) follows the slerped rotation, so the path keeps the pivot in view on an arc.
-torch::Tensor interpolate_poses(const torch::Tensor& keys, int64_t frames_per_segment, double pivot_depth = 0.0);
+torch::Tensor interpolate_poses(const torch::Tensor& keys, int64_t frames_per_segment);
 
 // Same for intrinsics [K, 4] (linear, same precision rule), matching interpolate_poses' frame layout.
 torch::Tensor interpolate_intrinsics(const torch::Tensor& keys, int64_t frames_per_segment);

@@ -203,7 +203,6 @@ nlohmann::json ViewerServer::describe(const Session& s) const {
                       {"key_latent", pose_rows(e.key_latent)},
                       {"key_real", e.key_real.defined() ? pose_rows(e.key_real) : nlohmann::json()},
                       {"key_real_estimated", e.key_real_estimated},
-                      {"latent_pivot_depth", model_.config().model.transformer.latent_pivot_depth},
                       {"inputs", {"/api/sessions/" + s.id + "/inputs/0", "/api/sessions/" + s.id + "/inputs/1"}},
                       {"photos", s.photos}};
   return j;

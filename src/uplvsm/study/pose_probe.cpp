@@ -26,8 +26,7 @@ torch::Tensor latent_poses_of_scene(model::UPLVSM& net, const data::SceneViews& 
   std::vector<torch::Tensor> poses;
   for (int64_t s = 0; s < images.size(1); s += chunk) {
     const int64_t n = std::min(chunk, images.size(1) - s);
-    model::Views views_s{images.narrow(1, s, n), k.narrow(1, s, n), {}};
-    poses.push_back(net->estimate_poses_with_feedback(views_s, latents)[0].cpu());
+    poses.push_back(net->estimate_poses(images.narrow(1, s, n), latents)[0].cpu());
   }
   // Expressed like the real poses: relative to the first context view, translations in the context baseline. The
   // estimator's latent frame is the scene latents' own (its origin and scale differ per scene), so a probe of the

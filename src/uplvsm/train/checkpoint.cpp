@@ -20,8 +20,7 @@ nlohmann::json TrainState::to_json() const {
           {"skipped_nonfinite", skipped_nonfinite},
           {"skipped_gradnorm", skipped_gradnorm},
           {"train_seconds", train_seconds},
-          {"best_eval_psnr", best_eval_psnr},
-          {"ema_updates", ema_updates}};
+          {"best_eval_psnr", best_eval_psnr}};
 }
 
 TrainState TrainState::from_json(const nlohmann::json& j) {
@@ -38,7 +37,6 @@ TrainState TrainState::from_json(const nlohmann::json& j) {
   s.param_update_step = integer("param_update_step", true);
   s.skipped_nonfinite = integer("skipped_nonfinite", false);
   s.skipped_gradnorm = integer("skipped_gradnorm", false);
-  s.ema_updates = integer("ema_updates", false);
   s.train_seconds = j.value("train_seconds", 0.0);
   s.best_eval_psnr = j.value("best_eval_psnr", -1.0);
   return s;
@@ -89,16 +87,10 @@ void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& 
 }
 
 std::string save_training_checkpoint(const std::string& dir, const Config& config, const TrainState& state,
-                                     torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep,
-                                     WeightEma* ema) {
+                                     torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep) {
   fs::create_directories(dir);
   auto path = (fs::path(dir) / checkpoint_name(state.step)).string();
-  {
-    WeightEmaScope average(ema);
-    auto optimizer = optimizer_state(opt, module);
-    if (ema) optimizer.merge(online_weights_while_swapped(*ema));
-    model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), optimizer);
-  }
+  model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), optimizer_state(opt, module));
   const auto all = training_checkpoints(dir);
   for (size_t i = 0; keep > 0 && i + static_cast<size_t>(keep) < all.size(); ++i) fs::remove(all[i]);
   return path;

@@ -12,7 +12,6 @@
 
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/train/weight_ema.h"
 
 namespace uplvsm::train {
 
@@ -23,14 +22,13 @@ struct TrainState {
   int64_t skipped_nonfinite = 0, skipped_gradnorm = 0;
   double train_seconds = 0;    // wall time spent training, over all resumes
   double best_eval_psnr = -1;  // best held-out PSNR of the periodic evaluations (< 0: none yet)
-  int64_t ema_updates = 0;     // updates of the weight average (training.ema_decay), which set its warm-up
   nlohmann::json to_json() const;
   static TrainState from_json(const nlohmann::json& j);
 };
 
 std::string checkpoint_name(int64_t step);
 
-// The module's parameters that train (requires_grad), by name: what the optimiser state and the weight average cover.
+// The module's parameters that train (requires_grad), by name: what the optimiser state covers.
 std::map<std::string, torch::Tensor> named_trainable_parameters(const torch::nn::Module& module);
 
 // Optimiser state as named tensors "<kind>/<param name>" (kind: exp_avg, exp_avg_sq, step) and back.
@@ -47,11 +45,9 @@ std::vector<std::string> training_checkpoints(const std::string& checkpoint_dir)
 // some and none reads.
 std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::string& checkpoint_dir);
 
-// Writes the checkpoint and prunes old ones; returns its path. With a weight average (`ema`, may be null) the model
-// tensors are the average and the trained weights go with the optimiser state (train/weight_ema.h).
+// Writes the checkpoint and prunes old ones; returns its path.
 std::string save_training_checkpoint(const std::string& checkpoint_dir, const Config& config, const TrainState& state,
-                                     torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep,
-                                     WeightEma* ema = nullptr);
+                                     torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep);
 
 // The weights (no optimiser state) of the best periodic evaluation: <checkpoint_dir>/best.safetensors, atomically.
 // resolve_checkpoint never picks it for a directory (it takes the latest ckpt_*); pass the file to use it.

@@ -3,7 +3,6 @@
 #include <optional>
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/data/chunk_dataset.h"
@@ -11,7 +10,6 @@
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/eval_mode.h"
-#include "uplvsm/model/function_preserving_deepening.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
@@ -32,26 +30,16 @@ void check_same_model(const Config& a, const Config& b, const std::string& sourc
 
 // A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
 // Returns whether the pose mapper still needs its initial fit (an UP-LVSM with one, from a file without it).
-bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path, bool new_blocks_identity) {
+bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path) {
   auto w = model::read_pretrained_weights(path);
   torch::NoGradGuard no_grad;
   const auto* up = model::as_uplvsm(net);
   const bool mapper = up && up->pose_mapper;
   model::LoadOptions load;
   if (mapper) load.allow_missing_substrings.push_back("pose_mapper.");
-  // Starts as the one-shot estimator (its output layer at zero) when the file was trained without it.
-  if (up && up->pose_error_feedback) load.allow_missing_substrings.push_back("pose_error_feedback.");
-  std::vector<std::string> new_blocks;
-  if (new_blocks_identity && w.source == model::WeightSource::Uplvsm)
-    for (const auto& block : new_blocks = model::blocks_absent_from(net, w.tensors, path))
-      load.allow_missing_substrings.push_back(block + ".");
   auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path, load)
                                                         : model::load_dinov2_into_tokenizer(net, w.tensors, path);
-  model::make_blocks_identity(net, new_blocks);
   spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
-  if (!new_blocks.empty())
-    spdlog::info("{} transformer block(s) not in {} start as the identity: {}", new_blocks.size(), path,
-                 fmt::join(new_blocks, ", "));
   return mapper && !w.tensors.count("pose_mapper.A");
 }
 
@@ -72,7 +60,7 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
     model::Views inputs{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi))};
     model::Views targets{dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w())};
     auto latents = net.encode_scene(inputs.images, inputs.fxfycxcy);
-    latent.push_back(net.estimate_poses_with_feedback(targets, latents).reshape({-1, 7}).cpu());
+    latent.push_back(net.estimate_poses(targets.images, latents).reshape({-1, 7}).cpu());
     real.push_back(geometry::camera_control_poses(inputs.c2w, targets.c2w).reshape({-1, 7}).cpu());
   }
   const double rms = model::fit_pose_mapper(*net.pose_mapper, torch::cat(real), torch::cat(latent));
@@ -88,41 +76,22 @@ std::optional<model::CheckpointFile> resume_checkpoint(const TrainOptions& opt, 
   return read_newest_valid_checkpoint(checkpoint_dir);
 }
 
-// The trained weights of a checkpoint written with a weight average are in its optimiser state ("online/"), the
-// average in its model tensors: both go back where they were. Returns the average, or null when the run has none.
-std::unique_ptr<WeightEma> restore_weights(model::NovelViewModelImpl& net, const model::CheckpointFile& ckpt,
-                                           double ema_decay) {
-  model::load_state_dict(net, ckpt.model, ckpt.path);
-  auto ema = std::make_unique<WeightEma>(make_weight_ema(net, ema_decay));
-  const bool had_average = restore_online_weights(*ema, ckpt.optimizer, ckpt.path);
-  if (had_average && ema_decay == 0)
-    spdlog::info("{}: training.ema_decay is 0: going on from the trained weights, without their average", ckpt.path);
-  if (!had_average && ema_decay > 0)
-    spdlog::info("{} has no weight average: it starts at the checkpoint's weights", ckpt.path);
-  if (ema_decay == 0) return nullptr;
-  return ema;
-}
-
 // Restores weights, optimiser and training state from a checkpoint, or initialises a new run (optionally from
-// weights); the weight average (training.ema_decay) starts at the run's first weights.
+// weights).
 ModelStart resume_or_initialise(model::NovelViewModel net, const Config& config, const TrainOptions& opt,
                                 const std::string& checkpoint_dir) {
   auto optimizer = make_optimizer(*net, config.training);
-  const double decay = config.training.ema_decay;
   if (auto ckpt = resume_checkpoint(opt, checkpoint_dir)) {
     check_same_model(config, ckpt->config, ckpt->path);
-    auto ema = restore_weights(*net, *ckpt, decay);
+    model::load_state_dict(*net, ckpt->model, ckpt->path);
     restore_optimizer_state(*optimizer, *net, ckpt->optimizer, ckpt->path);
     auto state = TrainState::from_json(ckpt->state);
-    if (!ema) state.ema_updates = 0;  // an average turned on again later starts its warm-up afresh
     spdlog::info("resumed from {} at step {}", ckpt->path, state.step);
-    return {net, std::move(optimizer), state, std::move(ema)};
+    return {net, std::move(optimizer), state};
   }
-  if (!opt.init_weights.empty() && init_from_weights(*net, opt.init_weights, config.training.init_new_blocks_identity))
+  if (!opt.init_weights.empty() && init_from_weights(*net, opt.init_weights))
     calibrate_pose_mapper(*model::as_uplvsm(*net), config, opt);
-  std::unique_ptr<WeightEma> ema;
-  if (decay > 0) ema = std::make_unique<WeightEma>(make_weight_ema(*net, decay));
-  return {net, std::move(optimizer), TrainState{}, std::move(ema)};
+  return {net, std::move(optimizer), TrainState{}};
 }
 
 }  // namespace
@@ -132,10 +101,7 @@ ModelStart start_model(const Config& config, const TrainOptions& opt, const std:
   auto net = model::make_model(config.model);
   net->to(opt.device);
   net->train();
-  auto start = resume_or_initialise(net, config, opt, checkpoint_dir);
-  if (start.ema)
-    spdlog::info("weight average: decay {} (checkpoints and evaluations hold the average)", start.ema->decay);
-  return start;
+  return resume_or_initialise(net, config, opt, checkpoint_dir);
 }
 
 }  // namespace uplvsm::train

@@ -1,4 +1,4 @@
-// How a training run starts: from a checkpoint (its weights, AdamW state, training state and weight average), or
+// How a training run starts: from a checkpoint (its weights, AdamW state and training state), or
 // new, optionally from weights (--init: an UP-LVSM file loaded strictly, or DINOv2 into the image tokenizer), with
 // the camera-control stage's pose mapper fitted by least squares first when the file lacks it.
 #pragma once
@@ -11,17 +11,14 @@
 #include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/trainer.h"
-#include "uplvsm/train/weight_ema.h"
 
 namespace uplvsm::train {
 
-// The model on its device in train mode, its optimiser, the state to go on from (a checkpoint or step 0), and the
-// weight average when training.ema_decay asks for one (null otherwise).
+// The model on its device in train mode, its optimiser and the state to go on from (a checkpoint or step 0).
 struct ModelStart {
   model::NovelViewModel net;
   std::unique_ptr<torch::optim::AdamW> optimizer;
   TrainState state;
-  std::unique_ptr<WeightEma> ema;
 };
 
 ModelStart start_model(const Config& config, const TrainOptions& options, const std::string& checkpoint_dir);

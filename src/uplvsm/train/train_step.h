@@ -1,7 +1,7 @@
 // One optimiser step of the official training loop (Less3Depend `src/train.py`), as a function of its own so the
 // loop in trainer.cpp reads as named steps and tests can replay the official steps through this very code:
-//   per micro-batch: forward (autocast) -> loss = w_l2 MSE (+ w_p perceptual, and the terms not in the paper: L1,
-//   1 - SSIM, gradient difference, latent-pose terms) -> backward(loss / accum)
+//   per micro-batch: forward (autocast) -> loss = w_l2 MSE (+ w_p perceptual; + w_gd gradient difference, not in the
+//   paper) -> backward(loss / accum)
 //   [data parallel: average gradients and losses]
 //   non-finite loss: no update, schedule does not move; else nan_to_num(grads) -> clip (norm returned BEFORE
 //   clipping) -> skip the update when norm > clip x factor -> AdamW at the scheduled LR; the schedule moves.

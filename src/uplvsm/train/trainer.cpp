@@ -28,7 +28,6 @@
 #include "uplvsm/train/perceptual_loss.h"
 #include "uplvsm/train/run_start.h"
 #include "uplvsm/train/train_step.h"
-#include "uplvsm/train/weight_ema.h"
 
 namespace uplvsm::train {
 
@@ -286,23 +285,19 @@ void update_progress(ProgressBar& bar, int64_t step, const RunningMeans& means, 
 struct TrainedModel {
   model::NovelViewModel net;
   torch::optim::AdamW& optimizer;
-  WeightEma* ema;  // null: no weight average
 };
 
-// The periodic evaluation and the checkpoint when this step is due for them, both of the weight average when the run
-// keeps one. Evaluation first, so the checkpoint of this step carries its best-so-far record. Returns the checkpoint
-// written, or "".
+// The periodic evaluation and the checkpoint when this step is due for them. Evaluation first, so the checkpoint of
+// this step carries its best-so-far record. Returns the checkpoint written, or "".
 std::string evaluate_and_checkpoint(const TrainOptions& opt, const Config& config, TrainedModel m, TrainState& state,
                                     bool lead, std::ofstream& metrics, const std::string& checkpoint_dir,
                                     bool stop_now) {
   const auto& tc = config.training;
   const bool last = state.step == tc.train_steps;
-  if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || last)) {
-    WeightEmaScope average(m.ema);
+  if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || last))
     run_periodic_eval(opt, config, m.net, state, lead, metrics, checkpoint_dir);
-  }
   if (!lead || !(state.step % tc.checkpoint_every == 0 || last || stop_now)) return "";
-  return save_training_checkpoint(checkpoint_dir, config, state, *m.net, m.optimizer, tc.keep_checkpoints, m.ema);
+  return save_training_checkpoint(checkpoint_dir, config, state, *m.net, m.optimizer, tc.keep_checkpoints);
 }
 
 bool already_finished(const std::string& run_dir, int64_t step, int64_t train_steps) {
@@ -321,7 +316,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
 
-  auto [net, optimizer, state, ema] = start_model(config, opt, files.checkpoint_dir);
+  auto [net, optimizer, state] = start_model(config, opt, files.checkpoint_dir);
   if (lead) truncate_metrics(files.metrics, state.step);
   join_ranks(comm, *net, tc);
   TrainResult result;
@@ -354,9 +349,8 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
       log_step(metrics, state, r, step_seconds, loader, dataset);
     if (show_progress) update_progress(bar, state.step, means, r);
     const bool stop_now = r.stop || (opt.stop_after_steps > 0 && state.step - first_step >= opt.stop_after_steps);
-    if (ema && !r.skipped) update_weight_ema(*ema, state.ema_updates++);
-    auto saved = evaluate_and_checkpoint(opt, config, {net, *optimizer, ema.get()}, state, lead, metrics,
-                                         files.checkpoint_dir, stop_now);
+    auto saved =
+        evaluate_and_checkpoint(opt, config, {net, *optimizer}, state, lead, metrics, files.checkpoint_dir, stop_now);
     if (!saved.empty()) result.last_checkpoint = saved;
     if (stop_now) {
       result.interrupted = warn_if_interrupted(r, result.last_checkpoint);

@@ -1,8 +1,7 @@
 // The training loop (official recipe): batches from the step-keyed loader, the model's forward with the run's target
 // poses (UP-LVSM: the estimator on the target images), MSE (+ perceptual when available) loss, AdamW with
 // warmup+cosine, gradient clipping with the official skip rules, JSONL metrics, atomic checkpoints with rotation,
-// exact resume (train/run_start.h), SIGINT/SIGTERM checkpointing, and the optional weight average
-// (train/weight_ema.h).
+// exact resume (train/run_start.h) and SIGINT/SIGTERM checkpointing.
 #pragma once
 #include <torch/torch.h>
 
