@@ -106,4 +106,3 @@ TEST(Camera, IntrinsicsPixelsNormalised) {
   EXPECT_DOUBLE_EQ(K[1][1].item<double>(), 360.0);
   EXPECT_DOUBLE_EQ(K[2][2].item<double>(), 1.0);
 }
-

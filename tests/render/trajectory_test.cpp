@@ -196,4 +196,3 @@ TEST(RenderCameraPath, MapperAndPosedVariantsRenderEveryFrameInChunks) {
             std::string::npos);
   EXPECT_EQ(render::side_by_side(images, frames).sizes(), (std::vector<int64_t>{5, 3, 32, 96}));
 }
-

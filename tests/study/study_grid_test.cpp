@@ -81,7 +81,8 @@ TEST(StudyGrid, ReportWritesTablePlotsAndHeldOutCurves) {
   EXPECT_FALSE(std::filesystem::exists(dir / "lpips.png"));
   std::ifstream csv(dir / "curves.csv");
   const std::string text((std::istreambuf_iterator<char>(csv)), std::istreambuf_iterator<char>());
-  EXPECT_EQ(text, "series,setting,seed,step,psnr\nlvsm,noise sd 0,777,500,21.500000\nlvsm,noise sd 0,777,1000,22.250000\n");
+  EXPECT_EQ(text,
+            "series,setting,seed,step,psnr\nlvsm,noise sd 0,777,500,21.500000\nlvsm,noise sd 0,777,1000,22.250000\n");
   const auto empty = test::temp_dir("grid_report_no_curves");
   study::write_grid_report(runs, {curves[1]}, empty.string(), {"Pose noise", "level"}, "No curves.");
   EXPECT_FALSE(std::filesystem::exists(empty / "curves.png"));
