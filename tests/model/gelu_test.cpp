@@ -44,7 +44,8 @@ torch::Tensor map_exact(const torch::Tensor& x, double (*f)(double)) {
 }
 
 TEST(Gelu, MatchesLibTorchAndAnExactComputationValuesAndGradients) {
-  ASSERT_TRUE(model::gelu_fuses(torch::ones({1}, torch::kBFloat16))) << "this machine runs the fused kernel";
+  // The fused kernel needs AVX-512; elsewhere gelu() is LibTorch's (checked by the fallback test below).
+  if (!model::gelu_fuses(torch::ones({1}, torch::kBFloat16))) GTEST_SKIP() << "no AVX-512 on this CPU";
   for (int64_t n : {1, 15, 16, 17, 33, 100003}) {  // the masked tail alone, exact blocks, a tail, several threads
     SCOPED_TRACE(testing::Message() << "n " << n);
     auto x = inputs(n, 7 + n).requires_grad_(true);
