@@ -71,6 +71,14 @@ model::Views random_views(int64_t v) {
   return model::Views{torch::rand({1, v, 3, 32, 32}), torch::tensor({28.f, 28.f, 16.f, 16.f}).repeat({1, v, 1}), {}};
 }
 
+// The short schedule of the step tests below: lr 1e-3 from the first step, 10 steps.
+TrainingConfig short_schedule() {
+  TrainingConfig tc;
+  tc.lr = 1e-3;
+  tc.warmup = 0;
+  tc.train_steps = 10;
+  return tc;
+}
 }  // namespace
 
 TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
@@ -128,10 +136,7 @@ TEST(TrainStep, ReleasesThePreviousStepsGradients) {
   torch::manual_seed(3);
   model::UPLVSM net(test::micro_model());
   net->train();
-  TrainingConfig tc;
-  tc.lr = 1e-3;
-  tc.warmup = 0;
-  tc.train_steps = 10;
+  const TrainingConfig tc = short_schedule();
   std::unique_ptr<torch::optim::AdamW> optimizer;
   auto ctx = step_context(net, tc, optimizer);
   train::TrainState state;
@@ -156,10 +161,7 @@ TEST(TrainStep, GradClipNormZeroLearnsWithoutClippingOrSkipping) {
   torch::manual_seed(4);
   model::UPLVSM net(test::micro_model());
   net->train();
-  TrainingConfig tc;
-  tc.lr = 1e-3;
-  tc.warmup = 0;
-  tc.train_steps = 10;
+  TrainingConfig tc = short_schedule();
   tc.grad_clip_norm = 0;
   std::unique_ptr<torch::optim::AdamW> optimizer;
   auto ctx = step_context(net, tc, optimizer);
