@@ -73,14 +73,15 @@ browser-deps:
 	$(MAKE) deps EXTRA_APT_PACKAGES="$(BROWSER_APT_PACKAGES)"
 	cd tests/browser && npm ci --no-audit --no-fund
 
+# Tests run JOBS at a time (each picks free loopback ports and its own temporary folders).
 test: build browser-deps
-	cd $(BUILD) && ctest --output-on-failure --timeout 1800
+	cd $(BUILD) && ctest --output-on-failure --timeout 1800 -j $(JOBS)
 
 test-unit: build
-	cd $(BUILD) && ctest --output-on-failure -L unit
+	cd $(BUILD) && ctest --output-on-failure -L unit -j $(JOBS)
 
 test-slow: build browser-deps
-	cd $(BUILD) && ctest --output-on-failure -L slow
+	cd $(BUILD) && ctest --output-on-failure -L slow -j $(JOBS)
 
 # Benchmarks, as the environment is and without this machine's OPENBLAS_* overrides (see README, Performance); then
 # the x224 forward from Python beside the same forward from C++ (bench/python_vs_cpp.py), both ways too.

@@ -3,14 +3,17 @@
 # chunk-pair shuffling, and the scaling table. Every study skips runs whose result.json exists and resumes a run
 # from its last checkpoint, so this script continues where it stopped (a fresh machine: the same command).
 #   tools/thesis/run_tiny.sh [pose-noise|shuffle|scaling|all]   (default all; OUT=out/thesis, THREADS=1)
+# Two cores: run it twice at once, SEEDS=777 and SEEDS=778 (distinct run folders), then once with both seeds to
+# write the combined tables and plots (every run is then found done).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 UPLVSM=${UPLVSM:-build/uplvsm}
 OUT=${OUT:-out/thesis}
 THREADS=${THREADS:-1}
-STEPS=${STEPS:-8000}
+STEPS=${STEPS:-4000}
+read -r -a SEEDS <<<"${SEEDS:-777 778}"
 WHAT=${1:-all}
-COMMON=(--threads "$THREADS" --seeds 777 778 --set training.eval_every=1000 --set training.checkpoint_every=500)
+COMMON=(--threads "$THREADS" --seeds "${SEEDS[@]}" --set training.eval_every=1000 --set training.checkpoint_every=500)
 
 # 400 training and 48 test rooms (configs/tiny.json's dataset section), the data of every `tiny` figure.
 [ -f "$OUT/rooms/evaluation_index.json" ] || $UPLVSM make-dataset --config configs/tiny.json --out "$OUT/rooms"
