@@ -325,7 +325,7 @@ TEST(ChunkDataset, ConcurrentLoadsMatchSerial) {
     for (const auto& s : scenes) index[s.key] = file;
   }
   write_chunk_index((dir / "train").string(), index);
-  ChunkDataset ds(dir.string(), "train", /*cache_chunks=*/1);  // forces evictions under concurrency
+  ChunkDataset ds(dir.string(), "train", /*cache_chunks=*/1, /*cache_bytes=*/0);  // evictions under concurrency
   PreprocessOptions opt;
   opt.image_size = 28;
   std::vector<torch::Tensor> serial;

@@ -141,6 +141,8 @@ TEST(Loader, WholeSplitShuffleVisitsEveryScenePerEpoch) {
     spread_groups += first_chunks.size() > 2;
   }
   EXPECT_GT(spread_groups, 0);
+  // A split that fits in the chunk cache is parsed once, however its scenes are shuffled.
+  EXPECT_EQ(dataset.chunk_reads(), 6);
 }
 
 // The official dataset's preprocess_poses over each sample's views: centred on their mean camera, the largest

@@ -246,15 +246,15 @@ bool has_chunks(const std::string& dir) {
 
 }  // namespace
 
-ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks)
-    : root_(std::move(root)), split_(std::move(split)), cache_chunks_(std::max(1, cache_chunks)) {
+ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks, int64_t cache_bytes)
+    : root_(std::move(root)), split_(std::move(split)) {
   dir_ = (fs::path(root_) / split_).string();
   if (!fs::is_directory(dir_))
     throw std::runtime_error(fmt::format("ChunkDataset: {} is not a folder (expected root/{{train,test}})", dir_));
   info_ = read_dataset_info(root_);
   if (!has_chunks(dir_) && is_lvsm_split(dir_)) {
     layout_ = Layout::Lvsm;
-    cache_chunks_ *= 16;
+    cache_chunks *= 16;
     // Keys are the metadata files' stems (process_data.py names them after the scene); checked when read.
     for (const auto& path : list_lvsm_scenes(dir_)) entries_.push_back({fs::path(path).stem().string(), path});
   } else {
@@ -272,6 +272,7 @@ ChunkDataset::ChunkDataset(std::string root, std::string split, int cache_chunks
       throw std::runtime_error(fmt::format("ChunkDataset: {}: scene {} appears twice", dir_, entries_[i].key));
   for (auto& k : read_unposed_keys(dir_)) unposed_.insert(std::move(k));
   rebuild_lookup();
+  cache_ = std::make_unique<ChunkCache<LoadedChunk>>(std::max(1, cache_chunks), cache_bytes);
 }
 
 void ChunkDataset::rebuild_lookup() {
@@ -330,58 +331,35 @@ int64_t ChunkDataset::find(const std::string& key) const {
 }
 
 std::shared_ptr<const ChunkDataset::LoadedChunk> ChunkDataset::load_chunk(const std::string& chunk) const {
-  std::promise<ChunkPtr> promise;
-  std::shared_future<ChunkPtr> future;
-  bool owner = false;
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    auto it = cache_.find(chunk);
-    if (it != cache_.end()) {
-      future = it->second;
-      lru_.remove(chunk);
-    } else {
-      // We read it outside the lock; threads asking for the same chunk meanwhile wait on this future.
-      future = promise.get_future().share();
-      cache_[chunk] = future;
-      owner = true;
-    }
-    lru_.push_front(chunk);
-    while (static_cast<int>(lru_.size()) > cache_chunks_) {
-      cache_.erase(lru_.back());  // holders keep their shared_ptr alive
-      lru_.pop_back();
-    }
+  return cache_->get(chunk, [&] { return read_loaded_chunk(chunk); });
+}
+
+std::pair<ChunkDataset::ChunkPtr, int64_t> ChunkDataset::read_loaded_chunk(const std::string& chunk) const {
+  ++chunk_reads_;
+  auto loaded = std::make_shared<LoadedChunk>();
+  int64_t bytes = 0;
+  if (layout_ == Layout::Lvsm) {
+    auto meta = std::make_shared<LvsmSceneMetadata>(read_lvsm_metadata(chunk));
+    RawScene s;
+    s.key = fs::path(chunk).stem().string();
+    if (meta->key != s.key)
+      throw std::runtime_error(
+          fmt::format("LVSM metadata {}: scene_name '{}' differs from the file name", chunk, meta->key));
+    bytes = 256 * meta->size();  // paths and cameras: a rough size, small beside a chunk's images
+    loaded->lvsm = meta;
+    loaded->scenes.push_back(std::move(s));
+  } else {
+    loaded->scenes = read_chunk((fs::path(dir_) / chunk).string());
   }
-  if (owner) {
-    ++chunk_reads_;
-    try {
-      auto loaded = std::make_shared<LoadedChunk>();
-      if (layout_ == Layout::Lvsm) {
-        auto meta = std::make_shared<LvsmSceneMetadata>(read_lvsm_metadata(chunk));
-        RawScene s;
-        s.key = fs::path(chunk).stem().string();
-        if (meta->key != s.key)
-          throw std::runtime_error(
-              fmt::format("LVSM metadata {}: scene_name '{}' differs from the file name", chunk, meta->key));
-        loaded->lvsm = meta;
-        loaded->scenes.push_back(std::move(s));
-      } else {
-        loaded->scenes = read_chunk((fs::path(dir_) / chunk).string());
-      }
-      for (size_t j = 0; j < loaded->scenes.size(); ++j) {
-        loaded->by_key[loaded->scenes[j].key] = j;
-        int64_t idx = find(loaded->scenes[j].key);
-        const auto frames = loaded->lvsm ? loaded->lvsm->size() : static_cast<int64_t>(loaded->scenes[j].images.size());
-        if (idx >= 0) num_frames_[idx].store(frames);
-      }
-      promise.set_value(std::move(loaded));
-    } catch (...) {
-      promise.set_exception(std::current_exception());
-      std::lock_guard<std::mutex> lock(mutex_);
-      cache_.erase(chunk);  // let a later call retry
-      lru_.remove(chunk);
-    }
+  for (size_t j = 0; j < loaded->scenes.size(); ++j) {
+    const auto& scene = loaded->scenes[j];
+    loaded->by_key[scene.key] = j;
+    for (const auto& image : scene.images) bytes += image.numel();
+    int64_t idx = find(scene.key);
+    const auto frames = loaded->lvsm ? loaded->lvsm->size() : static_cast<int64_t>(scene.images.size());
+    if (idx >= 0) num_frames_[idx].store(frames);
   }
-  return future.get();
+  return {std::move(loaded), bytes};
 }
 
 const RawScene& ChunkDataset::scene_ref(int64_t i, ChunkPtr& holder) const {

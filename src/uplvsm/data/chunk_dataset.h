@@ -7,17 +7,15 @@
 
 #include <atomic>
 #include <cstdint>
-#include <future>
-#include <list>
 #include <map>
 #include <memory>
-#include <mutex>
 #include <set>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "uplvsm/data/chunk_cache.h"
 #include "uplvsm/data/dataset_info.h"
 #include "uplvsm/data/lvsm_layout.h"
 #include "uplvsm/data/preprocess.h"
@@ -67,9 +65,10 @@ class ChunkDataset {
   enum class Layout { Chunks, Lvsm };
 
   // root/split holds chunks (index.json or *.torch) or the LVSM layout (full_list.txt or metadata/); chunks win
-  // when both are there. `cache_chunks`: parsed chunks to keep (a RealEstate10K chunk is ~100 MB of JPEG bytes);
-  // the LVSM layout caches 16x as many scenes' metadata (a few kB each, images are read per request).
-  ChunkDataset(std::string root, std::string split, int cache_chunks = 4);
+  // when both are there. Parsed chunks are kept while they fit in `cache_bytes`, and at least `cache_chunks` of
+  // them (a RealEstate10K chunk is ~100 MB of JPEG bytes); the LVSM layout keeps at least 16x as many scenes'
+  // metadata (a few kB each, images are read per request).
+  ChunkDataset(std::string root, std::string split, int cache_chunks = 4, int64_t cache_bytes = kChunkCacheBytes);
 
   Layout layout() const { return layout_; }
   // <root>/dataset.json (whether frames are ordered; defaults when the file is absent).
@@ -118,6 +117,7 @@ class ChunkDataset {
   using ChunkPtr = std::shared_ptr<const LoadedChunk>;
 
   std::shared_ptr<const LoadedChunk> load_chunk(const std::string& chunk) const;
+  std::pair<ChunkPtr, int64_t> read_loaded_chunk(const std::string& chunk) const;  // the chunk and its bytes
   const RawScene& scene_ref(int64_t i, ChunkPtr& holder) const;
   void check_index(int64_t i) const;
   void rebuild_lookup();
@@ -126,15 +126,12 @@ class ChunkDataset {
   Layout layout_ = Layout::Chunks;
   DatasetInfo info_;
   std::set<std::string> unposed_;
-  int cache_chunks_;
   std::vector<Entry> entries_;  // sorted by (chunk file, key): deterministic without reading the chunks
   std::unordered_map<std::string, int64_t> by_key_;
   std::unique_ptr<std::atomic<int64_t>[]> num_frames_;  // -1 until the scene's chunk was read
   std::vector<int64_t> chunk_starts_;
 
-  mutable std::mutex mutex_;  // guards cache_ and lru_
-  mutable std::map<std::string, std::shared_future<ChunkPtr>> cache_;
-  mutable std::list<std::string> lru_;  // most recently used first
+  std::unique_ptr<ChunkCache<LoadedChunk>> cache_;
   mutable std::atomic<int64_t> chunk_reads_{0};
 };
 
