@@ -15,7 +15,8 @@
 
 namespace uplvsm::data {
 
-inline constexpr int64_t kChunkCacheBytes = int64_t{1} << 30;
+// `tiny`'s 400 rooms (35 MB) fit whole; about five ~100 MB RealEstate10K chunks.
+inline constexpr int64_t kChunkCacheBytes = int64_t{512} << 20;
 
 template <class T>
 class ChunkCache {
