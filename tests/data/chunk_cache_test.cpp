@@ -45,7 +45,7 @@ TEST(ChunkCache, BeyondTheBudgetTheLeastRecentlyUsedLeaveButTheMinimumStays) {
   EXPECT_EQ(c.reads.load(), 5);
 
   Counted big(/*min_entries=*/2, /*budget=*/0, /*bytes_each=*/100);  // over budget: the minimum still stays
-  big.get(0), big.get(1), big.get(0), big.get(1);
+  for (int i : {0, 1, 0, 1}) big.get(i);
   EXPECT_EQ(big.reads.load(), 2);
   EXPECT_EQ(big.cache.bytes(), 200);
 }
