@@ -119,5 +119,23 @@ TEST(Plot, ManySeriesCycleColours) {
   EXPECT_GT(coloured_pixels(img), 1000);
 }
 
+// Series 11 and 21 repeat series 1's colour; their lines are dashed and dotted so the three stay apart.
+TEST(Plot, SeriesBeyondTheColoursAreDashedThenDotted) {
+  auto blue_pixels_of_line_at = [](size_t index) {
+    std::vector<Series> s(index + 1);  // the others empty: only the one line is drawn
+    s[index] = Series{"", {0, 1}, {0.5, 0.5}};
+    auto img = plot_lines(s, PlotOptions{});
+    return ((img.select(2, 0) == 31) & (img.select(2, 1) == 119) & (img.select(2, 2) == 180)).sum().item<int64_t>();
+  };
+  const auto solid = blue_pixels_of_line_at(0), dashed = blue_pixels_of_line_at(10),
+             dotted = blue_pixels_of_line_at(20);
+  EXPECT_GT(solid, 1000);
+  EXPECT_GT(dashed, solid / 2);
+  EXPECT_LT(dashed, solid * 6 / 7);
+  EXPECT_GT(dotted, solid / 5);
+  EXPECT_LT(dotted, dashed);
+  EXPECT_EQ(blue_pixels_of_line_at(30), solid);
+}
+
 }  // namespace
 }  // namespace uplvsm::io

@@ -147,8 +147,28 @@ void draw_labels(torch::Tensor& img, const Layout& l, const PlotOptions& opt) {
   }
 }
 
+// Series 1-10 solid, 11-20 dashed, 21-30 dotted, then again: the colour repeats every 10, the pair every 30.
+struct LineStyle {
+  Rgb colour;
+  int on, off;  // pixels drawn, then skipped, along the line; off 0 is solid
+};
+
+LineStyle series_style(size_t i) {
+  static const int kOn[3] = {1, 8, 2}, kOff[3] = {0, 5, 4};
+  return {kColours[i % 10], kOn[(i / 10) % 3], kOff[(i / 10) % 3]};
+}
+
+void draw_styled_line(torch::Tensor& img, int x0, int y0, int x1, int y1, const LineStyle& st) {
+  const double length = std::hypot(x1 - x0, y1 - y0);
+  if (st.off == 0 || length < 1) return draw_line(img, x0, y0, x1, y1, st.colour, 2);
+  auto at = [&](double t, int a, int b) { return int(std::lround(a + (b - a) * std::min(t, length) / length)); };
+  for (double t = 0; t < length; t += st.on + st.off)
+    draw_line(img, at(t, x0, x1), at(t, y0, y1), at(t + st.on, x0, x1), at(t + st.on, y0, y1), st.colour, 2);
+}
+
 // Lines between consecutive usable points, clipped to the frame; isolated points become 4x4 squares.
-void draw_series(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis& ay, const Series& s, Rgb colour) {
+void draw_series(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis& ay, const Series& s,
+                 const LineStyle& style) {
   if (l.y1 - l.y0 < 2 || l.x1 - l.x0 < 2) return;
   torch::Tensor area = img.narrow(0, l.y0 + 1, l.y1 - l.y0 - 1).narrow(1, l.x0 + 1, l.x1 - l.x0 - 1);
   size_t n = std::min(s.x.size(), s.y.size());
@@ -160,9 +180,9 @@ void draw_series(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis
     if (!ok(i)) continue;
     bool prev = i > 0 && ok(i - 1), next = ok(i + 1);
     if (next)
-      draw_line(area, clamp_px(px(i)), clamp_px(py(i)), clamp_px(px(i + 1)), clamp_px(py(i + 1)), colour, 2);
+      draw_styled_line(area, clamp_px(px(i)), clamp_px(py(i)), clamp_px(px(i + 1)), clamp_px(py(i + 1)), style);
     else if (!prev)
-      fill_rect(area, clamp_px(px(i)) - 2, clamp_px(py(i)) - 2, 4, 4, colour);
+      fill_rect(area, clamp_px(px(i)) - 2, clamp_px(py(i)) - 2, 4, 4, style.colour);
   }
 }
 
@@ -179,8 +199,7 @@ void draw_legend(torch::Tensor& img, const Layout& l, const std::vector<Series>&
   int yy = y + 5;
   for (size_t i = 0; i < series.size(); ++i) {
     if (series[i].name.empty()) continue;
-    Rgb c = kColours[i % 10];
-    draw_line(img, x + 6, yy + 4, x + 6 + sample, yy + 4, c, 2);
+    draw_styled_line(img, x + 6, yy + 4, x + 6 + sample, yy + 4, series_style(i));
     draw_text(img, x + 6 + sample + 6, yy, series[i].name, kBlack);
     yy += row;
   }
@@ -220,7 +239,7 @@ torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& o
   Layout l = compute_layout(opt, ax, ay);
   torch::Tensor img = blank_image(opt.height, opt.width, kWhite);
   draw_axes(img, l, ax, ay);
-  for (size_t i = 0; i < series.size(); ++i) draw_series(img, l, ax, ay, series[i], kColours[i % 10]);
+  for (size_t i = 0; i < series.size(); ++i) draw_series(img, l, ax, ay, series[i], series_style(i));
   draw_legend(img, l, series);
   draw_labels(img, l, opt);
   return img;

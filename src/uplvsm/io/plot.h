@@ -22,7 +22,7 @@ struct PlotOptions {
 
 // uint8 [height, width, 3]. Points with a non-finite coordinate (or <= 0 on a log axis) are skipped and break the
 // line there; isolated points are drawn as small squares. Empty series and all-empty plots are fine (unit axes).
-// Series beyond 10 reuse the colours. Throws when width < 160 or height < 120.
+// Series beyond 10 reuse the colours, dashed (11-20) then dotted (21-30). Throws when width < 160 or height < 120.
 torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& opt);
 
 // Round tick positions covering [lo, hi] (1, 2 or 5 times a power of ten, about `target` of them) and their labels;
