@@ -11,6 +11,7 @@ UPLVSM=${UPLVSM:-build/uplvsm}
 OUT=${OUT:-out/thesis}
 THREADS=${THREADS:-1}
 STEPS=${STEPS:-4000}
+SCALE_STEPS=${SCALE_STEPS:-1000}  # the smallest subset's budget; each 4x subset trains 2x longer
 read -r -a SEEDS <<<"${SEEDS:-777 778}"
 WHAT=${1:-all}
 COMMON=(--threads "$THREADS" --seeds "${SEEDS[@]}" --set training.eval_every=1000 --set training.checkpoint_every=500)
@@ -40,7 +41,7 @@ if [ "$WHAT" = scaling ] || [ "$WHAT" = all ]; then
   # Three subsets (two 4x steps): a fourth (8000 rooms, 8000 steps) would double the study's ~8 CPU-hours.
   [ -f "$OUT/rooms_2000/evaluation_index.json" ] || $UPLVSM make-dataset --config configs/tiny.json \
     --train-scenes 2000 --out "$OUT/rooms_2000"
-  SCALE=(--data "$OUT/rooms_2000" --subsets 125 500 2000 --steps 1000 --steps-growth 2)
+  SCALE=(--data "$OUT/rooms_2000" --subsets 125 500 2000 --steps "$SCALE_STEPS" --steps-growth 2)
   $UPLVSM study scaling --config configs/tiny.json configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" \
     "${COMMON[@]}" --out "$OUT/scaling"
   # The posed models again with pose noise on their cameras (UP-LVSM never reads them).
