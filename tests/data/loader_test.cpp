@@ -5,6 +5,7 @@
 #include "train/train_test_util.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/data/synthetic/room_scenes.h"
+#include "uplvsm/geometry/camera.h"
 #include "uplvsm/io/image.h"
 
 using namespace uplvsm;
@@ -206,6 +207,28 @@ TEST(Loader, PoseNoiseHasTheOfficialScaleAndIsDrawnApartForTargets) {
   EXPECT_LT(sd, 0.12);
 }
 
+// The quaternion half of the official noise: each told rotation's (x, y, z, w) moves by noise of the same scale (less
+// its radial part, which renormalising removes: sd 0.1 x sqrt(3/4) ~ 0.087 per component).
+TEST(Loader, PoseNoiseMovesTheRotationsQuaternions) {
+  data::ChunkDataset dataset(test::micro_dataset(), "train");
+  auto opt = micro_options();
+  opt.pose_noise_std = 0.1;
+  std::vector<torch::Tensor> moves;
+  for (int64_t step = 0; step < 12; ++step) {
+    auto clean = data::make_training_batch(dataset, micro_options(), step);
+    auto noisy = data::make_training_batch(dataset, opt, step);
+    for (auto [c, n] : {std::pair{clean.input_c2w(2), noisy.input_c2w(2)}, {clean.target_c2w(), noisy.target_c2w()}}) {
+      auto qc = geometry::c2w_to_pose_encoding(c.to(torch::kFloat64)).narrow(-1, 3, 4).reshape({-1, 4});
+      auto qn = geometry::c2w_to_pose_encoding(n.to(torch::kFloat64)).narrow(-1, 3, 4).reshape({-1, 4});
+      auto sign = (qc * qn).sum(-1, true).sign();  // q and -q are one rotation
+      moves.push_back((qn * sign - qc).flatten());
+    }
+  }
+  const double sd = torch::cat(moves).std().item<double>();  // 384 components
+  EXPECT_GT(sd, 0.065);
+  EXPECT_LT(sd, 0.11);
+}
+
 namespace {
 // A scene of n frames of h x w JPEGs whose cameras are valid.
 data::RawScene jpeg_scene(const std::string& key, int n, int h = 24, int w = 32) {
@@ -235,8 +258,9 @@ TEST(Loader, BadScenesAreReplacedCountedAndNeverServed) {
   auto nan = jpeg_scene("nan", 12);
   nan.cameras.index_put_({torch::indexing::Slice(), 9}, std::numeric_limits<float>::quiet_NaN());
   scenes.push_back(nan);
+  // Only frame 0 is 24x32: the others are resized from their own size, as the official dataset does (served).
   auto resized = jpeg_scene("resized", 12);
-  for (int i = 1; i < 12; ++i) resized.images[i] = jpeg_scene("x", 1, 20, 32).images[0];  // only frame 0 is 24x32
+  for (int i = 1; i < 12; ++i) resized.images[i] = jpeg_scene("x", 1, 20, 32).images[0];
   scenes.push_back(resized);
   auto corrupt = jpeg_scene("corrupt", 12);
   for (int i = 0; i < 12; ++i) corrupt.images[i] = corrupt.images[i].slice(0, 0, 40).clone();  // truncated JPEGs
@@ -245,17 +269,19 @@ TEST(Loader, BadScenesAreReplacedCountedAndNeverServed) {
   data::ChunkDataset dataset(dir.string(), "train");
   ASSERT_EQ(dataset.size(), 7);
   auto opt = micro_options();
-  int64_t replaced = 0;
+  int64_t replaced = 0, resized_frames = 0;
   std::set<std::string> served;
   for (int64_t step = 0; step < 10; ++step) {
     auto batch = data::make_training_batch(dataset, opt, step);
     EXPECT_EQ(batch.images.size(0), opt.batch_size);
     EXPECT_TRUE(torch::isfinite(batch.c2w).all().item<bool>());
     replaced += batch.replaced_scenes;
+    resized_frames += batch.resized_frames;
     served.insert(batch.keys.begin(), batch.keys.end());
   }
-  EXPECT_EQ(served, (std::set<std::string>{"good0", "good1"}));
+  EXPECT_EQ(served, (std::set<std::string>{"good0", "good1", "resized"}));
   EXPECT_GT(replaced, 0);
+  EXPECT_GT(resized_frames, 0);
   // Asked for directly, each bad scene gives an error naming it (the empty one too, without reading past its end).
   for (const char* key : {"empty", "nan", "corrupt"}) {
     auto msg = test::error_of([&] { dataset.load_views(dataset.find(key), {0, 1}, opt.preprocess); });

@@ -215,6 +215,26 @@ def config_keys_documented():
     return documented
 
 
+def test_training_commands_say_what_the_perceptual_loss_needs():
+    """A quoted `uplvsm train` or `uplvsm study` with a config whose perceptual weight is above 0 gives --vgg19 or
+    the explicit opt-out: without either it refuses to start, so the page's command would not run as written."""
+    problems, checked = [], 0
+    for page in PAGES:
+        for code in code_of(page):
+            for m in re.finditer(r"uplvsm (?:train|study [a-z-]+)((?:[ \t]+[^\s|;&`#]+)*)", code):
+                words = m.group(1).split()
+                configs = [w for w in words if w.startswith("configs/") and w.endswith(".json")]
+                weighted = [c for c in configs if (REPO / c).exists()  # the notebook also quotes retired configs
+                            and json.loads((REPO / c).read_text()).get("training", {}).get("perceptual_loss_weight", 0) > 0]
+                if not weighted or "--help" in words:
+                    continue
+                checked += 1
+                if "--vgg19" not in words and "training.perceptual_loss_weight=0" not in words:
+                    problems.append(f"{page.name}: `{m.group(0)}` ({', '.join(weighted)}) gives no --vgg19")
+    assert checked >= 3, "no full-size training command found: parsing broke?"
+    assert not problems, "\n".join(problems)
+
+
 def test_every_config_key_is_documented_once():
     code, documented = config_keys_in_code(), config_keys_documented()
     twice = sorted({key for key in documented if documented.count(key) > 1})

@@ -81,6 +81,23 @@ TEST(PerceptualLoss, SlicesAndWeightsAreLvsms) {
   for (const auto& p : loss->parameters()) EXPECT_FALSE(p.requires_grad());
 }
 
+// Every term is divided by the official loss.py constant (2.6, 4.8, 3.7, 5.6, 1.5 / 10, then 255): random weights so
+// every layer's features differ, each term recomputed here from the features with the literal divisors.
+TEST(PerceptualLoss, EachLayerTermUsesTheOfficialDivisor) {
+  torch::manual_seed(3);
+  train::PerceptualLoss loss;
+  auto pred = torch::rand({2, 3, 32, 32}), target = torch::rand({2, 3, 32, 32});
+  const auto terms = loss->terms(pred, target);
+  const auto fp = loss->features(loss->preprocess(pred)), ft = loss->features(loss->preprocess(target));
+  const double official[5] = {2.6, 4.8, 3.7, 5.6, 1.5 / 10};
+  for (int k = 0; k < 5; ++k) {
+    const double l1 = (fp[size_t(k)] - ft[size_t(k)]).abs().mean().item<double>();
+    ASSERT_GT(l1, 0) << k;
+    EXPECT_NEAR(terms[k + 1].item<double>(), l1 / official[k] / 255.0, 1e-6 * l1) << "layer " << k + 1;
+  }
+  EXPECT_NEAR(terms[0].item<double>(), (pred - target).abs().mean().item<double>(), 1e-6);  // 255 |a - b| / 255
+}
+
 TEST(PerceptualLoss, GradientMatchesFiniteDifferences) {
   torch::manual_seed(3);
   train::PerceptualLoss loss;

@@ -1,7 +1,11 @@
 // A micro UP-LVSM config and a tiny built-in dataset for fast training tests.
 #pragma once
 #include <filesystem>
+#include <fstream>
 #include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "test_util.h"
 #include "uplvsm/core/config.h"
@@ -72,6 +76,19 @@ inline train::TrainOptions micro_run_options(const std::string& run) {
   o.run_dir = run;
   o.progress = false;
   return o;
+}
+
+// One field of every step line of a run's metrics.jsonl (lines without it, such as evaluations, are skipped).
+inline std::vector<double> logged(const std::string& run, const std::string& field = "loss") {
+  std::vector<double> out;
+  std::ifstream in(std::filesystem::path(run) / "metrics.jsonl");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty()) continue;
+    const auto j = nlohmann::json::parse(line);
+    if (j.contains(field)) out.push_back(j.at(field).get<double>());
+  }
+  return out;
 }
 
 }  // namespace uplvsm::test

@@ -16,14 +16,7 @@ using namespace uplvsm;
 namespace fs = std::filesystem;
 
 namespace {
-std::vector<double> logged(const std::string& run, const std::string& field = "loss") {
-  std::vector<double> out;
-  std::ifstream in(fs::path(run) / "metrics.jsonl");
-  std::string line;
-  while (std::getline(in, line))
-    if (!line.empty()) out.push_back(nlohmann::json::parse(line).at(field).get<double>());
-  return out;
-}
+using test::logged;
 std::vector<double> logged_losses(const std::string& run) { return logged(run); }
 
 // A run whose loss has a term beside the MSE: every logged loss is finite and above its MSE. Returns the losses.
@@ -129,19 +122,28 @@ TEST(Trainer, ResumeRejectsADifferentModel) {
   }
 }
 
-TEST(Trainer, PerceptualLossWithVgg19WeightsElseMseOnly) {
+// The official always trains with the perceptual term; a config asking for it without VGG19 weights is refused
+// before any data is read (here: a data root that does not exist) or the run directory is made.
+TEST(Trainer, PerceptualLossNeedsVgg19WeightsOrAnExplicitZero) {
   auto config = test::micro_config();
   config.training.train_steps = 3;
   config.training.perceptual_loss_weight = 0.5;
-  auto mse_only = test::temp_dir("train_mse_only").string();
-  train::train(config, test::micro_run_options(mse_only));  // no --vgg19: warns and trains with MSE only
-  auto loss = logged(mse_only), mse = logged(mse_only, "mse"), psnr = logged(mse_only, "psnr");
-  ASSERT_EQ(loss.size(), 3u);
-  for (size_t i = 0; i < loss.size(); ++i) {
-    EXPECT_DOUBLE_EQ(loss[i], mse[i]);
-    EXPECT_NEAR(psnr[i], -10 * std::log10(mse[i]), 1e-9);
-  }
+  auto refused = test::temp_dir("train_no_vgg").string() + "/run";
+  auto opt = test::micro_run_options(refused);
+  opt.data_root = "/nonexistent/data";
+  const auto msg = test::error_of([&] { train::train(config, opt); });
+  for (const char* part : {"perceptual_loss_weight is 0.5", "--vgg19", "uplvsm convert", "perceptual_loss_weight=0"})
+    EXPECT_NE(msg.find(part), std::string::npos) << msg;
+  EXPECT_FALSE(fs::exists(refused));
 
+  config.training.perceptual_loss_weight = 0;  // the explicit opt-out trains with MSE alone
+  auto mse_only = test::temp_dir("train_mse_only").string();
+  train::train(config, test::micro_run_options(mse_only));
+  auto loss = logged(mse_only), mse = logged(mse_only, "mse");
+  ASSERT_EQ(loss.size(), 3u);
+  for (size_t i = 0; i < loss.size(); ++i) EXPECT_DOUBLE_EQ(loss[i], mse[i]);
+
+  config.training.perceptual_loss_weight = 0.5;
   torch::manual_seed(1);
   train::PerceptualLoss vgg;
   io::TensorMap weights;
@@ -149,9 +151,9 @@ TEST(Trainer, PerceptualLossWithVgg19WeightsElseMseOnly) {
   auto run = test::temp_dir("train_perceptual").string();
   const auto vgg_path = run + "/vgg19.safetensors";
   io::write_safetensors(vgg_path, weights, {{train::kVggInputMetadataKey, "matconvnet"}});
-  auto opt = test::micro_run_options(run + "/run");
-  opt.perceptual_weights = vgg_path;
-  train::train(config, opt);
+  auto with_vgg = test::micro_run_options(run + "/run");
+  with_vgg.perceptual_weights = vgg_path;
+  train::train(config, with_vgg);
   auto p_loss = logged(run + "/run"), p_mse = logged(run + "/run", "mse");
   ASSERT_EQ(p_loss.size(), 3u);
   EXPECT_DOUBLE_EQ(p_mse[0], mse[0]);  // same data and initial weights: the first MSE agrees

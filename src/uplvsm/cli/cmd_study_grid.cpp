@@ -202,6 +202,9 @@ void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, const study::
               const std::string& description) {
   apply_common_options(a.common);
   const auto runs = for_each_seed(grid, a.seeds);
+  // Every run's loss checked before the first trains: a later run's missing --vgg19 would otherwise stop the study
+  // hours in.
+  for (const auto& r : runs) train::require_perceptual_weights(r.config, a.vgg19);
   const auto device = parse_device(a.common.device);
   eval::Lpips lpips{nullptr};
   if (!a.lpips_backbone.empty()) {

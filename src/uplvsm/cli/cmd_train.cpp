@@ -9,8 +9,12 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/subset.h"
+#include "uplvsm/data/view_sampler.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/train/global_batch.h"
+#include "uplvsm/train/run_plan.h"
 #include "uplvsm/train/tokenizer_pretraining.h"
 #include "uplvsm/train/trainer.h"
 
@@ -56,7 +60,8 @@ struct TrainArgs {
   CommonOptions common;
   std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
   std::vector<std::string> set;
-  int64_t steps = -1, stop_after = -1;
+  int64_t steps = -1, stop_after = -1, ranks = 0;
+  bool dry_run = false;
   train::VggInput vgg19_input = train::VggInput::Auto;
 };
 
@@ -65,10 +70,16 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
   cmd->add_option("--config", a.config, "config JSON (configs/tiny.json, configs/paper_x224.json)")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks with a train/ split)")
-      ->required()
+  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks with a train/ split); optional with --dry-run")
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("--run", a.run, "run directory (config snapshot, metrics.jsonl, checkpoints/)")->required();
+  cmd->add_option("--run", a.run,
+                  "run directory (config snapshot, metrics.jsonl, checkpoints/); optional with --dry-run");
+  cmd->add_flag("--dry-run", a.dry_run,
+                "print what the run will do (global batch, schedule, precision, loss terms, data and shuffling) and "
+                "the checks made before training, then exit: no weights loaded; with --data, its train split's size");
+  cmd->add_option("--ranks", a.ranks,
+                  "with --dry-run: plan for this many data-parallel processes (default: torchrun's WORLD_SIZE, else 1)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--resume", a.resume,
                   "auto (the newest checkpoint in --run that reads, if any: a damaged newer one is skipped with a "
                   "warning), none, or a checkpoint path (an error if it does not read)")
@@ -80,8 +91,8 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
       ->check(CLI::ExistingPath);
   cmd->add_option("--vgg19", a.vgg19,
                   "VGG19 weights for the perceptual loss (torchvision features.N.*: torchvision vgg19 .pth, or the "
-                  "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); without it "
-                  "a config with training.perceptual_loss_weight > 0 trains with MSE only")
+                  "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); a config "
+                  "with training.perceptual_loss_weight > 0 refuses to start without it")
       ->check(CLI::ExistingFile);
   add_vgg19_input_option(cmd, a.vgg19_input);
   cmd->add_option("--amp", a.amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
@@ -155,9 +166,44 @@ void run_tokenizer_stage(const TrainArgs& a, const Config& config) {
                            r.steps, r.first_loss, r.last_loss, r.weights);
 }
 
+// The training scenes a run of `config` on `data` draws from: the subset's, then the first max_train_scenes.
+int64_t training_scene_count(const Config& config, const std::string& data, bool* ordered_views) {
+  data::ChunkDataset dataset(data, "train");
+  if (!config.training.subset.empty()) dataset.keep_only(data::read_subset_manifest(config.training.subset).scenes);
+  *ordered_views = data::uses_ordered_views(config.training.view_sampler, dataset.info());
+  const int64_t cap = config.training.max_train_scenes;
+  return cap > 0 ? std::min(cap, dataset.size()) : dataset.size();
+}
+
+// --dry-run: the run's plan and its pre-flight checks (the global batch divides, the loss has what it needs), then
+// exit; non-zero when the run itself would refuse to start.
+void run_dry(const TrainArgs& a, const Config& config) {
+  const int64_t ranks = a.ranks > 0 ? a.ranks : train::distributed_env_from_environment().world_size;
+  train::RunPlan plan;
+  plan.config = config;
+  plan.batch = train::plan_batch(config.training, ranks, a.config);
+  plan.device = parse_device(a.common.device).str();
+  plan.perceptual_weights = a.vgg19;
+  plan.init = a.init;
+  plan.data_root = a.data;
+  if (!a.data.empty()) {
+    bool ordered = true;
+    plan.scenes = training_scene_count(config, a.data, &ordered);
+    plan.ordered_views = ordered;
+  }
+  std::cout << fmt::format("uplvsm train --dry-run --config {} ({} stage)\n", a.config, a.stage);
+  for (const auto& line : train::describe_run_plan(plan)) std::cout << "  " << line << "\n";
+  train::require_perceptual_weights(config, a.vgg19);
+  std::cout << "checks passed: this run would start\n";
+}
+
 void run_train(const TrainArgs& a) {
   apply_common_options(a.common);
   const auto config = train_config(a);
+  if (a.dry_run) return run_dry(a, config);
+  if (a.data.empty() || a.run.empty())
+    throw std::runtime_error(
+        fmt::format("train: {} is required (only --dry-run runs without it)", a.data.empty() ? "--data" : "--run"));
   if (a.stage == "tokenizer") return run_tokenizer_stage(a, config);
   auto r = train::train(config, train_options(a, config));
   std::cout << fmt::format("trained to step {} in {:.1f} s: loss {:.5f}, PSNR {:.2f} dB; checkpoint {}\n", r.step,
@@ -173,7 +219,9 @@ void add_train_command(CLI::App& app) {
       "Train UP-LVSM (no camera poses used) with the official recipe: AdamW + warmup/cosine, grad clip and "
       "skip rules; checkpoints <run>/checkpoints/ckpt_*.safetensors; --resume auto continues exactly. "
       "Data parallel: start one process per device with torchrun's variables (RANK, WORLD_SIZE, "
-      "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process.");
+      "LOCAL_RANK, MASTER_ADDR, MASTER_PORT) or under SLURM; training.batch_size is per process and micro-batch, "
+      "training.global_batch_size the scenes per update over all of them (the accumulation is derived). "
+      "--dry-run prints the plan and exits.");
   auto a = std::make_shared<TrainArgs>();
   add_train_options(cmd, *a);
   cmd->callback([a] { run_train(*a); });

@@ -140,6 +140,7 @@ void training_fields(C& c, F&& f) {
   f("allowed_gradnorm_factor", c.allowed_gradnorm_factor);
   f("batch_size", c.batch_size);
   f("grad_accum_steps", c.grad_accum_steps);
+  f("global_batch_size", c.global_batch_size);
   f("grad_checkpoint_every", c.grad_checkpoint_every);
   f("num_views", c.num_views);
   f("num_input_views", c.num_input_views);

@@ -88,8 +88,12 @@ struct TrainingConfig {
   int64_t train_steps = 100000;
   double grad_clip_norm = 1.0;
   double allowed_gradnorm_factor = 4.0;
-  int64_t batch_size = 16;
+  int64_t batch_size = 16;  // scenes per micro-batch on one process (the official batch_size_per_gpu)
   int64_t grad_accum_steps = 1;
+  // Scenes per optimiser step over all processes and accumulated micro-batches (the official batch_size_per_gpu x
+  // GPUs x grad_accum_steps: 128 at x224, 48 at x518). > 0: the accumulation is derived from it and the run's number
+  // of processes (train/global_batch.h); 0: batch_size x grad_accum_steps on each process, as given.
+  int64_t global_batch_size = 0;
   int64_t grad_checkpoint_every = 0;  // checkpoint transformer blocks in groups of this many (official: 1); 0 off
   int64_t num_views = 8;
   int64_t num_input_views = 2;

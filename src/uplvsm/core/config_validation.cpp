@@ -63,6 +63,8 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.num_views >= tr.num_input_views && tr.num_views >= 2, s,
           "training.num_views must be >= num_input_views and >= 2");
   require(tr.batch_size >= 1 && tr.grad_accum_steps >= 1, s, "training.batch_size and grad_accum_steps must be >= 1");
+  require(tr.global_batch_size >= 0, s,
+          "training.global_batch_size must be >= 0 (0: batch_size x grad_accum_steps on each process)");
   require(tr.grad_clip_norm >= 0 && std::isfinite(tr.grad_clip_norm), s,
           fmt::format("training.grad_clip_norm must be a finite number >= 0 (0: no clipping and no skipping of "
                       "large-norm steps, as the official), got {}",

@@ -65,17 +65,6 @@ torch::Tensor in_scene_frame(const torch::Tensor& c2w) {
   return geometry::official_scene_normalize(c2w);
 }
 
-// Official noise_scale: the fp32 (t, q) encoding of every camera plus N(0, std^2), decoded back (the quaternion
-// renormalised).
-torch::Tensor with_pose_noise(const torch::Tensor& c2w, double std, std::mt19937_64& rng) {
-  auto enc = geometry::c2w_to_pose_encoding(c2w.to(torch::kFloat32));
-  std::normal_distribution<float> normal(0.0F, 1.0F);
-  std::vector<float> noise(static_cast<size_t>(enc.numel()));
-  for (auto& x : noise) x = normal(rng);
-  enc = enc + torch::tensor(noise, torch::kFloat32).view(enc.sizes()) * static_cast<float>(std);
-  return geometry::pose_encoding_to_c2w(enc).to(c2w.dtype());
-}
-
 // The inputs' and the targets' cameras as the model is told them (official ProcessData.forward: split, then noise).
 void tell_cameras(TrainingBatch& batch, const LoaderOptions& opt) {
   const auto& ti = batch.target_index;
@@ -97,11 +86,21 @@ std::vector<int64_t> sample_views(int64_t frames, const LoaderOptions& opt, int6
   if (!can_sample(frames, opt.num_views, opt.min_frame_dist))
     throw std::runtime_error(
         fmt::format("{} frames: too few for {} views {}+ frames apart", frames, opt.num_views, opt.min_frame_dist));
-  const int max_gap = max_gap_at_step(opt.min_frame_dist, opt.max_frame_dist, opt.frame_dist_curriculum_steps, step);
+  const int64_t update = step / std::max<int64_t>(opt.micro_batches_per_step, 1);
+  const int max_gap = max_gap_at_step(opt.min_frame_dist, opt.max_frame_dist, opt.frame_dist_curriculum_steps, update);
   return sample_training_views(frames, opt.num_views, opt.min_frame_dist, max_gap, rng);
 }
 
 }  // namespace
+
+torch::Tensor with_pose_noise(const torch::Tensor& c2w, double std, std::mt19937_64& rng) {
+  auto enc = geometry::c2w_to_pose_encoding(c2w.to(torch::kFloat32));
+  std::normal_distribution<float> normal(0.0F, 1.0F);
+  std::vector<float> noise(static_cast<size_t>(enc.numel()));
+  for (auto& x : noise) x = normal(rng);
+  enc = enc + torch::tensor(noise, torch::kFloat32).view(enc.sizes()) * static_cast<float>(std);
+  return geometry::pose_encoding_to_c2w(enc).to(c2w.dtype());
+}
 
 TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step) {
   const int64_t n = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
@@ -129,7 +128,12 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
       try {
         const int64_t frames = dataset.num_frames(scene);
         auto chosen = sample_views(frames, opt, step, rng);
-        auto views = dataset.load_views(scene, chosen, opt.preprocess);
+        int64_t resized = 0;  // frames of another size: resized from their own size, as the official dataset does
+        auto views = dataset.load_views(scene, chosen, opt.preprocess, &resized);
+        if (resized > 0)
+          spdlog::info("training data: scene {}: {} frame(s) of another size than frame 0, resized", dataset.key(scene),
+                       resized);
+        batch.resized_frames += resized;
         images.push_back(views.images);
         intrinsics.push_back(views.fxfycxcy);
         c2ws.push_back(in_scene_frame(views.c2w));
@@ -224,6 +228,7 @@ TrainingBatch TrainingLoader::next() {
   auto batch = std::move(ready_.at(step));
   ready_.erase(step);
   ++next_to_hand_out_;
+  resized_frames_ += batch.resized_frames;
   lock.unlock();
   cv_.notify_all();
   return batch;

@@ -1,10 +1,11 @@
-// The training batch loader: for every step a batch that is a pure function of (seed, step, rank), so a resumed
-// run sees exactly the data the uninterrupted run would have seen, and ranks read disjoint shards. Each sample's
-// cameras are put in the frame of its sampled views (the official dataset's preprocess_poses). Scenes are
-// visited in a seeded order per epoch that goes through the chunks two at a time (shuffled within each pair), so
-// the chunk cache serves consecutive samples (or shuffled over the whole split, as officially); views follow the
-// official selector; a bad scene (too few frames, a wrong-size frame) is replaced by the next scene of the permutation
-// and counted. Worker threads decode ahead into a bounded queue.
+// The training batch loader: for every micro-batch a batch that is a pure function of (seed, micro-batch, rank), so
+// a resumed run sees exactly the data the uninterrupted run would have seen, and ranks read disjoint shards. Each
+// sample's cameras are put in the frame of its sampled views (the official dataset's preprocess_poses). Scenes are
+// visited in a seeded order per epoch: shuffled over the whole split (the official order), or through the chunks a
+// few at a time (shuffled within them) so the chunk cache serves consecutive samples; views follow the official
+// selector; a frame of another size is resized from its own size (as officially) and counted; a bad scene (too few
+// frames, a broken file) is replaced by the next scene of the permutation and counted. Worker threads decode ahead
+// into a bounded queue.
 #pragma once
 #include <torch/torch.h>
 
@@ -13,6 +14,7 @@
 #include <cstdint>
 #include <map>
 #include <mutex>
+#include <random>
 #include <string>
 #include <thread>
 #include <vector>
@@ -44,6 +46,9 @@ struct LoaderOptions {
   // fp32 7-D (t, q) encoding of the input cameras and, drawn apart, the target cameras, after the split and the
   // scene normalisation; from its own stream, so the views chosen do not change with it. 0: clean cameras.
   double pose_noise_std = 0;
+  // Micro-batches per optimiser step (the run's gradient accumulation): the stream is keyed to micro-batches, and
+  // the frame-distance curriculum counts optimiser steps.
+  int64_t micro_batches_per_step = 1;
 };
 
 struct TrainingBatch {
@@ -59,6 +64,8 @@ struct TrainingBatch {
   std::vector<std::string> keys;
   std::vector<std::vector<int64_t>> frames;
   int64_t replaced_scenes = 0;  // bad scenes swapped for others while building this batch
+  // Frames of another size than their scene's frame 0, resized from their own size as the official dataset does.
+  int64_t resized_frames = 0;
 
   // Inputs are the first num_input_views views; targets are gathered by target_index. The c2w are the told ones
   // (input_cameras, target_cameras).
@@ -70,7 +77,12 @@ struct TrainingBatch {
   torch::Tensor target_c2w() const;
 };
 
-// The batch of `step` for this rank (no threads; the loader below calls it).
+// Official noise_scale (data_utils.py ProcessData.forward): the fp32 (t, q_xyzw) encoding of every camera of c2w
+// [..., 4, 4] plus N(0, std^2) drawn from rng, decoded back (the quaternion renormalised), in c2w's dtype. The
+// training loader and the evaluation (eval/eval_pose_noise.h) share it so both perturb cameras the same way.
+torch::Tensor with_pose_noise(const torch::Tensor& c2w, double std, std::mt19937_64& rng);
+
+// The batch of micro-batch `step` for this rank (no threads; the loader below calls it).
 TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptions& opt, int64_t step);
 
 class TrainingLoader {
@@ -81,7 +93,8 @@ class TrainingLoader {
   TrainingLoader& operator=(const TrainingLoader&) = delete;
   // Batches come in step order: first_step, first_step + 1, ...
   TrainingBatch next();
-  double wait_seconds() const { return wait_seconds_; }  // time next() spent blocked on workers
+  double wait_seconds() const { return wait_seconds_; }       // time next() spent blocked on workers
+  int64_t resized_frames() const { return resized_frames_; }  // in the batches handed out so far
 
  private:
   void work();
@@ -95,6 +108,7 @@ class TrainingLoader {
   bool stop_ = false;
   std::vector<std::thread> workers_;
   double wait_seconds_ = 0;
+  int64_t resized_frames_ = 0;
 };
 
 }  // namespace uplvsm::data

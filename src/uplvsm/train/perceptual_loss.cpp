@@ -124,19 +124,26 @@ PerceptualLoss load_perceptual_loss(const std::string& path, VggInput requested)
   return loss;
 }
 
+void require_perceptual_weights(const Config& config, const std::string& weights_path) {
+  const double weight = config.training.perceptual_loss_weight;
+  if (weight <= 0 || !weights_path.empty()) return;
+  throw std::runtime_error(fmt::format(
+      "config {}: training.perceptual_loss_weight is {:g} but no VGG19 weights were given. Give them with --vgg19 "
+      "FILE (`uplvsm convert --input uplvsm_x224.pt --output model.safetensors` writes model.vgg19.safetensors "
+      "from an authors' checkpoint), or train without the perceptual loss, explicitly: "
+      "--set training.perceptual_loss_weight=0",
+      config.name, weight));
+}
+
 PerceptualLoss perceptual_loss_for(double weight, const std::string& weights_path, torch::Device device,
                                    VggInput requested) {
   if (weight <= 0) {
     if (!weights_path.empty()) spdlog::warn("{} not used: training.perceptual_loss_weight is 0", weights_path);
     return nullptr;
   }
-  if (weights_path.empty()) {
-    spdlog::warn(
-        "training.perceptual_loss_weight is {} but no VGG19 weights were given (--vgg19 FILE): training "
-        "with MSE only",
-        weight);
-    return nullptr;
-  }
+  if (weights_path.empty())
+    throw std::runtime_error(
+        fmt::format("training.perceptual_loss_weight is {:g} but no VGG19 weights were given (--vgg19 FILE)", weight));
   auto loss = load_perceptual_loss(weights_path, requested);
   loss->to(device);
   spdlog::info("perceptual loss: VGG19 from {} ({} input), weight {}", weights_path, to_string(loss->input), weight);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "uplvsm/core/config.h"
 #include "uplvsm/model/vgg_features.h"
 
 namespace uplvsm::train {
@@ -54,8 +55,12 @@ const std::vector<double>& perceptual_term_divisors();
 VggInput resolve_vgg_input(const std::string& path, VggInput requested);
 // A frozen, eval-mode perceptual loss with VGG19 weights from `path` (errors name the file and key).
 PerceptualLoss load_perceptual_loss(const std::string& path, VggInput requested = VggInput::Auto);
+// Refuses a run whose loss asks for the perceptual term without VGG19 weights (the official always trains with it;
+// there is no silent MSE-only fallback): an error naming --vgg19, `uplvsm convert` (which writes them from an
+// authors' checkpoint) and the explicit opt-out.
+void require_perceptual_weights(const Config& config, const std::string& weights_path);
 // What a run with training.perceptual_loss_weight = `weight` uses: the loss on `device` from `weights_path`, or null
-// (MSE only) when the weight is 0 or no weights were given, with a warning naming what is unused or missing.
+// (MSE only) when the weight is 0 (a warning names an unused file). A weight above 0 without a file is an error.
 PerceptualLoss perceptual_loss_for(double weight, const std::string& weights_path, torch::Device device,
                                    VggInput requested = VggInput::Auto);
 

@@ -24,8 +24,10 @@
 #include "uplvsm/model/memory_estimate.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
+#include "uplvsm/train/global_batch.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/perceptual_loss.h"
+#include "uplvsm/train/run_plan.h"
 #include "uplvsm/train/run_start.h"
 #include "uplvsm/train/train_step.h"
 
@@ -57,7 +59,39 @@ data::LoaderOptions loader_options(const Config& c, const data::ChunkDataset& da
     o.rank = comm->rank();
     o.world_size = comm->world_size();
   }
+  o.micro_batches_per_step = plan_batch(t, o.world_size, c.name).accumulation;
   return o;
+}
+
+StepContext step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer& optimizer, const Config& config,
+                         const TrainOptions& opt) {
+  const auto& tc = config.training;
+  StepContext ctx;
+  ctx.net = &net;
+  ctx.optimizer = &optimizer;
+  ctx.params = trainable_parameters(net);
+  ctx.training = tc;
+  ctx.target_poses = model::resolve_target_poses(tc.target_poses, net);
+  ctx.perceptual =
+      perceptual_loss_for(tc.perceptual_loss_weight, opt.perceptual_weights, opt.device, opt.perceptual_input);
+  ctx.bf16 = tc.amp == Amp::Bf16;
+  ctx.comm = opt.comm.get();
+  if (set_cuda_tf32(opt.device, tc.tf32)) spdlog::info("TF32 matmuls and convolutions: {}", tc.tf32 ? "on" : "off");
+  spdlog::info("{} ({} variant), target poses from {}", net.name(), to_string(config.model.variant),
+               model::to_string(ctx.target_poses));
+  net.set_grad_checkpoint_every(tc.grad_checkpoint_every);
+  if (tc.grad_checkpoint_every > 0)
+    spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
+  return ctx;
+}
+
+MicroBatch micro_batch(const data::TrainingBatch& batch, int64_t input_views, torch::Device device) {
+  auto dev = [&](const torch::Tensor& t) { return t.to(device); };
+  // The loader's cameras are in the scene frame of all the sample's views (with their pose noise, if any).
+  constexpr bool kInSceneFrame = true;
+  return {{dev(batch.input_images(input_views)), dev(batch.input_fxfycxcy(input_views)),
+           dev(batch.input_c2w(input_views)), kInSceneFrame},
+          {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w()), kInSceneFrame}};
 }
 
 namespace {
@@ -142,6 +176,25 @@ RunFiles prepare_run_dir(const Config& config, const TrainOptions& opt, bool lea
   return {(fs::path(opt.run_dir) / "checkpoints").string(), (fs::path(opt.run_dir) / "metrics.jsonl").string()};
 }
 
+// The official whole-split order over pixelSplat chunks larger than the chunk cache reads about one chunk (~100 MB
+// on RealEstate10K) per sample: said at the start, with the two ways out (docs/training.md has the figures).
+void warn_if_shuffling_rereads_chunks(const data::ChunkDataset& dataset, const TrainingConfig& tc) {
+  if (tc.chunks_per_shuffle != 0 || dataset.layout() != data::ChunkDataset::Layout::Chunks) return;
+  double bytes = 0;
+  for (int64_t start : dataset.chunk_starts()) {
+    std::error_code error;
+    const auto size = fs::file_size(dataset.chunk_path(start), error);
+    if (!error) bytes += static_cast<double>(size);
+  }
+  if (bytes <= static_cast<double>(data::kChunkCacheBytes)) return;
+  spdlog::warn(
+      "shuffling the whole split (training.chunks_per_shuffle 0, the official order) over {} chunk files ({:.1f} GB, "
+      "the chunk cache holds {} MiB): about one chunk read per sample. Convert the split to the LVSM layout "
+      "(`uplvsm dataset convert`), where a sample reads its frames alone, or set training.chunks_per_shuffle 2 "
+      "(not the official order; docs/training.md)",
+      dataset.chunk_starts().size(), bytes / 1e9, data::kChunkCacheBytes >> 20);
+}
+
 // Restricts the train split to the configured subset and checks it can serve this run (cameras, scene count).
 void prepare_training_data(data::ChunkDataset& dataset, const Config& config, const TrainOptions& opt,
                            const model::NovelViewModelImpl& net) {
@@ -162,47 +215,17 @@ void prepare_training_data(data::ChunkDataset& dataset, const Config& config, co
   if (tc.max_train_scenes > dataset.size())
     throw std::runtime_error(fmt::format("training.max_train_scenes = {}: the train split of {} has only {} scenes",
                                          tc.max_train_scenes, opt.data_root, dataset.size()));
+  warn_if_shuffling_rereads_chunks(dataset, tc);
   if (tc.pose_noise_std > 0)
     spdlog::info("pose noise: N(0, {}^2) on the (t, q) of the input and target cameras (official noise_scale){}",
                  tc.pose_noise_std, reads_cameras ? "" : " (this UP-LVSM run never reads them)");
 }
 
-// Everything a step needs besides its batches.
-StepContext make_step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer& optimizer, const Config& config,
-                              const TrainOptions& opt) {
-  const auto& tc = config.training;
-  StepContext ctx;
-  ctx.net = &net;
-  ctx.optimizer = &optimizer;
-  ctx.params = trainable_parameters(net);
-  ctx.training = tc;
-  ctx.target_poses = model::resolve_target_poses(tc.target_poses, net);
-  ctx.perceptual =
-      perceptual_loss_for(tc.perceptual_loss_weight, opt.perceptual_weights, opt.device, opt.perceptual_input);
-  ctx.bf16 = tc.amp == Amp::Bf16;
-  ctx.comm = opt.comm.get();
-  if (ctx.bf16) spdlog::info("mixed precision: bf16 autocast on {}", opt.device.str());
-  if (set_cuda_tf32(opt.device, tc.tf32)) spdlog::info("TF32 matmuls and convolutions: {}", tc.tf32 ? "on" : "off");
-  spdlog::info("{} ({} variant), target poses from {}", net.name(), to_string(config.model.variant),
-               model::to_string(ctx.target_poses));
-  net.set_grad_checkpoint_every(tc.grad_checkpoint_every);
-  if (tc.grad_checkpoint_every > 0)
-    spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
-  return ctx;
-}
-
-// The next grad_accum_steps micro-batches of the stream, on the device.
-std::vector<MicroBatch> next_micro_batches(data::TrainingLoader& loader, const TrainingConfig& tc,
+// The next `accumulation` micro-batches of the stream, on the device.
+std::vector<MicroBatch> next_micro_batches(data::TrainingLoader& loader, int64_t accumulation, int64_t input_views,
                                            torch::Device device) {
   std::vector<MicroBatch> micro;
-  const int64_t vi = tc.num_input_views;
-  auto dev = [&](const torch::Tensor& t) { return t.to(device); };
-  for (int64_t i = 0; i < tc.grad_accum_steps; ++i) {
-    auto batch = loader.next();
-    // The loader's cameras are in the scene frame of all the sample's views (with their pose noise, if any).
-    micro.push_back({{dev(batch.input_images(vi)), dev(batch.input_fxfycxcy(vi)), dev(batch.input_c2w(vi)), true},
-                     {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w()), true}});
-  }
+  for (int64_t i = 0; i < accumulation; ++i) micro.push_back(micro_batch(loader.next(), input_views, device));
   return micro;
 }
 
@@ -218,6 +241,7 @@ struct RunningMeans {
 
 void log_step(std::ofstream& metrics, const TrainState& state, const StepResult& r, double step_seconds,
               const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
+  // chunk_reads and resized_frames count from this invocation's start.
   metrics << json{{"step", state.step},
                   {"loss", r.loss},
                   {"mse", r.mse},
@@ -228,6 +252,7 @@ void log_step(std::ofstream& metrics, const TrainState& state, const StepResult&
                   {"step_seconds", step_seconds},
                   {"data_wait_seconds", loader.wait_seconds()},
                   {"chunk_reads", dataset.chunk_reads()},
+                  {"resized_frames", loader.resized_frames()},
                   {"train_seconds", state.train_seconds}}
                  .dump()
           << "\n";
@@ -237,8 +262,8 @@ void log_step(std::ofstream& metrics, const TrainState& state, const StepResult&
 // End of run: the loader's share, data-parallel consistency, and skipped updates.
 void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator* comm, model::NovelViewModelImpl& net,
                 const data::TrainingLoader& loader, const data::ChunkDataset& dataset) {
-  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read", loader.wait_seconds(),
-               dataset.chunk_reads());
+  spdlog::info("data: {:.1f} s waiting on the loader, {} chunk files read, {} frame(s) of another size resized",
+               loader.wait_seconds(), dataset.chunk_reads(), loader.resized_frames());
   if (comm) {
     check_parameters_in_sync(*comm, net.parameters());
     comm->barrier();  // rank 0's last checkpoint is on disk before any rank returns
@@ -249,23 +274,29 @@ void finish_run(const TrainState& state, const TrainingConfig& tc, Communicator*
                  state.skipped_gradnorm, tc.allowed_gradnorm_factor);
 }
 
-// One line on what is trained on what, and how the views are drawn when the frames are unordered.
+// What the run will do (train/run_plan.h), from the step it starts at.
 void announce_training(const Config& config, const TrainOptions& opt, const data::ChunkDataset& dataset,
-                       const data::LoaderOptions& loader_opt, int64_t parameters, int64_t step) {
+                       const data::LoaderOptions& loader_opt, const BatchPlan& batch, int64_t step) {
   const auto& tc = config.training;
-  const int64_t scenes = tc.max_train_scenes > 0 ? tc.max_train_scenes : dataset.size();
-  spdlog::info("training {} ({} parameters) on {} scenes of {}{}, steps {} -> {}", config.name, parameters, scenes,
-               opt.data_root, scenes < dataset.size() ? fmt::format(" (first {} of {})", scenes, dataset.size()) : "",
-               step, tc.train_steps);
-  if (!loader_opt.ordered_views) spdlog::info("views: unordered (any {} distinct frames per scene)", tc.num_views);
+  RunPlan plan;
+  plan.config = config;
+  plan.batch = batch;
+  plan.device = opt.device.str();
+  plan.perceptual_weights = opt.perceptual_weights;
+  plan.init = step == 0 ? opt.init_weights : "";
+  plan.data_root = opt.data_root;
+  plan.scenes = tc.max_train_scenes > 0 ? std::min(tc.max_train_scenes, dataset.size()) : dataset.size();
+  plan.ordered_views = loader_opt.ordered_views;
+  spdlog::info("training {}: steps {} -> {}", config.name, step, tc.train_steps);
+  for (const auto& line : describe_run_plan(plan)) spdlog::info("  {}", line);
 }
 
 // Every rank starts from rank 0's weights.
-void join_ranks(Communicator* comm, model::NovelViewModelImpl& net, const TrainingConfig& tc) {
+void join_ranks(Communicator* comm, model::NovelViewModelImpl& net, const BatchPlan& batch) {
   if (!comm) return;
   comm->broadcast(net.parameters());
-  spdlog::info("data parallel: rank {} of {} ({}), {} scenes per rank and step", comm->rank(), comm->world_size(),
-               comm->backend(), tc.batch_size);
+  spdlog::info("data parallel: rank {} of {} ({}), {} x {} scenes per rank and update", comm->rank(),
+               comm->world_size(), comm->backend(), batch.per_micro_batch, batch.accumulation);
 }
 
 // Whether a signal stopped the run (its checkpoint is written by then); says so.
@@ -312,13 +343,15 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   const auto& tc = config.training;
   const auto t_start = std::chrono::steady_clock::now();
   Communicator* comm = opt.comm.get();
-  const bool lead = !comm || comm->rank() == 0;  // the rank that writes files and shows progress
+  const bool lead = !comm || comm->rank() == 0;                // the rank that writes files and shows progress
+  require_perceptual_weights(config, opt.perceptual_weights);  // before anything is read or allocated
+  const auto batch = plan_batch(tc, comm ? comm->world_size() : 1, config.name);
   check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
 
   auto [net, optimizer, state] = start_model(config, opt, files.checkpoint_dir);
   if (lead) truncate_metrics(files.metrics, state.step);
-  join_ranks(comm, *net, tc);
+  join_ranks(comm, *net, batch);
   TrainResult result;
   result.step = state.step;
   if (already_finished(opt.run_dir, state.step, tc.train_steps)) return result;
@@ -326,9 +359,10 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   data::ChunkDataset dataset(opt.data_root, "train");
   prepare_training_data(dataset, config, opt, *net);
   const auto loader_opt = loader_options(config, dataset, comm);
-  announce_training(config, opt, dataset, loader_opt, net->parameter_count(), state.step);
-  data::TrainingLoader loader(dataset, loader_opt, state.step);
-  StepContext ctx = make_step_context(*net, *optimizer, config, opt);
+  if (lead) announce_training(config, opt, dataset, loader_opt, batch, state.step);
+  // The stream is keyed to micro-batches: a run resumed at update s goes on with micro-batch s x accumulation.
+  data::TrainingLoader loader(dataset, loader_opt, state.step * batch.accumulation);
+  StepContext ctx = step_context(*net, *optimizer, config, opt);
 
   SignalScope signals;
   std::ofstream metrics;
@@ -339,7 +373,8 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   const int64_t first_step = state.step;
   while (state.step < tc.train_steps) {
     const auto t0 = std::chrono::steady_clock::now();
-    const auto r = train_step(ctx, state, next_micro_batches(loader, tc, opt.device), g_signal != 0);
+    const auto micro = next_micro_batches(loader, batch.accumulation, tc.num_input_views, opt.device);
+    const auto r = train_step(ctx, state, micro, g_signal != 0);
     const double step_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     state.train_seconds += step_seconds;
     means.add(r);

@@ -17,6 +17,7 @@
 #include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/train/distributed.h"
 #include "uplvsm/train/perceptual_loss.h"
+#include "uplvsm/train/train_step.h"
 
 namespace uplvsm::train {
 
@@ -53,5 +54,13 @@ TrainResult train(const Config& config, const TrainOptions& options);
 
 // The loader settings a run of `config` reads its batches with (this rank's shard when `comm` is given).
 data::LoaderOptions loader_options(const Config& config, const data::ChunkDataset& dataset, const Communicator* comm);
+
+// Everything a step needs besides its batches: the loss terms, bf16 autocast and TF32 as the config asks (TF32 is
+// set on the process for a CUDA device), gradient checkpointing; built once per run.
+StepContext step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer& optimizer, const Config& config,
+                         const TrainOptions& opt);
+
+// A loader batch as the model reads it, on `device`: the told cameras, in the scene frame of the sample's views.
+MicroBatch micro_batch(const data::TrainingBatch& batch, int64_t input_views, torch::Device device);
 
 }  // namespace uplvsm::train
