@@ -1,5 +1,6 @@
 // `uplvsm eval --target-poses auto` evaluates a model with the protocol it was trained with; `--refine-poses` refines
-// the estimator's poses and says so in metrics.json, and is refused for poses that do not come from the estimator.
+// the estimator's poses and says so in metrics.json, and is refused for poses that do not come from the estimator;
+// `--pose-noise-std` scores a posed model with the official evaluation's pose noise, recorded and printed.
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -50,5 +51,36 @@ TEST(EvalCli, AutoTargetPosesFollowTheTrainingConfig) {
   EXPECT_FALSE(metrics(dir / "est").contains("pose_refinement"));
   EXPECT_NE(test::run_cli(eval + " --refine-poses 2 --out " + (dir / "refused").string(), &out), 0);
   EXPECT_NE(out.find("pose refinement refines the latent poses"), std::string::npos) << out;
+  test::remove_tree(dir);
+}
+
+// `--pose-noise-std S --seed N` reaches LVSM's cameras (its scores move, the same seed repeats them), metrics.json and
+// the printout say which cameras were scored; a negative or non-finite S is refused naming the flag.
+TEST(EvalCli, PoseNoiseStdScoresAPosedModelWithNoisyCameras) {
+  const auto dir = test::temp_dir("cli_eval_pose_noise");
+  std::string out;
+  ASSERT_EQ(test::run_cli("train --config " + std::string(UPLVSM_SOURCE_DIR) + "/configs/tiny_lvsm.json --data " +
+                              test::micro_dataset() + " --run " + (dir / "run").string() + " --steps 1",
+                          &out),
+            0)
+      << out;
+  const std::string eval = "eval --checkpoint " + (dir / "run").string() + " --data " + test::micro_dataset();
+  ASSERT_EQ(test::run_cli(eval + " --out " + (dir / "clean").string(), &out), 0) << out;
+  EXPECT_NE(out.find("pose noise: none, clean test cameras"), std::string::npos) << out;
+  EXPECT_EQ(metrics(dir / "clean").at("pose_noise").at("std"), 0.0);
+  for (const char* run : {"noisy", "again"}) {
+    ASSERT_EQ(test::run_cli(eval + " --pose-noise-std 0.05 --seed 3 --out " + (dir / run).string(), &out), 0) << out;
+    EXPECT_NE(out.find("pose noise sd 0.05 (seed 3): the input and target dataset cameras"), std::string::npos) << out;
+  }
+  const auto noisy = metrics(dir / "noisy");
+  EXPECT_EQ(noisy.at("pose_noise").at("std"), 0.05);
+  EXPECT_EQ(noisy.at("pose_noise").at("seed"), 3);
+  EXPECT_TRUE(noisy.at("pose_noise").at("reaches_model").get<bool>());
+  EXPECT_NE(noisy.at("table").at("model").at("psnr"), metrics(dir / "clean").at("table").at("model").at("psnr"));
+  EXPECT_EQ(noisy.at("table").at("model").at("psnr"), metrics(dir / "again").at("table").at("model").at("psnr"));
+  for (const char* bad : {"=-0.1", " nan", " inf"}) {
+    EXPECT_NE(test::run_cli(eval + " --pose-noise-std" + bad + " --out " + (dir / "bad").string(), &out), 0) << bad;
+    EXPECT_NE(out.find("--pose-noise-std: expected a finite number >= 0"), std::string::npos) << out;
+  }
   test::remove_tree(dir);
 }

@@ -9,6 +9,7 @@
 
 #include "test_util.h"
 #include "uplvsm/core/config.h"
+#include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/synthetic/room_scenes.h"
 #include "uplvsm/train/trainer.h"
 
@@ -32,6 +33,14 @@ inline ModelConfig micro_model(const std::string& variant = "uplvsm") {
   m.dinov2.num_heads = 2;
   m.dinov2.pos_grid = 4;
   return m;
+}
+
+// How micro_model() sees a frame: resized and centre-cropped to 32 x 32, patch 8.
+inline data::PreprocessOptions micro_prep() {
+  data::PreprocessOptions p;
+  p.image_size = 32;
+  p.patch_size = 8;
+  return p;
 }
 
 inline Config micro_config() {

@@ -7,6 +7,7 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/eval/eval_pose_noise.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
@@ -25,6 +26,8 @@ struct EvalArgs {
   TargetPoseChoice target_poses = TargetPoseChoice::Auto;
   int64_t max_scenes = 0, batch = 4, visualise = 8;
   eval::PoseRefinement refinement;
+  double pose_noise_std = 0;
+  uint64_t seed = 0;
 };
 
 void add_eval_options(CLI::App* cmd, EvalArgs& a) {
@@ -53,6 +56,13 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
   cmd->add_option("--refine-lr", a.refinement.lr, "learning rate of --refine-poses")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
+  cmd->add_option("--pose-noise-std", a.pose_noise_std,
+                  "score as the official code does with unposed.noise_scale = S: N(0, S^2) on the (t, q) encodings "
+                  "of the test cameras the model reads (LVSM's and PT-LVSM's inputs and targets; UP-LVSM's only with "
+                  "mapper or dataset target poses), in the scene frame, inputs and targets drawn apart; 0: clean")
+      ->capture_default_str();
+  cmd->add_option("--seed", a.seed, "seed of --pose-noise-std (each scene draws from this seed and its key)")
+      ->capture_default_str();
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -80,6 +90,8 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
   opt.num_visualised = a.visualise;
   opt.out_dir = a.out;
   opt.pose_refinement = a.refinement;
+  opt.pose_noise_std = a.pose_noise_std;
+  opt.pose_noise_seed = a.seed;
   opt.bf16 = a.amp == Amp::Bf16;
   // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
   opt.target_poses = model::resolve_target_poses(
@@ -119,9 +131,14 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
                     "model")
             << line("copy nearest", "copy_nearest") << line("mean colour", "mean_colour");
   if (!opt.lpips) std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
+  const auto& noise = summary.pose_noise;
+  std::cout << (opt.pose_noise_std > 0 ? fmt::format("  pose noise sd {} (seed {}): {}\n", opt.pose_noise_std, a.seed,
+                                                     noise.at("cameras").get<std::string>())
+                                       : std::string("  pose noise: none, clean test cameras (--pose-noise-std)\n"));
 }
 
 void run_eval(const EvalArgs& a) {
+  eval::check_pose_noise_std(a.pose_noise_std);  // before the model is loaded
   apply_common_options(a.common);
   Config config;
   // torchrun / SLURM variables make this process one shard of a multi-process evaluation (results merged).

@@ -18,6 +18,7 @@
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/eval/baselines.h"
+#include "uplvsm/eval/eval_pose_noise.h"
 #include "uplvsm/eval/metrics.h"
 #include "uplvsm/eval/result_files.h"
 #include "uplvsm/io/image.h"
@@ -168,6 +169,22 @@ torch::Tensor lpips_of(Lpips lpips, const torch::Tensor& pred, const torch::Tens
   return torch::cat(parts).view({pred.size(0), pred.size(1)});
 }
 
+// The batch's cameras as the model is told them under the official evaluation's pose noise: per scene in its scene
+// frame with its own seeded noise (eval_pose_noise.h), so the posed models take them as they are.
+void tell_noisy_cameras(const std::vector<const Loaded*>& scenes, const EvalOptions& opt, model::Views& inputs,
+                        model::Views& targets) {
+  std::vector<torch::Tensor> in, tg;
+  for (const auto* s : scenes) {
+    auto told = noisy_scene_cameras(s->views.c2w, inputs.images.size(1), opt.pose_noise_std, opt.pose_noise_seed,
+                                    s->job->entry.key);
+    in.push_back(told.inputs);
+    tg.push_back(told.targets);
+  }
+  inputs.c2w = torch::stack(in).to(opt.device);
+  targets.c2w = torch::stack(tg).to(opt.device);
+  inputs.in_scene_frame = targets.in_scene_frame = true;
+}
+
 // One forward for scenes of equal view counts and image size; scores the model and the baselines per target.
 void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& scenes, const EvalOptions& opt,
                RunState& state) {
@@ -186,12 +203,15 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
   auto k = torch::stack(intrinsics).to(opt.device, torch::kFloat32);
   auto c2w = torch::stack(cameras).to(opt.device, torch::kFloat32);
   auto in_img = all.narrow(1, 0, vi), gt = all.narrow(1, vi, vt);
+  model::Views inputs{in_img, k.narrow(1, 0, vi), c2w.narrow(1, 0, vi)};
+  model::Views targets{gt, k.narrow(1, vi, vt), c2w.narrow(1, vi, vt)};
+  // Only the model is told noisy cameras (made outside autocast, in fp32): the baselines keep the clean ones.
+  if (opt.pose_noise_std > 0 && pose_noise_reaches_model(opt.target_poses))
+    tell_noisy_cameras(scenes, opt, inputs, targets);
   torch::Tensor pred;
   {
     AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
-    model::Views inputs{in_img, k.narrow(1, 0, vi), c2w.narrow(1, 0, vi)};
-    model::Views targets{gt, k.narrow(1, vi, vt), c2w.narrow(1, vi, vt)};
-    pred = opt.pose_refinement.steps != 0  // a negative count reaches the refinement's own check
+    pred = opt.pose_refinement.steps != 0     // a negative count reaches the refinement's own check
                ? render_at_refined_poses(*model::as_uplvsm(*net), inputs, targets, opt.pose_refinement).render
                : net->render(inputs, targets, opt.target_poses).render;
   }
@@ -347,18 +367,28 @@ static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& datas
   bar.finish();
 }
 
+// Refuses options that do not fit the model, and says which cameras a pose-noise evaluation moves.
+static void check_options(model::NovelViewModel& net, const EvalOptions& opt) {
+  TORCH_CHECK(
+      opt.pose_refinement.steps == 0 || (model::as_uplvsm(*net) && opt.target_poses == model::TargetPoses::Estimator),
+      "eval: pose refinement refines the latent poses UP-LVSM's estimator reads from the targets; this is ",
+      net->name(), " with target poses '", model::to_string(opt.target_poses), "'");
+  check_pose_noise_std(opt.pose_noise_std);
+  TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count, "eval: shard ",
+              opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");
+  if (opt.pose_noise_std > 0)
+    spdlog::info(
+        "eval: {} with pose noise sd {} (seed {}) on: {}", net->name(), opt.pose_noise_std, opt.pose_noise_seed,
+        pose_noise_record(opt.pose_noise_std, opt.pose_noise_seed, opt.target_poses)["cameras"].get<std::string>());
+}
+
 EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const EvalOptions& opt) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::string index_path =
       opt.index_path.empty() ? (fs::path(dataset.root()) / "evaluation_index.json").string() : opt.index_path;
   EvalSummary counts;
-  TORCH_CHECK(
-      opt.pose_refinement.steps == 0 || (model::as_uplvsm(*net) && opt.target_poses == model::TargetPoses::Estimator),
-      "eval: pose refinement refines the latent poses UP-LVSM's estimator reads from the targets; this is ",
-      net->name(), " with target poses '", model::to_string(opt.target_poses), "'");
-  TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count, "eval: shard ",
-              opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");
+  check_options(net, opt);
   const auto all_jobs = plan_jobs(dataset, opt, index_path, counts);
   std::vector<Job> jobs;  // this shard's
   for (const auto& job : all_jobs)
@@ -381,6 +411,7 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
     s.lpips = {{"available", true}, {"net", opt.lpips->net == LpipsNet::Vgg ? "vgg" : "alex"}};
   else
     s.lpips = {{"available", false}, {"reason", "no LPIPS weights given (--lpips-backbone, --lpips-lin)"}};
+  s.pose_noise = pose_noise_record(opt.pose_noise_std, opt.pose_noise_seed, opt.target_poses);
   s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (s.scenes == 0) {
     spdlog::warn("eval: no scene was evaluated ({})", index_path);

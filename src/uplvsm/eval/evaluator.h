@@ -44,6 +44,11 @@ struct EvalOptions {
   // UP-LVSM with the estimator's poses only: refine each target's latent pose against the target before the render
   // that is scored (eval/target_pose_refinement.h; steps 0, the paper's protocol, leaves them as they are).
   PoseRefinement pose_refinement;
+  // The official evaluation's pose noise (`unposed.noise_scale`, eval/eval_pose_noise.h): N(0, std^2) on the (t, q)
+  // encodings of the dataset cameras the model reads, each scene's stream seeded by (pose_noise_seed, its key).
+  // 0: clean cameras. The baselines always use clean ones.
+  double pose_noise_std = 0;
+  uint64_t pose_noise_seed = 0;
   nlohmann::json extra = nlohmann::json::object();  // merged into metrics.json (checkpoint, data, ...)
   // Sharded evaluation, one process per rank: this rank scores the scenes whose position in the index is
   // shard_rank mod shard_count; `gather` (the caller's collective, e.g. c10d) returns every rank's string in rank
@@ -109,6 +114,7 @@ struct EvalSummary {
   int64_t resized_frames = 0;      // frames of another size than their scene's frame 0, resized as the official does
   std::vector<std::string> scene_grids;           // paths of the PNG grids written
   nlohmann::json lpips = {{"available", false}};  // {"available", "net"}; set by evaluate()
+  nlohmann::json pose_noise = {{"std", 0.0}};     // eval::pose_noise_record; set by evaluate()
 };
 
 // Runs the evaluation (see the top comment). The model runs in eval mode under NoGradGuard with the protocol of

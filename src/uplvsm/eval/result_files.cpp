@@ -72,6 +72,7 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
   j["spans"] = s.spans;
   j["span_scenes"] = s.span_scenes;
   j["lpips"] = s.lpips;
+  j["pose_noise"] = s.pose_noise;  // which cameras were scored: clean, or with the official evaluation's noise
   j["seconds"] = s.seconds;
   j["scenes_per_second"] = s.seconds > 0 ? static_cast<double>(s.scenes) / s.seconds : 0.0;
   j["scene_grids"] = s.scene_grids;

@@ -11,7 +11,7 @@
 namespace uplvsm::eval {
 
 // metrics.json content: scenes, views, skipped counts, table, buckets, bucket_scenes, spans, span_scenes, lpips,
-// seconds, conventions.
+// pose_noise, seconds, conventions.
 nlohmann::json summary_to_json(const EvalSummary& summary);
 // Writes metrics.json (summary_to_json merged with `extra`, e.g. checkpoint/config info), per_scene.csv and
 // per_view.csv into out_dir (created if needed), atomically.
