@@ -1,10 +1,18 @@
-// Tests of data/view_sampler: bounds, gap rule, distinct interior frames, determinism and the fallbacks.
+// Tests of data/view_sampler: bounds, gap rule, the official skip boundary, distinct interior frames, determinism
+// and the fallbacks.
 #include "uplvsm/data/view_sampler.h"
 
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <set>
+#include <string>
+
+#include "test_util.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/loader.h"
+#include "uplvsm/data/synthetic/room_scenes.h"
 
 namespace uplvsm::data {
 namespace {
@@ -83,14 +91,54 @@ TEST(ViewSampler, SmallScenesAndErrors) {
   EXPECT_EQ(w[1] - w[0], 1);
   EXPECT_TRUE(w[2] == w[0] || w[2] == w[1]);
   EXPECT_EQ(sample_training_views(5, 1, 1, 1, rng).size(), 1u);
-  EXPECT_TRUE(can_sample(26, 4, 25));
-  EXPECT_FALSE(can_sample(25, 4, 25));  // the official selector would raise and replace the scene
   EXPECT_FALSE(can_sample(3, 4, 1));
   for (int i = 0; i < 1000; ++i) {
     int64_t x = uniform_int(rng, -3, 3);
     EXPECT_GE(x, -3);
     EXPECT_LE(x, 3);
   }
+}
+
+// The official view_selector skips a scene when min(frames - 1, max_frame_dist) <= min_frame_dist: one of exactly
+// min_frame_dist + 1 frames is skipped, one more frame makes it usable.
+TEST(ViewSampler, ASceneOfMinFrameDistPlusOneFramesIsSkippedAsTheOfficial) {
+  EXPECT_FALSE(can_sample(25, 4, 25));
+  EXPECT_FALSE(can_sample(26, 4, 25));  // min_frame_dist + 1
+  EXPECT_TRUE(can_sample(27, 4, 25));   // min_frame_dist + 2
+  EXPECT_FALSE(can_sample(5, 4, 4));
+  EXPECT_TRUE(can_sample(6, 4, 4));
+  EXPECT_FALSE(can_sample(5, 6, 1));  // fewer frames than views
+}
+
+// The loader goes by that rule: at min_frame_dist 4 a scene of 5 frames is replaced by another (counted and logged)
+// and never served, one of 6 frames is served.
+TEST(ViewSampler, TheLoaderReplacesAndCountsAMinFrameDistPlusOneFrameScene) {
+  const auto dir = test::temp_dir("view_sampler_boundary");
+  std::filesystem::create_directories(dir / "train");
+  RoomSceneOptions scene;
+  scene.height = 24, scene.width = 32, scene.frames = 5;
+  auto boundary = render_room_scene(1, scene);
+  scene.frames = 6;
+  auto usable = render_room_scene(2, scene);
+  write_chunk((dir / "train/000000.torch").string(), {boundary, usable});
+  ChunkDataset dataset(dir.string(), "train");
+  LoaderOptions opt;
+  opt.batch_size = 2, opt.num_views = 4, opt.num_input_views = 2, opt.num_target_views = 2;
+  opt.min_frame_dist = 4, opt.max_frame_dist = 16;
+  opt.preprocess = {32, 8, true};
+  int64_t replaced = 0;
+  std::set<std::string> served;
+  for (int64_t step = 0; step < 4; ++step) {
+    auto batch = make_training_batch(dataset, opt, step);
+    replaced += batch.replaced_scenes;
+    served.insert(batch.keys.begin(), batch.keys.end());
+    for (const auto& frames : batch.frames) {  // 6 frames: the gap is 4 or 5
+      EXPECT_GE(frames[1] - frames[0], 4);
+      EXPECT_LE(frames[1] - frames[0], 5);
+    }
+  }
+  EXPECT_EQ(served, std::set<std::string>{usable.key});
+  EXPECT_GT(replaced, 0);
 }
 
 // Unordered views: distinct frames anywhere in the scene, every frame reachable in every slot, no gap rule.

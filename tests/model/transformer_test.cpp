@@ -41,6 +41,38 @@ TEST(Transformer, DepthScaledInit) {
   EXPECT_NEAR(w3.std().item<double>(), 0.02 / std::sqrt(8.0), 1e-3);
 }
 
+// The official per-block rule (ptlvsm.py and uplvsm.py's encoder) and UP-LVSM's decoder, whose for-else sets only
+// its last block (nullopt: the default Linear init stays).
+TEST(Transformer, OfficialBlockInitStdsInEveryCombination) {
+  const auto both = model::official_block_init_stds(8, true, true);
+  ASSERT_EQ(both.size(), 8u);
+  for (size_t i = 0; i < both.size(); ++i) EXPECT_DOUBLE_EQ(*both[i], 0.02 / std::sqrt(2.0 * (i + 1)));
+  for (const auto& s : model::official_block_init_stds(8, true, false)) EXPECT_DOUBLE_EQ(*s, 0.005);
+  for (bool depth : {false, true})
+    for (const auto& s : model::official_block_init_stds(8, false, depth)) EXPECT_DOUBLE_EQ(*s, 0.02);
+  const auto decoder = model::official_uplvsm_decoder_init_stds(8, true);
+  ASSERT_EQ(decoder.size(), 8u);
+  for (size_t i = 0; i + 1 < decoder.size(); ++i) EXPECT_FALSE(decoder[i].has_value()) << i;
+  EXPECT_DOUBLE_EQ(*decoder.back(), 0.005);
+  for (const auto& s : model::official_uplvsm_decoder_init_stds(8, false)) EXPECT_DOUBLE_EQ(*s, 0.02);
+  EXPECT_TRUE(model::official_uplvsm_decoder_init_stds(0, true).empty());
+}
+
+// torch.nn.init.trunc_normal_'s bounds are absolute: [-1, 2] at std 1 cuts both tails (the mean moves to
+// (phi(-1) - phi(2)) / (Phi(2) - Phi(-1)) = 0.2296), while [-2, 2] at std 0.02 cuts nothing.
+TEST(Transformer, TruncNormalBoundsAreAbsoluteAsPyTorchs) {
+  torch::manual_seed(0);
+  auto cut = model::trunc_normal_(torch::empty({200000}), 0.0, 1.0, -1.0, 2.0);
+  EXPECT_GE(cut.min().item<double>(), -1.0);
+  EXPECT_LE(cut.max().item<double>(), 2.0);
+  EXPECT_NEAR(cut.mean().item<double>(), 0.2296, 0.01);
+  auto wide = model::trunc_normal_(torch::empty({200000}), 0.0, 0.02, -2.0, 2.0);
+  EXPECT_NEAR(wide.std().item<double>(), 0.02, 2e-4);
+  EXPECT_GT(wide.abs().max().item<double>(), 0.08);  // beyond 4 std
+  EXPECT_NE(test::error_of([] { model::trunc_normal_(torch::empty({4}), 0.0, 0.0, -2.0, 2.0); }).find("std > 0"),
+            std::string::npos);
+}
+
 namespace {
 // A stack's output and the gradients of x and of every weight for the loss sum(out * probe).
 struct StackRun {

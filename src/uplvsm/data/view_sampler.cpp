@@ -24,7 +24,8 @@ int64_t uniform_int(std::mt19937_64& rng, int64_t lo, int64_t hi) {
 }
 
 bool can_sample(int64_t num_frames, int num_views, int min_gap) {
-  return num_views >= 1 && num_frames >= num_views && num_frames - 1 >= std::max(min_gap, num_views > 1 ? 1 : 0);
+  // Strictly greater, as the official `if max_frame_dist <= min_frame_dist: return None`.
+  return num_views >= 1 && num_frames >= num_views && num_frames - 1 > min_gap;
 }
 
 std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, int min_gap, int max_gap,

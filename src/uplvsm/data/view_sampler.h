@@ -27,8 +27,9 @@ std::vector<int64_t> sample_training_views(int64_t num_frames, int num_views, in
 // `step` grows linearly from min_gap to max_gap over the first `steps` steps; steps <= 0 is max_gap throughout.
 int max_gap_at_step(int min_gap, int max_gap, int64_t steps, int64_t step);
 
-// Whether the official selector can use the scene without lowering its gap: num_frames >= num_views and
-// num_frames - 1 >= min_gap (the official code raises, and replaces the scene, otherwise).
+// Whether the official selector uses the scene: num_frames >= num_views and num_frames - 1 > min_gap. The official
+// view_selector skips a scene (the dataset then takes another) when its largest gap, min(frames - 1,
+// max_frame_dist), is <= min_frame_dist, so a scene of exactly min_gap + 1 frames is skipped.
 bool can_sample(int64_t num_frames, int num_views, int min_gap);
 
 // num_views distinct frames drawn uniformly, in random order (the first ones become the inputs). Needs

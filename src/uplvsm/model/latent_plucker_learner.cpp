@@ -5,9 +5,11 @@
 namespace uplvsm::model {
 
 LatentPluckerLearnerImpl::LatentPluckerLearnerImpl(const TransformerConfig& c) {
-  // The official init uses std 0.02 for the whole estimator (no depth scaling).
-  transformer_estimator = register_module(
-      "transformer_estimator", make_transformer_stack(c.estimator_n_layer, c.d, c.d_head, c.qk_norm_eps, false));
+  // The official init uses std 0.02 for the whole estimator, whatever special_init and depth_init
+  // (uplvsm.py `_init_estimator`: estimator.apply(init_weights)).
+  transformer_estimator =
+      register_module("transformer_estimator",
+                      make_transformer_stack(c.d, c.d_head, c.qk_norm_eps, BlockInitStds(c.estimator_n_layer, 0.02)));
   absT_head = register_module("absT_head", DinoMlp(c.d, c.d / 2, 3));
   quaR_head = register_module("quaR_head", DinoMlp(c.d, c.d / 2, 4));
   init_linear_weights(*absT_head, 0.02);

@@ -11,10 +11,11 @@ namespace uplvsm::model {
 
 PosedLVSMImpl::PosedLVSMImpl(const ModelConfig& c, PosedInputs posed) : NovelViewModelImpl(c), posed_inputs(posed) {
   const auto& t = c.transformer;
-  const bool depth = t.special_init && t.depth_init;
   register_tokenizers();
-  transformer_blocks =
-      register_module("transformer_blocks", make_transformer_stack(t.n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
+  // ptlvsm.py `_init_transformer`: the official per-block rule over the stack's n_layer blocks.
+  transformer_blocks = register_module(
+      "transformer_blocks", make_transformer_stack(t.d, t.d_head, t.qk_norm_eps,
+                                                   official_block_init_stds(t.n_layer, t.special_init, t.depth_init)));
   transformer_input_layernorm = register_module("transformer_input_layernorm", LayerNorm(t.d, 1e-5, false));
   register_rgb_head();
 }

@@ -7,6 +7,7 @@
 #include "uplvsm/model/layer_norm_to_bf16.h"
 #include "uplvsm/model/qk_norm.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace uplvsm::model {
@@ -143,14 +144,44 @@ void init_linear_weights(torch::nn::Module& module, double std) {
   }
 }
 
-torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double eps, bool depth_init) {
+torch::Tensor trunc_normal_(torch::Tensor t, double mean, double stddev, double a, double b) {
+  TORCH_CHECK(stddev > 0 && a < b, "trunc_normal_: needs std > 0 and a < b, got std ", stddev, " and [", a, ", ", b,
+              "]");
+  torch::NoGradGuard no_grad;
+  auto cdf = [](double x) { return 0.5 * (1.0 + std::erf(x / std::sqrt(2.0))); };
+  // Uniform between the bounds' CDF values mapped through the inverse normal CDF, as torch.nn.init does it.
+  const double lo = cdf((a - mean) / stddev), hi = cdf((b - mean) / stddev);
+  t.uniform_(2.0 * lo - 1.0, 2.0 * hi - 1.0).erfinv_().mul_(stddev * std::sqrt(2.0)).add_(mean).clamp_(a, b);
+  return t;
+}
+
+BlockInitStds official_block_init_stds(int64_t n_layer, bool special_init, bool depth_init) {
+  BlockInitStds stds(static_cast<size_t>(std::max<int64_t>(n_layer, 0)), 0.02);
+  if (!special_init) return stds;
+  for (size_t i = 0; i < stds.size(); ++i)
+    stds[i] = 0.02 / std::sqrt(2.0 * static_cast<double>(depth_init ? static_cast<int64_t>(i) + 1 : n_layer));
+  return stds;
+}
+
+BlockInitStds official_uplvsm_decoder_init_stds(int64_t n_layer, bool special_init) {
+  if (!special_init || n_layer <= 0) return official_block_init_stds(n_layer, false, false);
+  BlockInitStds stds(static_cast<size_t>(n_layer), std::nullopt);
+  stds.back() = 0.02 / std::sqrt(2.0 * static_cast<double>(n_layer));
+  return stds;
+}
+
+torch::nn::ModuleList make_transformer_stack(int64_t d, int64_t d_head, double eps, const BlockInitStds& init_stds) {
   torch::nn::ModuleList stack;
-  for (int64_t i = 0; i < n_layer; ++i) {
+  for (const auto& block_std : init_stds) {
     auto block = TransformerBlock(d, d_head, eps);
-    init_linear_weights(*block, depth_init ? 0.02 / std::sqrt(2.0 * static_cast<double>(i + 1)) : 0.02);
+    if (block_std) init_linear_weights(*block, *block_std);
     stack->push_back(block);
   }
   return stack;
+}
+
+torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double eps, bool depth_init) {
+  return make_transformer_stack(d, d_head, eps, official_block_init_stds(n_layer, depth_init, depth_init));
 }
 
 torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every, const char* span,

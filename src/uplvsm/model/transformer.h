@@ -5,6 +5,9 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <optional>
+#include <vector>
+
 #include "uplvsm/model/cast_once_linear.h"
 
 namespace uplvsm::model {
@@ -87,8 +90,27 @@ struct TransformerBlockImpl : torch::nn::Module {
 };
 TORCH_MODULE(TransformerBlock);
 
-// A stack of blocks in a ModuleList (keys "<name>.<i>.*"). Depth init: block i's linears ~ N(0, std_i) with
-// std_i = 0.02 / sqrt(2 (i + 1)) when depth_init, else 0.02 (official init_weights).
+// The std of each block's linear weights when a stack is built (official transformer.py `init_weights`: N(0, std),
+// biases zero). nullopt: the block keeps libtorch's default Linear init, kaiming-uniform U(+-1/sqrt(fan_in)), the
+// same as PyTorch's nn.Linear default.
+using BlockInitStds = std::vector<std::optional<double>>;
+
+// The official rule for a stack of n_layer blocks (ptlvsm.py and uplvsm.py's encoder, `_init_transformer`):
+// special_init with depth_init: block i gets 0.02 / sqrt(2 (i + 1)); special_init alone: 0.02 / sqrt(2 n_layer);
+// without special_init: 0.02 (depth_init then does nothing).
+BlockInitStds official_block_init_stds(int64_t n_layer, bool special_init, bool depth_init);
+
+// UP-LVSM's decoder as the official code initialises it (uplvsm.py `_init_transformer`, inherited from LVSM): its
+// decoder loop's `else` is indented as the loop's for-else, so with special_init only the last block is set, to
+// 0.02 / sqrt(2 n_layer) whatever depth_init, and the others keep the default init (nullopt); without special_init
+// every block gets 0.02.
+BlockInitStds official_uplvsm_decoder_init_stds(int64_t n_layer, bool special_init);
+
+// A stack of init_stds.size() blocks in a ModuleList (keys "<name>.<i>.*"), block i's linears drawn by init_stds[i].
+torch::nn::ModuleList make_transformer_stack(int64_t d, int64_t d_head, double qk_norm_eps,
+                                             const BlockInitStds& init_stds);
+// The same with the official rule for special_init = depth_init = `depth_init` (true: 0.02 / sqrt(2 (i + 1));
+// false: 0.02 for every block).
 torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double qk_norm_eps,
                                              bool depth_init);
 // Runs the blocks in order. checkpoint_every > 0: each group of that many blocks is gradient-checkpointed (the
@@ -99,5 +121,10 @@ torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int
 
 // N(0, std) for every Linear weight under `module` (biases zero); norms keep their ones/zeros.
 void init_linear_weights(torch::nn::Module& module, double std);
+
+// PyTorch's nn.init.trunc_normal_ (inverse-CDF sampling, then a clamp): N(mean, std) truncated to [a, b], where a
+// and b are absolute values, not multiples of std (the official latents' std 0.02 with a = -2, b = 2 cut nothing).
+// Fills `t` in place and returns it.
+torch::Tensor trunc_normal_(torch::Tensor t, double mean, double stddev, double a, double b);
 
 }  // namespace uplvsm::model

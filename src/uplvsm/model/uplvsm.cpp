@@ -10,14 +10,19 @@ using torch::indexing::Slice;
 
 UPLVSMImpl::UPLVSMImpl(const ModelConfig& c) : NovelViewModelImpl(c) {
   const auto& t = c.transformer;
-  const bool depth = t.special_init && t.depth_init;
-  n_light_field_latent =
-      register_parameter("n_light_field_latent", torch::randn({t.n_latent_vectors, t.d}).clamp_(-2, 2).mul_(0.02));
+  // Official trunc_normal_(std=0.02) with its default bounds, absolute -2 and 2 (100 std): in effect N(0, 0.02).
+  n_light_field_latent = register_parameter(
+      "n_light_field_latent", trunc_normal_(torch::empty({t.n_latent_vectors, t.d}), 0.0, 0.02, -2.0, 2.0));
   register_tokenizers();
-  transformer_encoder = register_module("transformer_encoder",
-                                        make_transformer_stack(t.encoder_n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
-  transformer_decoder = register_module("transformer_decoder",
-                                        make_transformer_stack(t.decoder_n_layer, t.d, t.d_head, t.qk_norm_eps, depth));
+  transformer_encoder = register_module(
+      "transformer_encoder",
+      make_transformer_stack(t.d, t.d_head, t.qk_norm_eps,
+                             official_block_init_stds(t.encoder_n_layer, t.special_init, t.depth_init)));
+  // The decoder as the official code leaves it: with special_init only its last block is re-drawn (see the rule).
+  transformer_decoder =
+      register_module("transformer_decoder",
+                      make_transformer_stack(t.d, t.d_head, t.qk_norm_eps,
+                                             official_uplvsm_decoder_init_stds(t.decoder_n_layer, t.special_init)));
   transformer_input_layernorm_decoder =
       register_module("transformer_input_layernorm_decoder", LayerNorm(t.d, 1e-5, false));
   estimator = register_module("estimator", LatentPluckerLearner(t));
