@@ -1,4 +1,5 @@
-// `uplvsm dataset subset` + `uplvsm train --subset`, and training's refusal of placeholder cameras (unposed.json).
+// `uplvsm dataset subset` + `uplvsm train --subset`, training's refusal of placeholder cameras (unposed.json), and
+// `uplvsm dataset import` of phone photos (EXIF orientation and focal length).
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -6,9 +7,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "io/exif_jpeg.h"
 #include "test_util.h"
 #include "train/train_test_util.h"
 #include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/image.h"
 
 using namespace uplvsm;
 namespace fs = std::filesystem;
@@ -32,7 +36,7 @@ TEST(DatasetCli, SubsetManifestRestrictsTraining) {
                               (dir / "run").string() + " --steps 2 --subset " + manifest,
                           &out),
             0);
-  EXPECT_NE(out.find("on 2 scenes"), std::string::npos) << out;
+  EXPECT_NE(out.find(" 2 scenes of "), std::string::npos) << out;  // the run plan's data line
 
   // An official name the dataset is too small for: a clear error with both counts.
   EXPECT_NE(
@@ -79,7 +83,7 @@ TEST(DatasetCli, ObjectsTrainAndEvaluateWithUnorderedViews) {
                           &out),
             0)
       << out;
-  EXPECT_NE(out.find("views: unordered"), std::string::npos) << out;
+  EXPECT_NE(out.find("unordered: any distinct frames"), std::string::npos) << out;  // the run plan's views line
   ASSERT_EQ(test::run_cli("eval --checkpoint " + (dir / "run").string() + " --data " + data + " --split test --out " +
                               (dir / "eval").string() + " --visualise 0",
                           &out),
@@ -89,5 +93,36 @@ TEST(DatasetCli, ObjectsTrainAndEvaluateWithUnorderedViews) {
   const auto j = nlohmann::json::parse(metrics);
   EXPECT_EQ(j.at("scenes"), 2);
   EXPECT_GT(j.at("table").at("copy_nearest").at("psnr").get<double>(), 5.0);
+  test::remove_tree(dir);
+}
+
+// Phone photos held upright (stored sideways, EXIF orientation 6), one with a 1 mm FocalLengthIn35mmFilm: the
+// import says what it turned and which tag it refused, and the chunk holds upright frames.
+TEST(DatasetCli, ImportTurnsPhotosUprightAndReportsAnImplausibleFocalLength) {
+  const auto dir = test::temp_dir("cli_import_exif");
+  fs::create_directories(dir / "phone");
+  const auto stored = test::stored_for_orientation_6(test::red_over_blue(80, 48));
+  for (const auto& [name, focal] : {std::pair<std::string, int>{"a.jpg", 26}, {"b.jpg", 1}}) {
+    const auto bytes = test::jpeg_with_exif(stored, 6, focal);
+    io::write_file_atomic((dir / "phone" / name).string(), bytes.data(), bytes.size());
+  }
+  std::string out;
+  ASSERT_EQ(
+      test::run_cli("dataset import --images " + (dir / "phone").string() + " --out " + (dir / "data").string(), &out),
+      0);
+  EXPECT_NE(out.find("warning: 1 image(s) have an implausible EXIF focal length, e.g. " +
+                     (dir / "phone/b.jpg").string() + ": EXIF FocalLengthIn35mmFilm = 1 mm rejected"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(out.find("2 frames (2 turned upright by their EXIF orientation), intrinsics exif+default-fov"),
+            std::string::npos)
+      << out;
+  const auto scenes = data::read_chunk((dir / "data/test/phone.torch").string());
+  ASSERT_EQ(scenes.size(), 1u);
+  for (const auto& frame : scenes[0].images) {
+    const auto pixels = io::decode_image(frame.data_ptr<uint8_t>(), frame.numel(), "frame");
+    EXPECT_EQ(pixels.sizes(), torch::IntArrayRef({80, 48, 3}));
+    EXPECT_TRUE(test::is_red_over_blue(pixels));
+  }
   test::remove_tree(dir);
 }

@@ -1,6 +1,7 @@
 // data::load_photos: users' photo files as views (what `render --images`, the Python module and the C++ example
 // feed the model): sizes, the field-of-view camera, identity poses, and errors naming the file or the argument; a
-// phone's portrait photo stored sideways turned upright by its EXIF orientation, its field of view from EXIF.
+// phone's portrait photo stored sideways turned upright by its EXIF orientation, its field of view from EXIF (the 35 mm
+// equivalent by the diagonal; an implausible one rejected by name).
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -16,7 +17,7 @@ using namespace uplvsm;
 
 namespace {
 
-std::string write_bytes(const std::filesystem::path& dir, const std::string& name, const std::vector<uint8_t>& bytes) {
+std::string write_photo(const std::filesystem::path& dir, const std::string& name, const std::vector<uint8_t>& bytes) {
   const auto path = (dir / name).string();
   std::ofstream(path, std::ios::binary).write(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   return path;
@@ -62,14 +63,16 @@ TEST(LoadPhotos, ExifOrientationTurnsThePhotoUprightAndExifFocalLengthGivesTheFi
   const auto dir = test::temp_dir("load_photos_exif");
   const auto stored = test::stored_for_orientation_6(test::red_over_blue(80, 48));
   ASSERT_FALSE(test::is_red_over_blue(stored));  // sideways as stored: red left, blue right
-  const auto portrait = write_bytes(dir, "portrait.jpg", test::jpeg_with_exif(stored, 6, 26));
+  const auto portrait = write_photo(dir, "portrait.jpg", test::jpeg_with_exif(stored, 6, 26));
   auto photos = data::read_photos({portrait, portrait}, std::nullopt);
   const auto& info = photos[0].info;
   EXPECT_EQ(photos[0].hwc_u8.sizes(), torch::IntArrayRef({80, 48, 3}));
   EXPECT_TRUE(test::is_red_over_blue(photos[0].hwc_u8));
   EXPECT_EQ(info.orientation, 6);
-  // f = 26 / 36 * 80 pixels (the long side), seen across the upright width of 48.
-  const double fov = 2 * std::atan(24.0 / (26.0 / 36.0 * 80)) * 180 / M_PI;
+  // f = 26 mm * sqrt(80^2 + 48^2) / sqrt(36^2 + 24^2) = 56.06 pixels (the diagonal convention), seen across the
+  // upright width of 48: 46.35 degrees (the long-side reading, 26 / 36 * 80 = 57.78 px, would give 45.11).
+  const double fov = 2 * std::atan(24.0 / (26.0 * std::hypot(80, 48) / std::hypot(36, 24))) * 180 / M_PI;
+  EXPECT_NEAR(fov, 46.35, 1e-2);
   EXPECT_NEAR(info.fov_deg, fov, 1e-9);
   EXPECT_EQ(info.fov_source, "exif");
   EXPECT_NE(data::describe_photo(info, "--fov").find("turned upright (EXIF orientation 6)"), std::string::npos);
@@ -90,7 +93,7 @@ TEST(LoadPhotos, ExifOrientationTurnsThePhotoUprightAndExifFocalLengthGivesTheFi
 
 TEST(LoadPhotos, AnExplicitFieldOfViewWinsAndNoExifMeansSixtyDegrees) {
   const auto dir = test::temp_dir("load_photos_fov");
-  const auto with_exif = write_bytes(dir, "exif.jpg", test::jpeg_with_exif(test::red_over_blue(40, 30), 1, 26));
+  const auto with_exif = write_photo(dir, "exif.jpg", test::jpeg_with_exif(test::red_over_blue(40, 30), 1, 26));
   const auto plain = write_photo(dir, "plain.png", 40, 30);
   auto photos = data::read_photos({with_exif, plain}, 50.0);
   EXPECT_EQ(photos[0].info.fov_deg, 50.0);
@@ -106,11 +109,39 @@ TEST(LoadPhotos, AnExplicitFieldOfViewWinsAndNoExifMeansSixtyDegrees) {
             std::string::npos);
 }
 
+// A 1 mm FocalLengthIn35mmFilm (a 173-degree view across this 4:3 photo) is no camera's: the photo goes on with the
+// default field of view, and its description and JSON name the tag, its value and the accepted range.
+TEST(LoadPhotos, AnImplausibleExifFocalLengthIsRejectedNamingTheTagAndValue) {
+  const auto dir = test::temp_dir("load_photos_bad_focal");
+  const auto bad = write_photo(dir, "bad.jpg", test::jpeg_with_exif(test::red_over_blue(30, 40), 1, 1));
+  auto photos = data::read_photos({bad}, std::nullopt);
+  const auto& info = photos[0].info;
+  EXPECT_EQ(info.fov_source, "default");
+  EXPECT_EQ(info.fov_deg, data::kDefaultPhotoFovDeg);
+  EXPECT_FALSE(info.exif_fov_deg);
+  EXPECT_EQ(info.exif_tag, "FocalLengthIn35mmFilm");
+  const std::string why = "EXIF FocalLengthIn35mmFilm = 1 mm rejected";
+  EXPECT_NE(info.exif_rejected.find(why), std::string::npos) << info.exif_rejected;
+  EXPECT_NE(info.exif_rejected.find("[8, 3000] mm"), std::string::npos) << info.exif_rejected;
+  const auto line = data::describe_fov(info, "--fov");
+  EXPECT_NE(line.find("60.0°, the default (" + why), std::string::npos) << line;
+  EXPECT_NE(line.find("; set --fov)"), std::string::npos) << line;
+  const auto json = data::to_json(info, "--fov");
+  EXPECT_TRUE(json["exif_fov_deg"].is_null());
+  EXPECT_NE(json["exif_rejected"].get<std::string>().find(why), std::string::npos) << json;
+  // A plausible tag leaves exif_rejected null; an explicit field of view still records the rejection.
+  const auto good = write_photo(dir, "good.jpg", test::jpeg_with_exif(test::red_over_blue(30, 40), 1, 26));
+  EXPECT_TRUE(data::to_json(data::read_photos({good}, std::nullopt)[0].info, "--fov")["exif_rejected"].is_null());
+  photos = data::read_photos({bad}, 50.0);
+  EXPECT_EQ(photos[0].info.fov_deg, 50.0);
+  EXPECT_NE(photos[0].info.exif_rejected.find(why), std::string::npos);
+}
+
 // read_photos runs before the checkpoint is loaded (`render --images`): every bad file is named.
 TEST(LoadPhotos, ReadPhotosNamesTheBadFile) {
   const auto dir = test::temp_dir("read_photos_errors");
   const auto ok = write_photo(dir, "ok.png", 20, 20);
-  const auto text = write_bytes(dir, "notes.jpg", {'h', 'e', 'l', 'l', 'o'});
+  const auto text = write_photo(dir, "notes.jpg", {'h', 'e', 'l', 'l', 'o'});
   const auto missing = (dir / "mistyped.jpg").string();
   for (const auto& bad : {missing, text, dir.string()}) {
     const auto msg = test::error_of([&] { data::read_photos({ok, bad}, std::nullopt); });

@@ -15,6 +15,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include "scene_import_test_util.h"
 #include "test_util.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/eval_index.h"
@@ -25,6 +26,8 @@
 using namespace uplvsm;
 using namespace uplvsm::data;
 namespace fs = std::filesystem;
+using test::cam;
+using test::write_bytes;
 
 namespace {
 
@@ -34,11 +37,6 @@ torch::Tensor test_pattern(int h, int w, int seed) {
 }
 
 std::vector<uint8_t> jpeg_bytes(int h, int w, int seed = 0) { return io::encode_jpeg(test_pattern(h, w, seed), 95); }
-
-void write_bytes(const fs::path& path, const std::vector<uint8_t>& bytes) {
-  fs::create_directories(path.parent_path());
-  io::write_file_atomic(path.string(), bytes.data(), bytes.size());
-}
 
 void write_text(const fs::path& path, const std::string& text) {
   fs::create_directories(path.parent_path());
@@ -83,8 +81,6 @@ std::vector<uint8_t> with_exif(const std::vector<uint8_t>& jpeg, const std::func
   std::free(buf);
   return out;
 }
-
-float cam(const ImportedScene& s, int64_t frame, int field) { return s.scene.cameras[frame][field].item<float>(); }
 
 // A COLMAP project: <dir>/My Scene!/images/{img0.jpg, img1.png, img2.jpg} (64x48) + sparse/0/*.txt. The images are
 // listed out of name order; img0 (PINHOLE) has an empty 2D-points line; img1 uses a SIMPLE_RADIAL camera.
@@ -199,11 +195,11 @@ TEST(SceneImport, TransformsJsonConvertsOpenGlCameraToWorldToOpenCvWorldToCamera
 TEST(SceneImport, ExifFocalLengthThenDefaultFieldOfView) {
   const auto dir = test::temp_dir("import_exif");
   const auto plain = jpeg_bytes(60, 80);
-  // 28 mm equivalent: fx = 28 / 36 * max(W, H).
+  // 28 mm equivalent, by the diagonal: fx = 28 * sqrt(80^2 + 60^2) / sqrt(36^2 + 24^2) = 64.7150 px.
   const auto exif35 = with_exif(plain, [](ExifData* ed) { add_short(ed, EXIF_TAG_FOCAL_LENGTH_IN_35MM_FILM, 28); });
   auto k = exif_intrinsics(exif35.data(), exif35.size(), 80, 60);
   ASSERT_TRUE(k.has_value());
-  EXPECT_NEAR(k->fx, 28.0 / 36.0 * 80, 1e-9);
+  EXPECT_NEAR(k->fx, 64.7150, 1e-4);
   EXPECT_NEAR(k->fy, k->fx, 1e-12);
   EXPECT_NEAR(k->cx, 40, 1e-12);
   EXPECT_NEAR(k->cy, 30, 1e-12);
@@ -237,7 +233,7 @@ TEST(SceneImport, ExifFocalLengthThenDefaultFieldOfView) {
   const double fx_default = 0.5 * 80 / std::tan(M_PI / 6);  // 60 degrees horizontal
   EXPECT_NEAR(cam(r, 0, 0) * 80, fx_default, 1e-3);
   EXPECT_NEAR(cam(r, 0, 1) * 60, fx_default, 1e-3);
-  EXPECT_NEAR(cam(r, 1, 0) * 80, 28.0 / 36.0 * 80, 1e-4);
+  EXPECT_NEAR(cam(r, 1, 0) * 80, 64.7150, 1e-4);
   EXPECT_NEAR(cam(r, 2, 0) * 80, fx_default, 1e-3);
   for (int i = 0; i < 3; ++i)  // identity placeholder poses
     EXPECT_TRUE(torch::equal(r.scene.cameras[i].slice(0, 6, 18),

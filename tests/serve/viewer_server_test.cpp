@@ -261,7 +261,9 @@ TEST_F(ViewerServerTest, UploadedPhotosAreTurnedUprightByTheirExifOrientation) {
   ASSERT_EQ(s["photos"].size(), 2u);
   EXPECT_EQ(s["photos"][0]["exif_orientation"], 6);
   EXPECT_EQ(s["photos"][0]["fov_source"], "exif");
-  EXPECT_NEAR(s["photos"][0]["fov_deg"].get<double>(), 2 * std::atan(32.0 / (26.0 / 36.0 * 96)) * 180 / M_PI, 1e-9);
+  // The 35 mm equivalent by the diagonal: f = 26 * sqrt(96^2 + 64^2) / sqrt(36^2 + 24^2) px, across 64 columns.
+  EXPECT_NEAR(s["photos"][0]["fov_deg"].get<double>(),
+              2 * std::atan(32.0 / (26.0 * std::hypot(96, 64) / std::hypot(36, 24))) * 180 / M_PI, 1e-9);
   form[2].content = "50";
   r = cli.Post("/api/upload", form);
   ASSERT_TRUE(r);

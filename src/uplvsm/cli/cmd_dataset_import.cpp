@@ -146,11 +146,12 @@ void print_import_summary(const ImportArgs& a, const data::ImportedScene& result
         "target poses from the target images), the posed variants and --target-poses "
         "dataset/mapper cannot\n",
         key);
-  std::cout << fmt::format("imported '{}': {} frames, intrinsics {}, poses {}, {} warning(s){} -> {}{}\n", key, n,
-                           result.intrinsics_source, result.poses_known ? "known" : "unknown (listed in unposed.json)",
-                           result.warnings.size(),
-                           result.skipped ? fmt::format(", {} image(s) skipped", result.skipped) : "",
-                           plan.chunk_path.string(), a.context.empty() ? "" : " + evaluation_index.json");
+  std::cout << fmt::format(
+      "imported '{}': {} frames{}, intrinsics {}, poses {}, {} warning(s){} -> {}{}\n", key, n,
+      result.turned_upright ? fmt::format(" ({} turned upright by their EXIF orientation)", result.turned_upright) : "",
+      result.intrinsics_source, result.poses_known ? "known" : "unknown (listed in unposed.json)",
+      result.warnings.size(), result.skipped ? fmt::format(", {} image(s) skipped", result.skipped) : "",
+      plan.chunk_path.string(), a.context.empty() ? "" : " + evaluation_index.json");
 }
 
 void run_import(const ImportArgs& a) {
@@ -171,8 +172,10 @@ void add_dataset_import_command(CLI::App& dataset) {
       "import",
       "Import your own scene: a folder of photos (JPEG/PNG), with a COLMAP text model (--colmap: cameras.txt, "
       "images.txt) or a nerfstudio transforms.json (--transforms) when the poses are known, into ROOT/SPLIT/"
-      "<scene>.torch + index.json. Intrinsics: from the model, else each JPEG's EXIF focal length, else a --fov "
-      "horizontal field of view. Photos alone get identity poses and are listed in ROOT/SPLIT/unposed.json (usable "
+      "<scene>.torch + index.json. Intrinsics: from the model, else each JPEG's EXIF focal length (a 35 mm "
+      "equivalent of 8 to 3000 mm, by the diagonal; others are reported and not used), else a --fov horizontal field "
+      "of view. Photos without a model are turned upright by their EXIF orientation. Photos alone get identity "
+      "poses and are listed in ROOT/SPLIT/unposed.json (usable "
       "for unposed training, evaluation of the unposed model and rendering). --context/--target add the scene to "
       "ROOT/evaluation_index.json.");
   auto a = std::make_shared<ImportArgs>();

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/exif.h"
@@ -20,14 +21,16 @@ void check_fov(double fov_deg, const std::string& what) {
 
 // The EXIF focal length as a horizontal field of view of the upright photo. The focal length is in pixels of the
 // stored image; square pixels make it the same after a quarter turn, where the upright width is the stored height.
+// An implausible one is recorded, not used (io::exif_focal_pixels names the tag, its value and the range).
 void set_exif_fov(const io::ExifTags& tags, int stored_w, int stored_h, PhotoInfo& info) {
   const auto focal = io::exif_focal_pixels(tags, stored_w, stored_h);
   if (!focal) return;
-  const double fov = 2.0 * std::atan(0.5 * info.width / focal->pixels) * 180.0 / M_PI;
-  // A wider or narrower view than any camera lens: a wrong tag (e.g. a tiny FocalPlaneXResolution), not a camera.
-  if (!(fov >= 1.0 && fov <= 179.0)) return;
-  info.exif_fov_deg = fov;
   info.exif_tag = focal->tag;
+  if (!focal->usable()) {
+    info.exif_rejected = focal->rejected;
+    return;
+  }
+  info.exif_fov_deg = 2.0 * std::atan(0.5 * info.width / focal->pixels) * 180.0 / M_PI;
 }
 
 // One photo as a view. The official preprocessing resizes to image_size rows, so with a square crop a portrait photo
@@ -70,6 +73,10 @@ Photo decode_photo(const uint8_t* data, size_t size, std::optional<double> fov_d
   } else {
     info.fov_deg = kDefaultPhotoFovDeg;
     info.fov_source = "default";
+    // Not an error: the photo is usable with the default, but the run must not hide that its tag was refused.
+    if (!info.exif_rejected.empty())
+      spdlog::warn("{}: {}; the default {:g}° horizontal field of view is used instead", what, info.exif_rejected,
+                   kDefaultPhotoFovDeg);
   }
   return photo;
 }
@@ -115,7 +122,8 @@ std::string describe_fov(const PhotoInfo& info, const std::string& option) {
            (info.exif_fov_deg ? fmt::format(" (overrides the {:.1f}° of EXIF {})", *info.exif_fov_deg, info.exif_tag)
                               : std::string());
   if (info.fov_source == "exif") return fmt::format("{:.1f}° from EXIF {}", info.fov_deg, info.exif_tag);
-  return fmt::format("{:.1f}°, the default (no EXIF focal length; set {})", info.fov_deg, option);
+  return fmt::format("{:.1f}°, the default ({}; set {})", info.fov_deg,
+                     info.exif_rejected.empty() ? std::string("no EXIF focal length") : info.exif_rejected, option);
 }
 
 std::string describe_photo(const PhotoInfo& info, const std::string& option) {
@@ -135,6 +143,7 @@ nlohmann::json to_json(const PhotoInfo& info, const std::string& option) {
           {"fov_source", info.fov_source},
           {"exif_fov_deg", info.exif_fov_deg ? nlohmann::json(*info.exif_fov_deg) : nlohmann::json()},
           {"exif_tag", info.exif_tag},
+          {"exif_rejected", info.exif_rejected.empty() ? nlohmann::json() : nlohmann::json(info.exif_rejected)},
           {"note", describe_photo(info, option)}};
 }
 

@@ -30,7 +30,8 @@ struct PhotoInfo {
   double fov_deg = kDefaultPhotoFovDeg;  // the horizontal field of view used
   std::string fov_source;                // "explicit", "exif" or "default"
   std::optional<double> exif_fov_deg;    // the EXIF focal length's, when the file has one (also under "explicit")
-  std::string exif_tag;                  // the EXIF tag it came from
+  std::string exif_tag;                  // the EXIF tag it came from (also when rejected)
+  std::string exif_rejected;  // an implausible EXIF focal length, not used: names the tag, its value and the range
 };
 
 struct Photo {
@@ -39,9 +40,10 @@ struct Photo {
 };
 
 // JPEG/PNG bytes -> an upright photo and its field of view: `fov_deg` when given (it wins over EXIF), else the EXIF
-// focal length's (FocalLengthIn35mmFilm, or FocalLength with the focal-plane resolution), else 60 degrees. An EXIF
-// focal length giving a field of view outside [1, 179] degrees is ignored as implausible. Decode errors name `what`;
-// a given field of view outside (0, 180) is an std::invalid_argument.
+// focal length's (FocalLengthIn35mmFilm, read by the diagonal convention, or FocalLength with the focal-plane
+// resolution), else 60 degrees. An EXIF focal length whose 35 mm equivalent is outside io::kMinFocal35mm ..
+// kMaxFocal35mm (8 .. 3000 mm) is not used: the photo goes on with the default, info.exif_rejected says why and a
+// warning is logged. Decode errors name `what`; a given field of view outside (0, 180) is an std::invalid_argument.
 Photo decode_photo(const uint8_t* data, size_t size, std::optional<double> fov_deg, const std::string& what);
 
 // Reads and decodes each file (decode_photo) before anything heavier happens, so that a mistyped path is reported
@@ -58,14 +60,15 @@ SceneViews load_photos(const std::vector<std::string>& paths, std::optional<doub
                        const PreprocessOptions& opt);
 
 // One line on the field of view: e.g. "52.3° from EXIF FocalLengthIn35mmFilm", "50° from --fov (overrides the
-// EXIF 52.3°)", "60°, the default (no EXIF focal length; set --fov)". `option` names the explicit setting.
+// EXIF 52.3°)", "60°, the default (no EXIF focal length; set --fov)", "60°, the default (EXIF FocalLengthIn35mmFilm
+// = 1 mm rejected: ...; set --fov)". `option` names the explicit setting.
 std::string describe_fov(const PhotoInfo& info, const std::string& option);
 
 // The whole story of one photo: "<name>: WxH, turned upright (EXIF orientation 6); horizontal field of view ...".
 std::string describe_photo(const PhotoInfo& info, const std::string& option);
 
-// {name, width, height, exif_orientation, fov_deg, fov_source, exif_fov_deg (null when none), exif_tag, note}:
-// note is describe_photo's line.
+// {name, width, height, exif_orientation, fov_deg, fov_source, exif_fov_deg (null when none), exif_tag,
+// exif_rejected (null, or why the EXIF focal length was not used), note}: note is describe_photo's line.
 nlohmann::json to_json(const PhotoInfo& info, const std::string& option);
 
 }  // namespace uplvsm::data

@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 
 #include "uplvsm/io/atomic_file.h"
+#include "uplvsm/io/exif.h"
 #include "uplvsm/io/image.h"
 
 namespace uplvsm::data {
@@ -223,47 +224,89 @@ struct CameraTally {
   std::set<std::string> sources;  // where intrinsics came from: colmap, transforms, exif, default-fov
   int64_t no_model_focal = 0, other_size = 0;
   bool warned_rescale = false;
-  int w0 = 0, h0 = 0;  // the first image's size
+  int w0 = 0, h0 = 0;                     // the first image's size
+  int64_t rejected_focal = 0;             // implausible EXIF focal lengths (the default field of view used)
+  std::string first_rejected;             // "<file>: <why>" of the first
+  int64_t oriented_with_model = 0;        // images with an EXIF orientation a model's camera keeps as stored
+  std::string first_oriented_with_model;  // "<file> (orientation N)" of the first
 };
 
-// One image's camera and where it came from: the model's (fitted to the file), else EXIF, else the default field
-// of view.
-PinholeIntrinsics pick_intrinsics(const Entry& e, const std::vector<uint8_t>& bytes, int w, int h, double fov_deg,
+// One image file as the scene stores it. A photo without a model is turned upright by its EXIF orientation, like
+// `render --images` does; a model's cameras and poses were solved on the pixels as stored, so those stay.
+struct SceneFrame {
+  std::vector<uint8_t> file;   // the file's bytes (EXIF included)
+  std::vector<uint8_t> bytes;  // what the chunk stores: the file, or a JPEG of the upright pixels
+  int stored_w = 0, stored_h = 0;
+  int orientation = 1;  // the EXIF orientation applied (1: none)
+  int w = 0, h = 0;     // as stored in the chunk
+};
+
+SceneFrame read_scene_frame(const Entry& e, CameraTally& tally) {
+  const std::string path = e.path.string();
+  SceneFrame f;
+  f.file = io::read_file(path);
+  const auto hwc = io::decode_image(f.file.data(), f.file.size(), path);  // throws naming the file
+  f.stored_h = f.h = static_cast<int>(hwc.size(0)), f.stored_w = f.w = static_cast<int>(hwc.size(1));
+  const int orientation = exif_orientation(f.file.data(), f.file.size());
+  if (orientation != 1 && e.w2c && tally.oriented_with_model++ == 0)
+    tally.first_oriented_with_model = fmt::format("{} (orientation {})", path, orientation);
+  if (orientation == 1 || e.w2c) {
+    f.bytes = f.file;
+    return f;
+  }
+  // Loaders (and pixelSplat's PIL) do not read EXIF: store the upright pixels, re-encoded without the tag.
+  const auto upright = io::apply_exif_orientation(hwc, orientation);
+  f.bytes = io::encode_jpeg(upright, 95);
+  f.orientation = orientation;
+  f.h = static_cast<int>(upright.size(0)), f.w = static_cast<int>(upright.size(1));
+  return f;
+}
+
+// One image's camera (of the image as the chunk stores it) and where it came from: the model's (fitted to the
+// file), else EXIF (plausible ones only; computed on the stored pixels, then turned upright), else the default
+// field of view.
+PinholeIntrinsics pick_intrinsics(const Entry& e, const SceneFrame& f, double fov_deg,
                                   std::vector<std::string>& warnings, CameraTally& tally) {
   const std::string path = e.path.string();
   std::optional<PinholeIntrinsics> k;
   std::string source;
   if (e.model_k) {
-    k = fit_to_image(*e.model_k, w, h, path, warnings, tally.warned_rescale), source = "colmap";
+    k = fit_to_image(*e.model_k, f.w, f.h, path, warnings, tally.warned_rescale), source = "colmap";
   } else if (e.model_tk) {
-    if (auto tk = transforms_intrinsics(*e.model_tk, w, h)) {
-      k = fit_to_image(*tk, w, h, path, warnings, tally.warned_rescale), source = "transforms";
+    if (auto tk = transforms_intrinsics(*e.model_tk, f.w, f.h)) {
+      k = fit_to_image(*tk, f.w, f.h, path, warnings, tally.warned_rescale), source = "transforms";
     } else {
       ++tally.no_model_focal;
     }
   }
-  if (!k && (k = exif_intrinsics(bytes.data(), bytes.size(), w, h))) source = "exif";
-  if (!k) k = default_fov_intrinsics(w, h, fov_deg), source = "default-fov";
+  if (!k) {
+    std::string rejected;
+    if (auto exif = exif_intrinsics(f.file.data(), f.file.size(), f.stored_w, f.stored_h, &rejected)) {
+      k = upright_intrinsics(*exif, f.orientation), source = "exif";
+    } else if (!rejected.empty() && tally.rejected_focal++ == 0) {
+      tally.first_rejected = path + ": " + rejected;
+    }
+  }
+  if (!k) k = default_fov_intrinsics(f.w, f.h, fov_deg), source = "default-fov";
   tally.sources.insert(source);
   return *k;
 }
 
-// Decodes image i once (validates it and gives its size), then stores its camera row and its bytes.
+// Reads and decodes image i once (validates it and gives its size), then stores its camera row and its bytes.
 void add_scene_image(int64_t i, const Entry& e, double fov_deg, torch::Tensor& cameras, ImportedScene& out,
                      CameraTally& tally) {
   const std::string path = e.path.string();
-  const auto bytes = io::read_file(path);
-  const auto hwc = io::decode_image(bytes.data(), bytes.size(), path);  // throws naming the file
-  const int h = static_cast<int>(hwc.size(0)), w = static_cast<int>(hwc.size(1));
-  if (i == 0) tally.w0 = w, tally.h0 = h;
-  if (w != tally.w0 || h != tally.h0) ++tally.other_size;
+  const SceneFrame f = read_scene_frame(e, tally);
+  if (f.orientation != 1) ++out.turned_upright;
+  if (i == 0) tally.w0 = f.w, tally.h0 = f.h;
+  if (f.w != tally.w0 || f.h != tally.h0) ++tally.other_size;
 
-  const auto k = pick_intrinsics(e, bytes, w, h, fov_deg, out.warnings, tally);
+  const auto k = pick_intrinsics(e, f, fov_deg, out.warnings, tally);
   const auto row = camera_row(k, e.w2c.value_or(Pose{}));
   check_finite(row, path);
   std::copy(row.begin(), row.end(), cameras[i].data_ptr<float>());
-  auto t = torch::empty({static_cast<int64_t>(bytes.size())}, torch::kUInt8);
-  std::copy(bytes.begin(), bytes.end(), t.data_ptr<uint8_t>());
+  auto t = torch::empty({static_cast<int64_t>(f.bytes.size())}, torch::kUInt8);
+  std::copy(f.bytes.begin(), f.bytes.end(), t.data_ptr<uint8_t>());
   out.scene.images.push_back(t);
   out.image_names.push_back(e.name);
 }
@@ -289,6 +332,16 @@ void warn_about_cameras(const CameraTally& tally, int64_t n, const std::string& 
                     "from frame 0's",
                     tally.other_size, tally.w0, tally.h0));
   if (n < 2) warnings.push_back("only one image: a scene needs at least two views (the model's context pair)");
+  if (tally.rejected_focal > 0)
+    warnings.push_back(fmt::format(
+        "{} image(s) have an implausible EXIF focal length, e.g. {}: a {:g} degree horizontal field of view used "
+        "for them (--fov)",
+        tally.rejected_focal, tally.first_rejected, fov_deg));
+  if (tally.oriented_with_model > 0)
+    warnings.push_back(fmt::format(
+        "{} image(s) have an EXIF orientation that was not applied, e.g. {}: {} describes the pixels as stored (as "
+        "COLMAP reads them)",
+        tally.oriented_with_model, tally.first_oriented_with_model, model_file));
   if (tally.sources.count("default-fov"))
     warnings.push_back(
         fmt::format("no focal length known for some images: a {:g} degree horizontal field of view "

@@ -5,7 +5,9 @@
 // scene_import.cpp.
 //
 // Intrinsics come from, in this order of preference: the model (COLMAP cameras.txt / transforms.json), the JPEG's
-// EXIF focal length, or a default horizontal field of view (60 degrees, the default of `uplvsm render --images`).
+// EXIF focal length (when plausible), or a default horizontal field of view (60 degrees, as `render --images`).
+// Photos without a model are turned upright by their EXIF orientation (and their intrinsics with them); a model's
+// cameras and poses describe the pixels as stored (COLMAP does not apply the orientation), so those stay as they are.
 // Poses come only from a model; without one every camera gets the identity pose and poses_known is false (the
 // unposed UP-LVSM never reads poses; tools that need ground-truth poses must refuse such scenes).
 #pragma once
@@ -83,11 +85,22 @@ std::optional<PinholeIntrinsics> transforms_intrinsics(const TransformsIntrinsic
 // ---- EXIF ----
 
 // The focal length in pixels of a JPEG (square pixels: fx = fy, principal point at the centre) of the given
-// decoded size, from its EXIF block: FocalLengthIn35mmFilm (fx = f35 / 36 * max(W, H): the 35 mm equivalent
-// refers to the 36 mm long side) or else FocalLength with FocalPlaneXResolution and FocalPlaneResolutionUnit
-// (scaled when PixelXDimension says the resolution refers to another width). nullopt when the file has no usable
-// EXIF focal length (PNG, no EXIF block, zero/invalid values).
-std::optional<PinholeIntrinsics> exif_intrinsics(const uint8_t* data, size_t size, int width, int height);
+// decoded size as stored (before any EXIF orientation), from its EXIF block: FocalLengthIn35mmFilm by the Exif /
+// CIPA diagonal convention (fx = f35 * sqrt(W^2 + H^2) / 43.27 mm) or else FocalLength with FocalPlaneXResolution
+// and FocalPlaneResolutionUnit (scaled when PixelXDimension says the resolution refers to another width). nullopt
+// when the file has no usable EXIF focal length (PNG, no EXIF block, zero/invalid values), or when its 35 mm
+// equivalent is outside [8, 3000] mm (io::kMinFocal35mm, kMaxFocal35mm): then *rejected, when given, says so,
+// naming the tag and its value.
+std::optional<PinholeIntrinsics> exif_intrinsics(const uint8_t* data, size_t size, int width, int height,
+                                                 std::string* rejected = nullptr);
+
+// The EXIF orientation (1..8; 1 for PNG or without EXIF) of image file bytes.
+int exif_orientation(const uint8_t* data, size_t size);
+
+// A camera of the image as stored -> the same camera of the image turned upright by EXIF `orientation`
+// (io::apply_exif_orientation): the principal point follows the pixels; for 5..8 (a quarter turn, maybe mirrored)
+// width and height and the focal lengths trade places.
+PinholeIntrinsics upright_intrinsics(const PinholeIntrinsics& stored, int orientation);
 
 // The pinhole camera of a `fov_deg` horizontal field of view, principal point at the centre, square pixels.
 PinholeIntrinsics default_fov_intrinsics(int width, int height, double fov_deg);
@@ -111,9 +124,12 @@ struct ImportedScene {
   std::string intrinsics_source;         // "colmap", "transforms", "exif", "default-fov", or e.g. "exif+default-fov"
   std::vector<std::string> image_names;  // in frame order (relative to the image folder / as the model names them)
   std::vector<std::string> warnings;
-  int64_t skipped = 0;  // images or model entries left out (skip_unmatched)
+  int64_t skipped = 0;         // images or model entries left out (skip_unmatched)
+  int64_t turned_upright = 0;  // photos turned by their EXIF orientation (stored re-encoded: see import_scene)
 };
 
+// The frames are the files' bytes, except photos turned upright by their EXIF orientation: loaders do not read EXIF,
+// so those are stored as a JPEG (quality 95, no EXIF) of the upright pixels.
 ImportedScene import_scene(const SceneImportOptions& options);
 
 // A scene key from a folder or user-given name: [A-Za-z0-9._-], other characters become '_'; never empty.

@@ -7,6 +7,8 @@
 #include <cmath>
 #include <utility>
 
+#include <fmt/format.h>
+
 namespace uplvsm::io {
 
 namespace {
@@ -91,19 +93,33 @@ ExifTags read_exif(const uint8_t* data, size_t size) {
 }
 
 std::optional<ExifFocal> exif_focal_pixels(const ExifTags& tags, int width, int height) {
+  const double diagonal_px = std::hypot(static_cast<double>(width), static_cast<double>(height));
   ExifFocal focal;
+  std::string values;  // the tags as written, for the rejection message
   if (tags.focal_length_35mm) {
-    focal = {*tags.focal_length_35mm / 36.0 * std::max(width, height), "FocalLengthIn35mmFilm"};
+    focal.pixels = *tags.focal_length_35mm * diagonal_px / kFullFrameDiagonalMm;
+    focal.tag = "FocalLengthIn35mmFilm";
+    values = fmt::format("FocalLengthIn35mmFilm = {:g} mm", *tags.focal_length_35mm);
   } else {
     const double unit = tags.focal_plane_resolution_unit.value_or(2);  // the spec's default: inch
+    const char* unit_name = unit == 2 ? "inch" : unit == 3 ? "cm" : unit == 4 ? "mm" : nullptr;
     const double unit_mm = unit == 2 ? 25.4 : unit == 3 ? 10.0 : unit == 4 ? 1.0 : 0.0;
-    if (!tags.focal_length_mm || !tags.focal_plane_x_resolution || unit_mm == 0) return std::nullopt;
+    if (!tags.focal_length_mm || !tags.focal_plane_x_resolution || !unit_name) return std::nullopt;
     // FocalPlaneXResolution counts pixels of the image the camera wrote (PixelXDimension wide): rescale to ours.
     const double scale = tags.pixel_x_dimension ? width / *tags.pixel_x_dimension : 1.0;
-    focal = {*tags.focal_length_mm * (*tags.focal_plane_x_resolution / unit_mm) * scale,
-             "FocalLength+FocalPlaneXResolution"};
+    focal.pixels = *tags.focal_length_mm * (*tags.focal_plane_x_resolution / unit_mm) * scale;
+    focal.tag = "FocalLength+FocalPlaneXResolution";
+    values = fmt::format("FocalLength = {:g} mm with FocalPlaneXResolution = {:g} per {}", *tags.focal_length_mm,
+                         *tags.focal_plane_x_resolution, unit_name);
   }
-  if (!std::isfinite(focal.pixels) || !(focal.pixels > 0)) return std::nullopt;
+  if (!std::isfinite(focal.pixels) || !(focal.pixels > 0) || !(diagonal_px > 0)) return std::nullopt;
+  focal.equivalent_35mm = focal.pixels * kFullFrameDiagonalMm / diagonal_px;
+  if (!(focal.equivalent_35mm >= kMinFocal35mm && focal.equivalent_35mm <= kMaxFocal35mm))
+    focal.rejected =
+        fmt::format("EXIF {} rejected: {}outside the plausible 35 mm-equivalent range [{:g}, {:g}] mm", values,
+                    tags.focal_length_35mm ? std::string()
+                                           : fmt::format("a 35 mm equivalent of {:.3g} mm, ", focal.equivalent_35mm),
+                    kMinFocal35mm, kMaxFocal35mm);
   return focal;
 }
 
