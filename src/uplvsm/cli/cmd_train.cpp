@@ -166,13 +166,15 @@ void run_tokenizer_stage(const TrainArgs& a, const Config& config) {
                            r.steps, r.first_loss, r.last_loss, r.weights);
 }
 
-// The training scenes a run of `config` on `data` draws from: the subset's, then the first max_train_scenes.
-int64_t training_scene_count(const Config& config, const std::string& data, bool* ordered_views) {
+// What the plan says of the data a run of `config` on `data` draws from: the subset's scenes, then the first
+// max_train_scenes of them, and how the views are drawn.
+void describe_training_data(const Config& config, const std::string& data, train::RunPlan& plan) {
   data::ChunkDataset dataset(data, "train");
   if (!config.training.subset.empty()) dataset.keep_only(data::read_subset_manifest(config.training.subset).scenes);
-  *ordered_views = data::uses_ordered_views(config.training.view_sampler, dataset.info());
+  plan.ordered_views = data::uses_ordered_views(config.training.view_sampler, dataset.info());
   const int64_t cap = config.training.max_train_scenes;
-  return cap > 0 ? std::min(cap, dataset.size()) : dataset.size();
+  plan.scenes = cap > 0 ? std::min(cap, dataset.size()) : dataset.size();
+  plan.split_scenes = dataset.size();
 }
 
 // --dry-run: the run's plan and its pre-flight checks (the global batch divides, the loss has what it needs), then
@@ -186,11 +188,7 @@ void run_dry(const TrainArgs& a, const Config& config) {
   plan.perceptual_weights = a.vgg19;
   plan.init = a.init;
   plan.data_root = a.data;
-  if (!a.data.empty()) {
-    bool ordered = true;
-    plan.scenes = training_scene_count(config, a.data, &ordered);
-    plan.ordered_views = ordered;
-  }
+  if (!a.data.empty()) describe_training_data(config, a.data, plan);
   std::cout << fmt::format("uplvsm train --dry-run --config {} ({} stage)\n", a.config, a.stage);
   for (const auto& line : train::describe_run_plan(plan)) std::cout << "  " << line << "\n";
   train::require_perceptual_weights(config, a.vgg19);

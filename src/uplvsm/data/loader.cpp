@@ -85,7 +85,9 @@ std::vector<int64_t> sample_views(int64_t frames, const LoaderOptions& opt, int6
   }
   if (!can_sample(frames, opt.num_views, opt.min_frame_dist))
     throw std::runtime_error(
-        fmt::format("{} frames: too few for {} views {}+ frames apart", frames, opt.num_views, opt.min_frame_dist));
+        fmt::format("{} frames: too few for {} views with the inputs more than {} frames apart (the official selector "
+                    "needs at least min_frame_dist + 2 frames)",
+                    frames, opt.num_views, opt.min_frame_dist));
   const int64_t update = step / std::max<int64_t>(opt.micro_batches_per_step, 1);
   const int max_gap = max_gap_at_step(opt.min_frame_dist, opt.max_frame_dist, opt.frame_dist_curriculum_steps, update);
   return sample_training_views(frames, opt.num_views, opt.min_frame_dist, max_gap, rng);

@@ -52,6 +52,8 @@ std::string data_line(const RunPlan& p) {
   std::string where = p.data_root + (t.subset.empty() ? "" : ", subset " + t.subset);
   if (!p.scenes) return line("data", where);
   const double samples = static_cast<double>(t.train_steps) * static_cast<double>(p.batch.global());
+  if (p.split_scenes && *p.split_scenes > *p.scenes)
+    where += fmt::format(" (the first {} of {})", *p.scenes, *p.split_scenes);
   return line("data", fmt::format("{} scenes of {}; {:.0f} samples in all = {:.1f} epochs", *p.scenes, where, samples,
                                   *p.scenes > 0 ? samples / static_cast<double>(*p.scenes) : 0.0));
 }

@@ -16,11 +16,12 @@ struct RunPlan {
   Config config;
   BatchPlan batch;
   std::string device = "cpu";
-  std::string perceptual_weights;     // the --vgg19 file; empty: none given
-  std::string init;                   // --init weights; empty: from scratch (or the checkpoint resumed)
-  std::string data_root;              // empty: not given (a dry run)
-  std::optional<int64_t> scenes;      // training scenes the run draws from, when the data was read
-  std::optional<bool> ordered_views;  // from the dataset when read; else from training.view_sampler
+  std::string perceptual_weights;       // the --vgg19 file; empty: none given
+  std::string init;                     // --init weights; empty: from scratch (or the checkpoint resumed)
+  std::string data_root;                // empty: not given (a dry run)
+  std::optional<int64_t> scenes;        // training scenes the run draws from, when the data was read
+  std::optional<int64_t> split_scenes;  // scenes in the split (or subset) they are the first of
+  std::optional<bool> ordered_views;    // from the dataset when read; else from training.view_sampler
 };
 
 // One "name  value" line per aspect, in a fixed order.

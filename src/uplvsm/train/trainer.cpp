@@ -286,6 +286,7 @@ void announce_training(const Config& config, const TrainOptions& opt, const data
   plan.init = step == 0 ? opt.init_weights : "";
   plan.data_root = opt.data_root;
   plan.scenes = tc.max_train_scenes > 0 ? std::min(tc.max_train_scenes, dataset.size()) : dataset.size();
+  plan.split_scenes = dataset.size();
   plan.ordered_views = loader_opt.ordered_views;
   spdlog::info("training {}: steps {} -> {}", config.name, step, tc.train_steps);
   for (const auto& line : describe_run_plan(plan)) spdlog::info("  {}", line);
