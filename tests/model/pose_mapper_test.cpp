@@ -28,3 +28,39 @@ TEST(PoseMapper, LeastSquaresFitRecoversAKnownLinearMap) {
   EXPECT_NE(test::error_of([&] { model::fit_pose_mapper(*mapper, real, latent.narrow(1, 0, 6)); }).find("[N, 7]"),
             std::string::npos);
 }
+
+TEST(PoseMapper, MlpMapperStartsAsItsLinearFitAndReadsTheScene) {
+  torch::manual_seed(3);
+  auto real = torch::randn({64, 7}, torch::kFloat64), latent = torch::randn({64, 7}, torch::kFloat64);
+  model::PoseMapper linear, mlp(model::PoseMapperOptions{model::PoseMapperKind::Mlp, 16});
+  model::fit_pose_mapper(*linear, real, latent);
+  model::fit_pose_mapper(*mlp, real, latent);
+  EXPECT_FALSE(linear->reads_scene());
+  EXPECT_TRUE(mlp->reads_scene());
+  auto poses = torch::randn({2, 5, 7});
+  auto scene = torch::randn({2, model::kSceneConditioningDims});
+  EXPECT_LT(test::max_abs_diff(mlp(poses, scene), linear(poses)), 1e-6);  // a zero residual at the start
+  // A trained residual depends on the scene: the same real pose maps differently in two scenes.
+  {
+    torch::NoGradGuard no_grad;
+    for (auto& p : mlp->mlp->parameters()) p.normal_(0, 0.3);
+  }
+  auto same_pose = poses.select(1, 0).unsqueeze(1).expand({2, 1, 7}).contiguous();
+  same_pose[1].copy_(same_pose[0]);
+  auto out = mlp(same_pose, scene);
+  EXPECT_GT(test::max_abs_diff(out[0], out[1]), 1e-4);
+  EXPECT_NE(test::error_of([&] { mlp(poses); }).find("needs the scene's conditioning"), std::string::npos);
+}
+
+TEST(PoseMapper, KindsAreNamedAndAnUnknownOneIsRefused) {
+  EXPECT_EQ(model::parse_pose_mapper_kind("linear"), model::PoseMapperKind::Linear);
+  EXPECT_EQ(model::to_string(model::parse_pose_mapper_kind("mlp")), "mlp");
+  EXPECT_NE(test::error_of([] { model::parse_pose_mapper_kind("cubic"); }).find("expected linear or mlp"),
+            std::string::npos);
+}
+
+TEST(PoseMapper, SceneConditioningIsTheLatentPoseOfInputViewOne) {
+  auto poses = torch::arange(2 * 2 * 7, torch::kFloat32).reshape({2, 2, 7});
+  EXPECT_TRUE(torch::equal(model::scene_conditioning(poses), poses.select(1, 1)));
+  EXPECT_TRUE(torch::equal(model::scene_conditioning(poses.narrow(1, 0, 1)), poses.select(1, 0)));
+}

@@ -1,5 +1,6 @@
 // `uplvsm eval`: scores a checkpoint on an evaluation index with the paper's unposed protocol, beside the two
 // baselines (LPIPS too when its weight files are given); writes metrics.json, per-scene/per-view CSV and image grids.
+#include <filesystem>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -7,7 +8,9 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/eval/camera_jitter.h"
 #include "uplvsm/eval/eval_pose_noise.h"
+#include "uplvsm/io/atomic_file.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
@@ -28,11 +31,13 @@ struct EvalArgs {
   eval::PoseRefinement refinement;
   double pose_noise_std = 0;
   uint64_t seed = 0;
+  bool jitter = false;
 };
 
 void add_eval_options(CLI::App* cmd, EvalArgs& a) {
   add_common_options(cmd, a.common);
   add_model_options(cmd, a.model);
+  add_mapper_option(cmd, a.model);
   add_scene_source_options(cmd, a.scenes, "dataset root (pixelSplat chunks)",
                            "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
                            "<data>/evaluation_index.json");
@@ -63,6 +68,10 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
       ->capture_default_str();
   cmd->add_option("--seed", a.seed, "seed of --pose-noise-std (each scene draws from this seed and its key)")
       ->capture_default_str();
+  cmd->add_flag("--jitter", a.jitter,
+               "also render each scene's frames in order at their real cameras (camera control: --mapper, the "
+               "checkpoint's mapper or a posed model) and report the jitter, the frame-to-frame change beyond the "
+               "ground truth's own (grey levels; jitter.json)");
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -94,8 +103,11 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
   opt.pose_noise_seed = a.seed;
   opt.bf16 = a.amp == Amp::Bf16;
   // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
-  opt.target_poses = model::resolve_target_poses(
-      a.target_poses == TargetPoseChoice::Auto ? config.training.target_poses : a.target_poses, *net);
+  // auto with --mapper: the mapper given for it.
+  auto choice = a.target_poses;
+  if (choice == TargetPoseChoice::Auto)
+    choice = a.model.mapper.empty() ? config.training.target_poses : TargetPoseChoice::Mapper;
+  opt.target_poses = model::resolve_target_poses(choice, *net);
   if (comm) {
     opt.shard_rank = comm->rank();
     opt.shard_count = comm->world_size();
@@ -106,6 +118,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
     opt.lpips->to(device);
   }
   opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)},
+               {"mapper", a.model.mapper},
                {"data", a.scenes.data},
                {"split", a.scenes.split},
                {"config", config.name},
@@ -137,6 +150,26 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
                                        : std::string("  pose noise: none, clean test cameras (--pose-noise-std)\n"));
 }
 
+// Jitter along the same scenes' camera paths, written beside metrics.json.
+void report_jitter(const EvalArgs& a, model::NovelViewModel& net, const data::ChunkDataset& dataset,
+                   const data::PreprocessOptions& prep, const eval::EvalOptions& eval_opt) {
+  eval::JitterOptions opt;
+  opt.index_path = a.scenes.index;
+  opt.max_scenes = a.max_scenes;
+  opt.device = eval_opt.device;
+  opt.bf16 = eval_opt.bf16;
+  auto j = eval::measure_jitter(net, dataset, prep, opt);
+  auto out = j.to_json();
+  out["mapper"] = a.model.mapper;
+  out["checkpoint"] = a.model.checkpoint;
+  std::filesystem::create_directories(a.out);
+  const auto text = out.dump(2) + "\n";
+  io::write_file_atomic((std::filesystem::path(a.out) / "jitter.json").string(), text.data(), text.size());
+  std::cout << fmt::format("  jitter along {} camera paths ({} frames): {:.2f} grey levels beyond the ground truth's "
+                           "own change ({:.2f}) -> {}/jitter.json\n",
+                           j.scenes, j.frames, j.jitter, j.truth_change, a.out);
+}
+
 void run_eval(const EvalArgs& a) {
   eval::check_pose_noise_std(a.pose_noise_std);  // before the model is loaded
   apply_common_options(a.common);
@@ -146,13 +179,14 @@ void run_eval(const EvalArgs& a) {
   auto device = train::rank_device(parse_device(a.common.device), env);
   std::shared_ptr<train::Communicator> comm;
   if (env.distributed()) comm = std::make_shared<train::Communicator>(env, device);
-  auto net = model::load_model_with_config_file(a.model.checkpoint, a.model.config, device, &config);
+  auto net = load_model_from_source(a.model, device, &config);
   data::ChunkDataset dataset(a.scenes.data, a.scenes.split);
   const auto prep = data::preprocess_options(config);
   const auto opt = eval_options(a, config, net, device, comm);
   auto summary = eval::evaluate(net, dataset, prep, opt);
   if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
   print_eval_summary(a, config, opt, summary);
+  if (a.jitter) report_jitter(a, net, dataset, prep, opt);
 }
 
 }  // namespace

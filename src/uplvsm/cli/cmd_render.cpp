@@ -134,6 +134,7 @@ void render_one(model::NovelViewModel& net, const data::SceneViews& views, bool 
 void add_render_options(CLI::App* cmd, RenderArgs& a) {
   add_common_options(cmd, a.common);
   add_model_options(cmd, a.model);
+  add_mapper_option(cmd, a.model);
   add_scene_source_options(cmd, a.source, "dataset root (pixelSplat chunks)",
                            "evaluation index JSON choosing the context views (default <data>/evaluation_index.json)");
   cmd->add_option("--scenes", a.scenes, "how many dataset scenes to render")->capture_default_str();
@@ -198,8 +199,7 @@ void run_render(const RenderArgs& a) {
   if (a.fov && a.images.empty()) spdlog::warn("render: --fov applies to --images only; the --data scenes keep theirs");
   const auto photos = read_render_photos(a);
   Config config;
-  auto net =
-      model::load_model_with_config_file(a.model.checkpoint, a.model.config, parse_device(a.common.device), &config);
+  auto net = load_model_from_source(a.model, parse_device(a.common.device), &config);
   const auto prep = data::square_preprocess_options(config);
   nlohmann::json listing = nlohmann::json::array();
   if (!photos.empty()) {
@@ -223,7 +223,7 @@ void add_render_command(CLI::App& app) {
       "(the Latent Plücker Learner's poses of the inputs) for unposed photos, in SE(3) through the camera "
       "mapper or a posed variant when the inputs have cameras; orbit/spiral/dolly presets or a camera-path "
       "JSON: real cameras relative to the first input view (units: the input baseline), which need a "
-      "camera mapper (`train --stage mapper`) or a posed variant.");
+      "camera mapper (`--mapper` from `uplvsm fit-mapper`, or `train --stage mapper`) or a posed variant.");
   auto a = std::make_shared<RenderArgs>();
   add_render_options(cmd, *a);
   cmd->callback([a] { run_render(*a); });

@@ -31,8 +31,8 @@ volatile std::sig_atomic_t g_stop_signal = 0;
 extern "C" void on_serve_signal(int sig) { g_stop_signal = sig; }
 
 void run_viewer(const ServeArgs& a) {
-  auto model =
-      serve::ViewerModel::load(a.model.checkpoint, a.model.config, parse_device(a.common.device), a.amp == Amp::Bf16);
+  auto model = serve::ViewerModel::load(a.model.checkpoint, a.model.config, parse_device(a.common.device),
+                                        a.amp == Amp::Bf16, a.model.mapper);
   const auto& s = a.scenes;
   auto catalog = s.data.empty()
                      ? std::make_unique<serve::SceneCatalog>()
@@ -86,6 +86,7 @@ void add_serve_command(CLI::App& app) {
   auto a = std::make_shared<ServeArgs>();
   add_common_options(cmd, a->common);
   add_model_options(cmd, a->model);
+  add_mapper_option(cmd, a->model);
   add_scene_source_options(cmd, a->scenes, "dataset root whose scenes the page lists (optional: uploads always work)",
                            "evaluation index choosing each scene's two input views (default "
                            "<data>/evaluation_index.json when present, else frames 0 and n/2)");

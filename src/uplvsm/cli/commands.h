@@ -25,8 +25,13 @@ void apply_common_options(const CommonOptions& opt);
 // inferred as wanted (e.g. to run at 518 px: configs/paper_x518.json).
 struct ModelSource {
   std::string checkpoint, config;
+  std::string mapper;  // --mapper: a pose mapper file fitted to the checkpoint (fit-mapper); empty: none
 };
 void add_model_options(CLI::App* cmd, ModelSource& src);
+// --mapper FILE, for the commands that render real cameras (eval, render, serve).
+void add_mapper_option(CLI::App* cmd, ModelSource& src);
+// The model of `src` on `device` (model::load_model_with_config_file), with --mapper's pose mapper attached.
+model::NovelViewModel load_model_from_source(const ModelSource& src, torch::Device device, Config* config_out);
 
 // --amp (none: fp32, bf16: autocast) and --target-poses (auto, estimator, mapper, dataset), parsed into their enums
 // here, once; `help` says what the choice applies to in this command.
@@ -60,6 +65,9 @@ void add_report_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
 void add_export_command(CLI::App& app);
 void add_study_command(CLI::App& app);
+void add_fit_mapper_command(CLI::App& app);
+// study mapper-scenes (cmd_fit_mapper.cpp), registered under `study`.
+void add_mapper_scenes_command(CLI::App& study);
 // study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
 void add_study_grid_commands(CLI::App& study);
 

@@ -5,6 +5,8 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/pose_mapper_file.h"
+#include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::cli {
 
@@ -39,6 +41,23 @@ void add_model_options(CLI::App* cmd, ModelSource& src) {
                   "config JSON for an official checkpoint (image size, dimensions); default: inferred from the "
                   "weights at 224 px. Ignored for uplvsm checkpoints, which carry their config")
       ->check(CLI::ExistingFile);
+}
+
+void add_mapper_option(CLI::App* cmd, ModelSource& src) {
+  cmd->add_option("--mapper", src.mapper,
+                  "a pose mapper fitted to this checkpoint by `uplvsm fit-mapper` (camera control for a model "
+                  "without one, the authors' included); replaces a mapper the checkpoint has")
+      ->check(CLI::ExistingFile);
+}
+
+model::NovelViewModel load_model_from_source(const ModelSource& src, torch::Device device, Config* config_out) {
+  auto net = model::load_model_with_config_file(src.checkpoint, src.config, device, config_out);
+  if (!src.mapper.empty()) {
+    model::attach_pose_mapper_file(*model::require_uplvsm(net, "--mapper (camera control through latent poses)"),
+                                   src.mapper);
+    if (config_out) config_out->model.pose_mapper = true;
+  }
+  return net;
 }
 
 CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help) {

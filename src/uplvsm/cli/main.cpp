@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
   uplvsm::cli::add_convert_command(app);
   uplvsm::cli::add_export_command(app);
   uplvsm::cli::add_study_command(app);
+  uplvsm::cli::add_fit_mapper_command(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

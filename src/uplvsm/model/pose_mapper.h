@@ -1,21 +1,48 @@
-// Camera control (paper appendix, "Camera Control"): a linear map C = A·Ĉ + b (A 7x7, b 7) from a real camera pose
-// Ĉ to the learned 7-D latent pose C that the decoder understands. Real poses are given relative to the first input
-// view (first view canonical, as in the paper) with translations in units of the input baseline |t_in1 - t_in0|, so
-// one mapper serves scenes of any metric scale; photos without poses use the same units (baseline = 1).
-// The output quaternion is re-normalised like the estimator's. Initialisation: a least-squares fit of the
-// estimator's latent poses against real poses on calibration views (fit_pose_mapper), then fine-tuning.
+// Camera control (paper appendix, "Camera Control"): a map from a real camera pose Ĉ to the learned 7-D latent pose
+// C that the decoder understands. The paper's mapper is linear, C = A·Ĉ + b (A 7x7, b 7); the MLP mapper adds a
+// small residual network, C = A·Ĉ + b + MLP(Ĉ, s), where s holds the latent poses the estimator reads from the two
+// input views (known for every scene, posed or not): they anchor the scene's own latent frame and scale, which a
+// map from the real pose alone cannot know.
+// Real poses are given relative to the first input view (first view canonical, as in the paper) with translations in
+// units of the input baseline |t_in1 - t_in0|, so one mapper serves scenes of any metric scale; photos without poses
+// use the same units (baseline = 1). The output quaternion is re-normalised like the estimator's. Initialisation: a
+// least-squares fit of the estimator's latent poses against real poses on calibration views (fit_pose_mapper), then
+// training (train --stage mapper fine-tunes the model with it; fit-mapper trains the mapper alone).
 #pragma once
 #include <torch/torch.h>
 
+#include <string>
+
 namespace uplvsm::model {
 
+enum class PoseMapperKind { Linear, Mlp };
+std::string to_string(PoseMapperKind kind);
+PoseMapperKind parse_pose_mapper_kind(const std::string& name);  // "linear" | "mlp", else an error naming both
+
+struct PoseMapperOptions {
+  PoseMapperKind kind = PoseMapperKind::Linear;
+  int64_t hidden = 128;  // the MLP's width (two hidden layers)
+};
+
+// What the MLP mapper reads of a scene besides the target's real pose: [b, 14], the estimator's latent poses of input
+// views 0 and 1 (scene_conditioning()).
+inline constexpr int64_t kSceneConditioningDims = 14;
+
 struct PoseMapperImpl : torch::nn::Module {
-  PoseMapperImpl();  // A = identity, b = 0 until fitted
-  // real poses [..., 7] -> latent poses [..., 7]
-  torch::Tensor forward(const torch::Tensor& real_poses);
-  torch::Tensor A, b;  // registered as "A" [7, 7] and "b" [7]
+  explicit PoseMapperImpl(PoseMapperOptions options = {});  // A = identity, b = 0, the MLP's output zero
+  // real poses [b, n, 7] (or [n, 7]) -> latent poses of the same shape; `scene` [b, 14] (MLP only; required there)
+  torch::Tensor forward(const torch::Tensor& real_poses, const torch::Tensor& scene = {});
+  bool reads_scene() const { return options.kind == PoseMapperKind::Mlp; }
+
+  PoseMapperOptions options;
+  torch::Tensor A, b;                      // registered as "A" [7, 7] and "b" [7]
+  torch::nn::Sequential mlp{nullptr};      // registered as "mlp" for the MLP kind
 };
 TORCH_MODULE(PoseMapper);
+
+// The MLP mapper's scene input from the estimator's latent poses of the inputs [b, vi, 7]: views 0 and 1 ([b, 14]; view
+// 0 twice with a single input view).
+torch::Tensor scene_conditioning(const torch::Tensor& input_latent_poses);
 
 // Least-squares fit of A and b so that A·real + b ≈ latent over N pairs ([N, 7] each), ridge-regularised by `ridge`
 // (relative to the data's scale) so that a few calibration views still give a well-posed system. Returns the RMS

@@ -129,11 +129,9 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
       return geometry::camera_control_poses(require_c2w(inputs, "input", source),
                                             require_c2w(targets, "target", source));
     case TargetPoses::Mapper:
-      TORCH_CHECK(pose_mapper,
-                  "target poses 'mapper': this model has no pose mapper (model.pose_mapper is false; "
-                  "train one with `uplvsm train --stage mapper`)");
-      return pose_mapper(
-          geometry::camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source)));
+      return map_real_poses(
+          geometry::camera_control_poses(require_c2w(inputs, "input", source), require_c2w(targets, "target", source)),
+          scene_latents, inputs.images);
   }
   TORCH_CHECK(false, "unknown target pose source");
 }
@@ -172,12 +170,29 @@ Rendered UPLVSMImpl::forward(const torch::Tensor& input_images, const torch::Ten
 
 CameraRenderer UPLVSMImpl::camera_control(const Views& inputs) {
   TORCH_CHECK(pose_mapper,
-              "rendering a camera path needs a camera mapper: fine-tune one with `uplvsm train "
-              "--stage mapper` (or render the latent interpolation between the inputs)");
+              "rendering a camera path needs a camera mapper: fit one with `uplvsm fit-mapper` (minutes), fine-tune "
+              "one with `uplvsm train --stage mapper`, or render the latent interpolation between the inputs");
   auto latents = encode_scene(inputs.images, inputs.fxfycxcy);
-  return [this, latents](const torch::Tensor& poses, const torch::Tensor& fxfycxcy, int64_t H, int64_t W) {
-    return render_views(latents, pose_mapper(poses.to(latents.device(), torch::kFloat32)), fxfycxcy, H, W);
+  torch::Tensor scene;  // what an MLP mapper reads of the scene, computed once
+  if (pose_mapper->reads_scene()) scene = scene_conditioning(estimate_poses(inputs.images, latents));
+  return [this, latents, scene](const torch::Tensor& poses, const torch::Tensor& fxfycxcy, int64_t H, int64_t W) {
+    return render_views(latents, pose_mapper(poses.to(latents.device(), torch::kFloat32), scene), fxfycxcy, H, W);
   };
+}
+
+torch::Tensor UPLVSMImpl::map_real_poses(const torch::Tensor& real, const torch::Tensor& scene_latents,
+                                         const torch::Tensor& input_images) {
+  TORCH_CHECK(pose_mapper, "target poses 'mapper': this model has no pose mapper (fit one with `uplvsm fit-mapper`, "
+                           "or fine-tune one with `uplvsm train --stage mapper`)");
+  torch::Tensor scene;
+  if (pose_mapper->reads_scene()) scene = scene_conditioning(estimate_poses(input_images, scene_latents));
+  return pose_mapper(real.to(scene_latents.device(), torch::kFloat32), scene);
+}
+
+void UPLVSMImpl::attach_pose_mapper(PoseMapper mapper) {
+  auto device = n_light_field_latent.device();
+  mapper->to(device);
+  pose_mapper = pose_mapper ? replace_module("pose_mapper", mapper) : register_module("pose_mapper", mapper);
 }
 
 void UPLVSMImpl::set_grad_checkpoint_every(int64_t k) {

@@ -61,6 +61,13 @@ struct UPLVSMImpl : NovelViewModelImpl {
   torch::Tensor target_latent_poses(const Views& inputs, const Views& targets, const torch::Tensor& scene_latents,
                                     TargetPoses source, ForwardTrace* trace = nullptr);
 
+  // Latent poses [b, n, 7] of real cameras [b, n, 7] (camera-control units) through the pose mapper; an MLP mapper
+  // also reads the estimator's latent poses of the input views from `input_images` [b, vi, 3, H, W].
+  torch::Tensor map_real_poses(const torch::Tensor& real_poses, const torch::Tensor& scene_latents,
+                               const torch::Tensor& input_images);
+  // Gives this model a pose mapper (fitted to it by `uplvsm fit-mapper`), replacing one it has.
+  void attach_pose_mapper(PoseMapper mapper);
+
   // The model: scene latents, the targets' latent poses from `source`, the rendered targets.
   Rendered render(const Views& inputs, const Views& targets, TargetPoses source,
                   ForwardTrace* trace = nullptr) override;

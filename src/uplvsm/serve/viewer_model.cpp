@@ -7,6 +7,7 @@
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pose_mapper.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::serve {
@@ -27,11 +28,13 @@ int64_t SceneEncoding::bytes() const {
 }
 
 ViewerModel ViewerModel::load(const std::string& checkpoint, const std::string& config_hint, torch::Device device,
-                              bool bf16) {
+                              bool bf16, const std::string& mapper) {
   Config config;
   auto net = model::load_model_with_config_file(checkpoint, config_hint, device, &config);
   // The viewer starts from unposed photos: only UP-LVSM renders those (the posed models need input cameras).
-  return ViewerModel(model::require_uplvsm(net, "serve (the viewer starts from unposed photos)").ptr(), config, bf16);
+  auto up = model::require_uplvsm(net, "serve (the viewer starts from unposed photos)");
+  if (!mapper.empty()) model::attach_pose_mapper_file(*up, mapper);
+  return ViewerModel(up.ptr(), config, bf16);
 }
 
 ViewerModel::ViewerModel(std::shared_ptr<model::UPLVSMImpl> net, Config config, bool bf16)
@@ -45,12 +48,26 @@ bool ViewerModel::has_mapper() const { return static_cast<bool>(net_->pose_mappe
 
 int64_t ViewerModel::parameter_count() const { return net_->parameter_count(); }
 
-// Photos carry no cameras: their real poses are read back through the mapper (real = A^-1 (latent - b)), then
-// expressed relative to input 0 with the baseline as unit, as camera_control_poses does for dataset cameras.
+// What an MLP mapper reads of the scene: the estimator's latent poses of the two inputs ([1, 14] on the model's device).
+torch::Tensor ViewerModel::mapper_scene(const torch::Tensor& key_latent) const {
+  return model::scene_conditioning(key_latent.unsqueeze(0).to(device_, torch::kFloat32));
+}
+
+// Photos carry no cameras: their real poses are read back through the mapper (real = A^-1 (latent - b); an MLP
+// mapper's residual by a few steps of the same correction, A being most of its slope), then expressed relative to
+// input 0 with the baseline as unit, as camera_control_poses does for dataset cameras.
 torch::Tensor ViewerModel::real_from_latent(const torch::Tensor& key_latent) const {
   auto A = net_->pose_mapper->A.detach().to(torch::kCPU, torch::kFloat64);
   auto b = net_->pose_mapper->b.detach().to(torch::kCPU, torch::kFloat64);
   auto real = torch::linalg_solve(A, (key_latent - b).t()).t();  // [2, 7]
+  if (net_->pose_mapper->reads_scene()) {
+    torch::NoGradGuard no_grad;
+    const auto scene = mapper_scene(key_latent);
+    for (int i = 0; i < 8; ++i) {
+      auto mapped = net_->pose_mapper(real.to(device_, torch::kFloat32), scene).to(torch::kCPU, torch::kFloat64);
+      real = real - torch::linalg_solve(A, (mapped - key_latent).t()).t();
+    }
+  }
   auto q = real.slice(1, 3, 7);
   real = torch::cat({real.slice(1, 0, 3), q / q.norm(2, 1, true).clamp_min(1e-9)}, 1);
   auto c2w = geometry::pose_encoding_to_c2w(real);  // [2, 4, 4]
@@ -90,7 +107,8 @@ torch::Tensor ViewerModel::render(const SceneEncoding& scene, const torch::Tenso
   torch::NoGradGuard no_grad;
   AutocastGuard amp(device_, bf16_);
   auto p = poses.to(device_, torch::kFloat32).unsqueeze(0);
-  if (space == PoseSpace::Real) p = net_->pose_mapper(p);
+  if (space == PoseSpace::Real)
+    p = net_->pose_mapper(p, net_->pose_mapper->reads_scene() ? mapper_scene(scene.key_latent) : torch::Tensor());
   auto k = scene.fxfycxcy.to(device_).view({1, 1, 4}).expand({1, poses.size(0), 4}).contiguous();
   return net_->render_views(scene.latents, p, k, scene.height, scene.width)[0].to(torch::kCPU, torch::kFloat32);
 }

@@ -39,9 +39,10 @@ struct SceneEncoding {
 class ViewerModel {
  public:
   // Loads any UP-LVSM checkpoint `uplvsm` reads (ours or the authors'; `config_hint`: optional config JSON for
-  // official files). Posed variants are refused: the viewer starts from unposed photos.
+  // official files). Posed variants are refused: the viewer starts from unposed photos. `mapper`: a pose mapper file
+  // fitted to the checkpoint (fit-mapper), attached for real cameras; empty: the checkpoint's own, if any.
   static ViewerModel load(const std::string& checkpoint, const std::string& config_hint, torch::Device device,
-                          bool bf16);
+                          bool bf16, const std::string& mapper = "");
   // A model already built (tests, benchmarks).
   ViewerModel(std::shared_ptr<model::UPLVSMImpl> net, Config config, bool bf16);
 
@@ -62,6 +63,7 @@ class ViewerModel {
 
  private:
   torch::Tensor real_from_latent(const torch::Tensor& key_latent) const;
+  torch::Tensor mapper_scene(const torch::Tensor& key_latent) const;
 
   std::shared_ptr<model::UPLVSMImpl> net_;
   Config config_;
