@@ -139,23 +139,29 @@ DEMO_MODEL ?= models/demo.safetensors
 DEMO_MAPPER_MODEL ?= models/demo_mapper.safetensors
 DEMO_CEILING_MODEL ?= models/demo_lvsm.safetensors
 DEMO_MODEL_CONFIG ?= configs/demo_rotation_first.json
+# Camera control for the shipped model without fine-tuning it (uplvsm fit-mapper), fitted by make demo.
+DEMO_FITTED_MAPPER = $(DEMO)/fitted_mapper/mapper.safetensors
 DEMO_RENDER = --data $(DEMO)/dataset_demo --split test --scenes 3 --frames 48 --side-by-side
 demo: build-cli
 	$(UPLVSM) info
 	test -f $(DEMO)/dataset_demo/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --train-scenes 0 --out $(DEMO)/dataset_demo
 	$(UPLVSM) eval --checkpoint $(DEMO_MODEL) --data $(DEMO)/dataset_demo --split test --out $(DEMO)/shipped/eval
 	$(UPLVSM) render --checkpoint $(DEMO_MODEL) $(DEMO_RENDER) --out $(DEMO)/shipped/interpolation
-	$(UPLVSM) eval --checkpoint $(DEMO_MAPPER_MODEL) --data $(DEMO)/dataset_demo --split test --target-poses mapper --out $(DEMO)/shipped_mapper/eval
+	$(UPLVSM) eval --checkpoint $(DEMO_MAPPER_MODEL) --data $(DEMO)/dataset_demo --split test --target-poses mapper --jitter --out $(DEMO)/shipped_mapper/eval
 	$(UPLVSM) render --checkpoint $(DEMO_MAPPER_MODEL) $(DEMO_RENDER) --trajectory orbit --out $(DEMO)/shipped_mapper/orbit
 	$(UPLVSM) eval --checkpoint $(DEMO_CEILING_MODEL) --data $(DEMO)/dataset_demo --split test --out $(DEMO)/ceiling/eval
 	$(UPLVSM) render --checkpoint $(DEMO_CEILING_MODEL) $(DEMO_RENDER) --out $(DEMO)/ceiling/interpolation
 	test -f $(DEMO)/dataset/evaluation_index.json || $(UPLVSM) make-dataset --config $(CONFIG) --out $(DEMO)/dataset
+	test -f $(DEMO_FITTED_MAPPER) || $(UPLVSM) fit-mapper --checkpoint $(DEMO_MODEL) --data $(DEMO)/dataset --out $(DEMO_FITTED_MAPPER)
+	$(UPLVSM) eval --checkpoint $(DEMO_MODEL) --mapper $(DEMO_FITTED_MAPPER) --data $(DEMO)/dataset_demo --split test --jitter --out $(DEMO)/fitted_mapper/eval
+	$(UPLVSM) render --checkpoint $(DEMO_MODEL) --mapper $(DEMO_FITTED_MAPPER) $(DEMO_RENDER) --trajectory orbit --out $(DEMO)/fitted_mapper/orbit
 	$(UPLVSM) train --config $(CONFIG) --data $(DEMO)/dataset --run $(DEMO)/run --resume auto
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
 	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train on the built-in rooms with the rotation-first recipe (configs/demo_rotation_first.json: 4000 steps x 8 with a rotation-only latent camera on 2 CPU cores; then configs/demo_rotation_first_long_gpu.json: 4000 steps x 32 with the full camera on a GPU; then configs/demo_gradient_difference.json: 1500 steps x 8 with the gradient difference loss against the blur on 2 CPU cores; then configs/demo_gradient_difference_long_gpu.json: 2000 steps x 32 with the same loss on a GPU); unposed: target poses from the Latent Plücker Learner; the encoder also reads the inputs' latent cameras and the decoder the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
 	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_gradient_difference_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
+	  --model "label=The shipped model with a fitted mapper ($(DEMO_MODEL) + fit-mapper),eval=$(DEMO)/fitted_mapper/eval,video=$(DEMO)/fitted_mapper/orbit,caption=camera control without fine-tuning: uplvsm fit-mapper fitted an MLP pose mapper (reading the inputs' latent poses) to the frozen shipped model on this demo's 400 training rooms in minutes; targets rendered from their real cameras through it; video: the same orbit" \
 	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_same_budget_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; trained on the unposed model's budget (5375 steps x 32 = 172000 scenes of 6 targets; one GPU); video: interpolation between the inputs' real cameras" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"

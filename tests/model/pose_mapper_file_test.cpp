@@ -32,7 +32,7 @@ TEST(PoseMapperFile, AMapperTravelsApartFromItsModelAndComesBackTheSame) {
   EXPECT_FALSE(net->has_camera_control());
   model::attach_pose_mapper_file(*net, path);
   ASSERT_TRUE(net->has_camera_control());
-  auto poses = torch::randn({1, 3, 7}), scene = torch::randn({1, 7});
+  auto poses = torch::randn({1, 3, 7}), scene = torch::randn({1, model::kSceneConditioningDims});
   EXPECT_LT(test::max_abs_diff(net->pose_mapper(poses, scene), mapper(poses, scene)), 1e-6);
   // The model's own fingerprint ignores the mapper it now carries.
   EXPECT_EQ(model::model_fingerprint(*net), file.model_fingerprint);
@@ -54,9 +54,9 @@ TEST(PoseMapperFile, AMapperOfAnotherModelOrAFileThatIsNoMapperIsRefused) {
             std::string::npos);
   // An MLP file whose tensors are missing is named, not half-loaded.
   const auto broken = (dir / "broken.safetensors").string();
-  io::write_safetensors(broken, {{"pose_mapper.A", torch::eye(7)}, {"pose_mapper.b", torch::zeros({7})}},
-                        {{"format", model::kPoseMapperFormat}, {"kind", "mlp"}, {"hidden", "8"},
-                         {"model_fingerprint", "0"}});
+  io::write_safetensors(
+      broken, {{"pose_mapper.A", torch::eye(7)}, {"pose_mapper.b", torch::zeros({7})}},
+      {{"format", model::kPoseMapperFormat}, {"kind", "mlp"}, {"hidden", "8"}, {"model_fingerprint", "0"}});
   const auto missing = test::error_of([&] { model::read_pose_mapper_file(broken); });
   EXPECT_NE(missing.find("mlp.0.weight"), std::string::npos) << missing;
 }

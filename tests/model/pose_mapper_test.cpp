@@ -59,8 +59,10 @@ TEST(PoseMapper, KindsAreNamedAndAnUnknownOneIsRefused) {
             std::string::npos);
 }
 
-TEST(PoseMapper, SceneConditioningIsTheLatentPoseOfInputViewOne) {
+TEST(PoseMapper, SceneConditioningIsTheLatentPosesOfBothInputViews) {
   auto poses = torch::arange(2 * 2 * 7, torch::kFloat32).reshape({2, 2, 7});
-  EXPECT_TRUE(torch::equal(model::scene_conditioning(poses), poses.select(1, 1)));
-  EXPECT_TRUE(torch::equal(model::scene_conditioning(poses.narrow(1, 0, 1)), poses.select(1, 0)));
+  EXPECT_TRUE(torch::equal(model::scene_conditioning(poses), torch::cat({poses.select(1, 0), poses.select(1, 1)}, -1)));
+  auto one = poses.narrow(1, 0, 1);
+  EXPECT_TRUE(torch::equal(model::scene_conditioning(one), torch::cat({one.select(1, 0), one.select(1, 0)}, -1)));
+  EXPECT_EQ(model::scene_conditioning(poses).size(1), model::kSceneConditioningDims);
 }

@@ -2,6 +2,7 @@
 // falls below the linear one's, the model's weights do not move), and the errors a user's data can raise.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 
 #include "train_test_util.h"
@@ -65,12 +66,27 @@ TEST(MapperFitting, TheMlpFitsCloserThanTheLinearMapAndTheModelIsUnchanged) {
   EXPECT_GT(lr.least_squares_rms, 0);
   EXPECT_DOUBLE_EQ(mr.least_squares_rms, lr.least_squares_rms);  // the same pairs, the same start
   EXPECT_LT(mr.fit_rms, 0.9 * mr.least_squares_rms);
+  EXPECT_TRUE(std::isfinite(mr.held_out_rms));  // every tenth of 24 samples held out
+  EXPECT_TRUE(std::isnan(lr.held_out_rms));
   for (const auto& [name, t] : model::state_dict(*net)) EXPECT_TRUE(torch::equal(t, before.at(name))) << name;
   // Deterministic: the same data and options give the same mapper.
   model::PoseMapper again;
   train::fit_mapper_to_model(*net, *again, dataset, micro_fit(0));
   EXPECT_TRUE(torch::equal(again->A, linear->A) && torch::equal(again->b, linear->b));
   EXPECT_FALSE(torch::equal(linear->A, torch::eye(7)));
+}
+
+TEST(MapperFitting, TheKeptMlpIsTheBestHeldOutCheckNeverWorseThanItsStart) {
+  auto net = micro_uplvsm();
+  data::ChunkDataset dataset(test::micro_dataset(), "train");
+  // Few views, a wide MLP, many fast steps: it over-fits, and the map kept is the best check, not the last step.
+  auto opt = micro_fit(3000);
+  opt.calibration_views = 40;
+  opt.regression_lr = 3e-2;
+  model::PoseMapper mapper(model::PoseMapperOptions{model::PoseMapperKind::Mlp, 256});
+  auto report = train::fit_mapper_to_model(*net, *mapper, dataset, opt);
+  ASSERT_TRUE(std::isfinite(report.held_out_rms) && std::isfinite(report.start_held_out_rms));
+  EXPECT_LE(report.held_out_rms, report.start_held_out_rms + 1e-9);
 }
 
 TEST(MapperFitting, ScenesWithoutCamerasOrWithoutABaselineAreNamed) {

@@ -10,8 +10,8 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/camera_jitter.h"
 #include "uplvsm/eval/eval_pose_noise.h"
-#include "uplvsm/io/atomic_file.h"
 #include "uplvsm/eval/evaluator.h"
+#include "uplvsm/io/atomic_file.h"
 #include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/train/distributed.h"
@@ -69,9 +69,9 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
   cmd->add_option("--seed", a.seed, "seed of --pose-noise-std (each scene draws from this seed and its key)")
       ->capture_default_str();
   cmd->add_flag("--jitter", a.jitter,
-               "also render each scene's frames in order at their real cameras (camera control: --mapper, the "
-               "checkpoint's mapper or a posed model) and report the jitter, the frame-to-frame change beyond the "
-               "ground truth's own (grey levels; jitter.json)");
+                "also render a smooth path along each scene's real cameras (camera control: --mapper, the "
+                "checkpoint's mapper or a posed model) and report the jitter, the swing of the renders' "
+                "frame-to-frame change relative to it (jitter.json)");
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -165,9 +165,10 @@ void report_jitter(const EvalArgs& a, model::NovelViewModel& net, const data::Ch
   std::filesystem::create_directories(a.out);
   const auto text = out.dump(2) + "\n";
   io::write_file_atomic((std::filesystem::path(a.out) / "jitter.json").string(), text.data(), text.size());
-  std::cout << fmt::format("  jitter along {} camera paths ({} frames): {:.2f} grey levels beyond the ground truth's "
-                           "own change ({:.2f}) -> {}/jitter.json\n",
-                           j.scenes, j.frames, j.jitter, j.truth_change, a.out);
+  std::cout << fmt::format(
+      "  jitter along {} smooth camera paths ({} renders): {:.3f} (the swing of the renders' frame-to-frame change, "
+      "relative to it; their change: {:.2f} grey levels) -> {}/jitter.json\n",
+      j.scenes, j.renders, j.jitter, j.change, a.out);
 }
 
 void run_eval(const EvalArgs& a) {

@@ -1,6 +1,7 @@
 // `uplvsm fit-mapper`: camera control for a trained UP-LVSM without fine-tuning it (train/mapper_fitting.h): a pose
 // mapper fitted to the model from posed scenes and saved apart from it, for `render|eval|serve --mapper`; and
 // `uplvsm study mapper-scenes`, how few posed scenes such a fit needs (study/mapper_scenes.h).
+#include <cmath>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -58,8 +59,6 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   cmd->add_option("--lr", a.fit.regression_lr, "mlp: peak learning rate (linear warmup, cosine decay)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
-  cmd->add_option("--render-steps", a.fit.render_steps, "research: then Adam steps through the frozen model");
-  cmd->add_option("--render-lr", a.fit.render_lr, "research: their learning rate");
   cmd->add_option("--batch", a.batch, "samples encoded at once")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--targets", a.targets, "target views per sample (0: the model config's training views)");
   cmd->add_option("--min-frame-dist", a.min_frame_dist, "input frames at least this far apart (0: the config's)");
@@ -104,9 +103,7 @@ FitSetup load_for_fit(FitArgs& a, const data::ChunkDataset& dataset) {
   return s;
 }
 
-model::PoseMapperOptions mapper_options(const FitArgs& a) {
-  return {model::parse_pose_mapper_kind(a.kind), a.hidden};
-}
+model::PoseMapperOptions mapper_options(const FitArgs& a) { return {model::parse_pose_mapper_kind(a.kind), a.hidden}; }
 
 struct FitMapperArgs : FitArgs {
   std::string out, eval_data, eval_out;
@@ -125,10 +122,10 @@ void evaluate_fitted(const FitMapperArgs& a, FitSetup& s) {
   opt.extra = {{"checkpoint", a.model.checkpoint}, {"mapper", a.out}, {"data", a.eval_data}};
   auto summary = eval::evaluate(s.net, dataset, data::preprocess_options(s.config), opt);
   const auto& m = summary.table.at("model");
-  std::cout << fmt::format("held-out: {} scenes at real cameras through the mapper: PSNR {:.2f} dB, SSIM {:.4f} "
-                           "(copy-nearest {:.2f} dB) -> {}/metrics.json\n",
-                           summary.scenes, m.at("psnr"), m.at("ssim"), summary.table.at("copy_nearest").at("psnr"),
-                           opt.out_dir);
+  std::cout << fmt::format(
+      "held-out: {} scenes at real cameras through the mapper: PSNR {:.2f} dB, SSIM {:.4f} "
+      "(copy-nearest {:.2f} dB) -> {}/metrics.json\n",
+      summary.scenes, m.at("psnr"), m.at("ssim"), summary.table.at("copy_nearest").at("psnr"), opt.out_dir);
 }
 
 void run_fit_mapper(FitMapperArgs& a) {
@@ -143,10 +140,13 @@ void run_fit_mapper(FitMapperArgs& a) {
   fit["data"] = a.data;
   fit["checkpoint"] = a.model.checkpoint;
   model::write_pose_mapper_file(a.out, *mapper, model::model_fingerprint(*s.up), fit);
-  std::cout << fmt::format("fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units; the "
-                           "least-squares linear map's {:.4f}) -> {}\n",
-                           a.kind, report.calibration_views, report.scenes, report.seconds, report.fit_rms,
-                           report.least_squares_rms, a.out);
+  std::cout << fmt::format(
+      "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
+      "the least-squares linear map's {:.4f}) -> {}\n",
+      a.kind, report.calibration_views, report.scenes, report.seconds, report.fit_rms,
+      std::isfinite(report.held_out_rms) ? fmt::format(", {:.4f} on held-out samples", report.held_out_rms)
+                                         : std::string(),
+      report.least_squares_rms, a.out);
   if (a.eval_data.empty()) return;
   s.up->attach_pose_mapper(mapper);
   evaluate_fitted(a, s);
@@ -185,8 +185,7 @@ void add_fit_mapper_command(CLI::App& app) {
       "mapper from real cameras to the latent poses the model's estimator reads, fitted on posed scenes in pose "
       "space (minutes), saved apart from the model for render|eval|serve --mapper");
   add_fit_options(cmd, *a);
-  cmd->add_option("--out", a->out, "the mapper file to write (safetensors; the model file is not changed)")
-      ->required();
+  cmd->add_option("--out", a->out, "the mapper file to write (safetensors; the model file is not changed)")->required();
   cmd->add_option("--scenes", a->scenes, "use the split's first N scenes only (0: all)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();

@@ -4,68 +4,90 @@
 #include <filesystem>
 #include <numeric>
 
-#include <fmt/format.h>
-
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/geometry/camera_control.h"
+#include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::eval {
 
-double temporal_jitter(const torch::Tensor& rendered, const torch::Tensor& truth) {
-  TORCH_CHECK(rendered.dim() == 4 && rendered.sizes() == truth.sizes() && rendered.size(0) >= 2,
-              "temporal_jitter: expected two [T >= 2, C, H, W] sequences of one shape, got ", rendered.sizes(), " and ",
-              truth.sizes());
-  auto r = rendered.to(torch::kFloat64), g = truth.to(torch::kFloat64);
-  auto excess = (r.slice(0, 1) - r.slice(0, 0, -1)) - (g.slice(0, 1) - g.slice(0, 0, -1));  // [T-1, C, H, W]
-  return 255.0 * excess.pow(2).mean({1, 2, 3}).sqrt().mean().item<double>();
+using torch::indexing::Slice;
+
+double temporal_change(const torch::Tensor& frames) {
+  TORCH_CHECK(frames.dim() == 4 && frames.size(0) >= 2, "temporal_change: expected frames [T >= 2, C, H, W], got ",
+              frames.sizes());
+  auto x = frames.to(torch::kFloat64);
+  return 255.0 * (x.slice(0, 1) - x.slice(0, 0, -1)).pow(2).mean().sqrt().item<double>();
+}
+
+double temporal_jitter(const torch::Tensor& frames) {
+  TORCH_CHECK(frames.dim() == 4 && frames.size(0) >= 3, "temporal_jitter: expected frames [T >= 3, C, H, W], got ",
+              frames.sizes());
+  auto x = frames.to(torch::kFloat64);
+  const double change = temporal_change(x);
+  if (change <= 1e-9) return 0.0;
+  auto d2 = x.slice(0, 2) - 2 * x.slice(0, 1, -1) + x.slice(0, 0, -2);
+  return 255.0 * d2.pow(2).mean().sqrt().item<double>() / change;
+}
+
+torch::Tensor subdivide_path(const torch::Tensor& poses, int64_t s) {
+  TORCH_CHECK(poses.dim() == 3 && poses.size(0) == 1 && poses.size(2) == 7 && poses.size(1) >= 1 && s >= 1,
+              "subdivide_path: expected poses [1, n, 7] and subdivisions >= 1, got ", poses.sizes(), " and ", s);
+  auto p = poses[0].to(torch::kFloat64);
+  std::vector<torch::Tensor> out;
+  for (int64_t i = 0; i + 1 < p.size(0); ++i)
+    for (int64_t k = 0; k < s; ++k) {
+      const double f = static_cast<double>(k) / static_cast<double>(s);
+      auto t = p[i].slice(0, 0, 3) * (1 - f) + p[i + 1].slice(0, 0, 3) * f;
+      out.push_back(torch::cat({t, geometry::quat_slerp(p[i].slice(0, 3), p[i + 1].slice(0, 3), f)}));
+    }
+  out.push_back(p[-1]);
+  return torch::stack(out).unsqueeze(0).to(poses.dtype());
 }
 
 namespace {
 
-double frame_change(const torch::Tensor& truth) {
-  auto g = truth.to(torch::kFloat64);
-  return 255.0 * (g.slice(0, 1) - g.slice(0, 0, -1)).pow(2).mean({1, 2, 3}).sqrt().mean().item<double>();
-}
+int64_t first_context(const data::EvalEntry& e) { return *std::min_element(e.context.begin(), e.context.end()); }
 
-// The scene's frames from its first context view on (at most max_frames), rendered at their real cameras.
-std::pair<double, double> scene_jitter(model::NovelViewModel& net, const data::ChunkDataset& dataset, int64_t scene,
-                                       const data::EvalEntry& entry, const data::PreprocessOptions& prep,
-                                       const JitterOptions& opt) {
-  const int64_t first = *std::min_element(entry.context.begin(), entry.context.end());
-  const int64_t count = std::min(opt.max_frames, dataset.num_frames(scene) - first);
-  std::vector<int64_t> path(static_cast<size_t>(count));
-  std::iota(path.begin(), path.end(), first);
+struct PathJitter {
+  double jitter = 0, change = 0;
+  int64_t renders = 0;
+};
+
+// The jitter of one scene's path, its renders' change and how many renders it took.
+PathJitter scene_jitter(model::NovelViewModel& net, const data::ChunkDataset& dataset, int64_t scene,
+                        const data::EvalEntry& entry, const data::PreprocessOptions& prep, const JitterOptions& opt) {
+  const int64_t count = std::min(opt.max_frames, dataset.num_frames(scene) - first_context(entry));
+  std::vector<int64_t> frames(static_cast<size_t>(count));
+  std::iota(frames.begin(), frames.end(), first_context(entry));
   auto inputs = model::batch_of_one(dataset.load_views(scene, entry.context, prep), opt.device);
-  auto truth = dataset.load_views(scene, path, prep);
+  auto path_views = dataset.load_views(scene, frames, prep);
   torch::NoGradGuard no_grad;
   AutocastGuard amp(opt.device, opt.bf16);
   auto render = net->camera_control(inputs);
-  auto poses = geometry::camera_control_poses(inputs.c2w, truth.c2w.unsqueeze(0).to(opt.device));
-  std::vector<torch::Tensor> frames;
-  for (int64_t s = 0; s < count; s += 8) {  // chunks bound the decoder's memory
-    const int64_t n = std::min<int64_t>(8, count - s);
-    frames.push_back(render(poses.narrow(1, s, n), truth.fxfycxcy.narrow(0, s, n).unsqueeze(0).to(opt.device),
-                            truth.images.size(2), truth.images.size(3))[0]
-                         .to(torch::kCPU, torch::kFloat32));
+  auto path = subdivide_path(geometry::camera_control_poses(inputs.c2w, path_views.c2w.unsqueeze(0).to(opt.device)),
+                             opt.subdivisions);
+  const int64_t n = path.size(1), H = path_views.images.size(2), W = path_views.images.size(3);
+  std::vector<torch::Tensor> renders;
+  for (int64_t s = 0; s < n; s += 8) {  // chunks bound the decoder's memory
+    const int64_t m = std::min<int64_t>(8, n - s);
+    auto k = path_views.fxfycxcy[0].view({1, 1, 4}).expand({1, m, 4}).to(opt.device);
+    renders.push_back(render(path.narrow(1, s, m), k, H, W)[0].to(torch::kCPU, torch::kFloat32));
   }
-  auto rendered = torch::cat(frames).clamp(0, 1);
-  return {temporal_jitter(rendered, truth.images), frame_change(truth.images)};
+  auto rendered = torch::cat(renders).clamp(0, 1);
+  return {temporal_jitter(rendered), temporal_change(rendered), n};
 }
 
 }  // namespace
 
-nlohmann::json JitterSummary::to_json() const {
-  return {{"scenes", scenes}, {"frames", frames}, {"jitter", jitter}, {"truth_change", truth_change}};
-}
+nlohmann::json JitterSummary::to_json() const { return {{"scenes", scenes}, {"renders", renders}, {"jitter", jitter}}; }
 
 JitterSummary measure_jitter(model::NovelViewModel& net, const data::ChunkDataset& dataset,
                              const data::PreprocessOptions& prep, const JitterOptions& opt) {
-  const auto index = opt.index_path.empty()
-                         ? (std::filesystem::path(dataset.root()) / "evaluation_index.json").string()
-                         : opt.index_path;
+  const auto index = opt.index_path.empty() ? (std::filesystem::path(dataset.root()) / "evaluation_index.json").string()
+                                            : opt.index_path;
   auto entries = data::read_eval_index(index);
   model::EvalModeGuard mode(*net);
   JitterSummary out;
@@ -74,18 +96,17 @@ JitterSummary measure_jitter(model::NovelViewModel& net, const data::ChunkDatase
   for (const auto& e : entries) {
     if (out.scenes >= wanted) break;
     const int64_t scene = dataset.find(e.key);
-    if (scene < 0 || dataset.num_frames(scene) - *std::min_element(e.context.begin(), e.context.end()) < 2) continue;
-    auto [jitter, change] = scene_jitter(net, dataset, scene, e, prep, opt);
-    out.jitter += jitter;
-    out.truth_change += change;
-    out.frames += std::min(opt.max_frames, dataset.num_frames(scene) - *std::min_element(e.context.begin(),
-                                                                                        e.context.end()));
+    if (scene < 0 || dataset.num_frames(scene) - first_context(e) < 2) continue;
+    const auto j = scene_jitter(net, dataset, scene, e, prep, opt);
+    out.jitter += j.jitter;
+    out.change += j.change;
+    out.renders += j.renders;
     bar.update(++out.scenes);
   }
   bar.finish();
   if (out.scenes == 0) throw std::runtime_error("jitter: no scene of " + index + " is in " + dataset.root());
   out.jitter /= static_cast<double>(out.scenes);
-  out.truth_change /= static_cast<double>(out.scenes);
+  out.change /= static_cast<double>(out.scenes);
   return out;
 }
 

@@ -22,9 +22,9 @@ PoseMapperImpl::PoseMapperImpl(PoseMapperOptions opt) : options(opt) {
   if (opt.kind != PoseMapperKind::Mlp) return;
   TORCH_CHECK(opt.hidden >= 1, "pose mapper: the MLP's width must be positive, got ", opt.hidden);
   auto out = torch::nn::Linear(opt.hidden, 7);
-  mlp = register_module("mlp", torch::nn::Sequential(torch::nn::Linear(7 + kSceneConditioningDims, opt.hidden),
-                                                      torch::nn::GELU(), torch::nn::Linear(opt.hidden, opt.hidden),
-                                                      torch::nn::GELU(), out));
+  mlp = register_module(
+      "mlp", torch::nn::Sequential(torch::nn::Linear(7 + kSceneConditioningDims, opt.hidden), torch::nn::GELU(),
+                                   torch::nn::Linear(opt.hidden, opt.hidden), torch::nn::GELU(), out));
   // The residual starts at zero: an MLP mapper begins as its linear fit.
   torch::NoGradGuard no_grad;
   out->weight.zero_();
@@ -36,8 +36,9 @@ torch::Tensor PoseMapperImpl::forward(const torch::Tensor& real, const torch::Te
   auto x = real.to(A.scalar_type());
   auto latent = torch::matmul(x, A.t()) + b;
   if (mlp) {
-    TORCH_CHECK(scene.defined() && scene.size(-1) == kSceneConditioningDims,
-                "MLP pose mapper: needs the scene's conditioning [b, 14] (the estimator's latent poses of the input views)");
+    TORCH_CHECK(
+        scene.defined() && scene.size(-1) == kSceneConditioningDims,
+        "MLP pose mapper: needs the scene's conditioning [b, 14] (the estimator's latent poses of the input views)");
     auto s = scene.to(x.options());
     if (x.dim() == 3) s = s.unsqueeze(1).expand({x.size(0), x.size(1), kSceneConditioningDims});
     if (x.dim() == 2) s = s.reshape({-1, kSceneConditioningDims}).expand({x.size(0), kSceneConditioningDims});

@@ -35,8 +35,8 @@ struct PoseMapperImpl : torch::nn::Module {
   bool reads_scene() const { return options.kind == PoseMapperKind::Mlp; }
 
   PoseMapperOptions options;
-  torch::Tensor A, b;                      // registered as "A" [7, 7] and "b" [7]
-  torch::nn::Sequential mlp{nullptr};      // registered as "mlp" for the MLP kind
+  torch::Tensor A, b;                  // registered as "A" [7, 7] and "b" [7]
+  torch::nn::Sequential mlp{nullptr};  // registered as "mlp" for the MLP kind
 };
 TORCH_MODULE(PoseMapper);
 

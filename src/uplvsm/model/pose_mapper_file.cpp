@@ -32,9 +32,10 @@ struct Fnv64 {
 std::string meta(const std::map<std::string, std::string>& m, const std::string& key, const std::string& path) {
   auto it = m.find(key);
   if (it == m.end())
-    throw std::runtime_error(fmt::format("{}: not a pose mapper file (metadata lacks \"{}\"; write one with "
-                                         "`uplvsm fit-mapper`)",
-                                         path, key));
+    throw std::runtime_error(
+        fmt::format("{}: not a pose mapper file (metadata lacks \"{}\"; write one with "
+                    "`uplvsm fit-mapper`)",
+                    path, key));
   return it->second;
 }
 
@@ -67,7 +68,8 @@ PoseMapperFile read_pose_mapper_file(const std::string& path) {
   auto file = io::read_safetensors(path);
   const auto format = meta(file.metadata, "format", path);
   if (format != kPoseMapperFormat)
-    throw std::runtime_error(fmt::format("{}: pose mapper format '{}', expected '{}'", path, format, kPoseMapperFormat));
+    throw std::runtime_error(
+        fmt::format("{}: pose mapper format '{}', expected '{}'", path, format, kPoseMapperFormat));
   PoseMapperOptions options;
   try {
     options.kind = parse_pose_mapper_kind(meta(file.metadata, "kind", path));
@@ -93,9 +95,10 @@ void attach_pose_mapper_file(UPLVSMImpl& net, const std::string& path) {
   auto file = read_pose_mapper_file(path);
   const auto mine = model_fingerprint(net);
   if (file.model_fingerprint != mine)
-    throw std::runtime_error(fmt::format("{}: this pose mapper was fitted to another model (weights fingerprint {}, "
-                                         "this model's {}); fit one to this model with `uplvsm fit-mapper`",
-                                         path, file.model_fingerprint, mine));
+    throw std::runtime_error(
+        fmt::format("{}: this pose mapper was fitted to another model (weights fingerprint {}, "
+                    "this model's {}); fit one to this model with `uplvsm fit-mapper`",
+                    path, file.model_fingerprint, mine));
   net.attach_pose_mapper(file.mapper);
 }
 

@@ -182,8 +182,9 @@ CameraRenderer UPLVSMImpl::camera_control(const Views& inputs) {
 
 torch::Tensor UPLVSMImpl::map_real_poses(const torch::Tensor& real, const torch::Tensor& scene_latents,
                                          const torch::Tensor& input_images) {
-  TORCH_CHECK(pose_mapper, "target poses 'mapper': this model has no pose mapper (fit one with `uplvsm fit-mapper`, "
-                           "or fine-tune one with `uplvsm train --stage mapper`)");
+  TORCH_CHECK(pose_mapper,
+              "target poses 'mapper': this model has no pose mapper (fit one with `uplvsm fit-mapper`, "
+              "or fine-tune one with `uplvsm train --stage mapper`)");
   torch::Tensor scene;
   if (pose_mapper->reads_scene()) scene = scene_conditioning(estimate_poses(input_images, scene_latents));
   return pose_mapper(real.to(scene_latents.device(), torch::kFloat32), scene);

@@ -48,7 +48,8 @@ bool ViewerModel::has_mapper() const { return static_cast<bool>(net_->pose_mappe
 
 int64_t ViewerModel::parameter_count() const { return net_->parameter_count(); }
 
-// What an MLP mapper reads of the scene: the estimator's latent poses of the two inputs ([1, 14] on the model's device).
+// What an MLP mapper reads of the scene: the estimator's latent poses of the two inputs ([1, 14] on the model's
+// device).
 torch::Tensor ViewerModel::mapper_scene(const torch::Tensor& key_latent) const {
   return model::scene_conditioning(key_latent.unsqueeze(0).to(device_, torch::kFloat32));
 }

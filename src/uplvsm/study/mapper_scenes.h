@@ -31,8 +31,7 @@ struct MapperScenesRow {
 
 // `net` must be an UP-LVSM; its own pose mapper, if any, is replaced by each fitted one in turn.
 std::vector<MapperScenesRow> run_mapper_scenes(model::NovelViewModel& net, const data::ChunkDataset& posed,
-                                               const data::ChunkDataset& held_out,
-                                               const data::PreprocessOptions& prep,
+                                               const data::ChunkDataset& held_out, const data::PreprocessOptions& prep,
                                                const MapperScenesOptions& options);
 
 void write_mapper_scenes(const std::vector<MapperScenesRow>& rows, const std::string& out_dir);

@@ -1,6 +1,7 @@
 #include "uplvsm/train/mapper_fitting.h"
 
 #include <chrono>
+#include <cmath>
 #include <vector>
 
 #include <fmt/format.h>
@@ -8,8 +9,10 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/core/progress.h"
+#include "uplvsm/data/view_sampler.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/eval_mode.h"
+#include "uplvsm/model/state_dict.h"
 #include "uplvsm/train/optimizer.h"
 
 namespace uplvsm::train {
@@ -20,7 +23,7 @@ namespace {
 // pose the estimator gives its image ([N, 7], [N, 14], [N, 7] on the CPU).
 struct PosePairs {
   std::vector<torch::Tensor> real, scene, latent;
-  int64_t views = 0, skipped = 0;
+  int64_t views = 0, skipped = 0, views_per_sample = 1;
 };
 
 // The samples of `batch` whose inputs have a baseline (camera-control units divide by it).
@@ -42,7 +45,7 @@ void add_batch(model::UPLVSMImpl& net, const data::TrainingBatch& batch, int64_t
   auto inputs = dev(batch.input_images(vi));
   auto latents = net.encode_scene(inputs, dev(batch.input_fxfycxcy(vi)));
   auto real = geometry::camera_control_poses(dev(batch.input_c2w(vi)), dev(batch.target_c2w()));  // [b, t, 7]
-  auto scene = model::scene_conditioning(net.estimate_poses(inputs, latents));                   // [b, 14]
+  auto scene = model::scene_conditioning(net.estimate_poses(inputs, latents));                    // [b, 14]
   const int64_t b = real.size(0), t = real.size(1);
   pairs.real.push_back(real.reshape({-1, 7}).cpu());
   pairs.scene.push_back(scene.unsqueeze(1).expand({b, t, scene.size(1)}).reshape({b * t, -1}).cpu());
@@ -60,6 +63,7 @@ PosePairs collect_pairs(model::UPLVSMImpl& net, const data::ChunkDataset& datase
   const int64_t per_batch = std::max<int64_t>(1, lo.batch_size * lo.num_target_views);
   const int64_t max_batches = 4 * ((opt.calibration_views + per_batch - 1) / per_batch) + 8;
   PosePairs pairs;
+  pairs.views_per_sample = lo.num_target_views;
   ProgressBar bar("fit-mapper: reading poses", opt.calibration_views, "view");
   for (int64_t i = 0; pairs.views < opt.calibration_views && i < max_batches; ++i) {
     add_batch(net, data::make_training_batch(dataset, lo, i), lo.num_input_views, opt, pairs);
@@ -67,87 +71,73 @@ PosePairs collect_pairs(model::UPLVSMImpl& net, const data::ChunkDataset& datase
   }
   bar.finish();
   if (pairs.views == 0)
-    throw std::runtime_error(fmt::format("fit-mapper: no sample of {} has two input views apart (every input pair "
-                                         "coincides, so there is no baseline to measure the cameras in)",
-                                         dataset.root()));
+    throw std::runtime_error(
+        fmt::format("fit-mapper: no sample of {} has two input views apart (every input pair "
+                    "coincides, so there is no baseline to measure the cameras in)",
+                    dataset.root()));
   return pairs;
 }
 
-// The MLP mapper (and its linear part) by full-batch Adam on the pairs, from the least-squares start.
-double regress(model::PoseMapperImpl& mapper, const PosePairs& pairs, const MapperFitOptions& opt) {
-  auto dev = [&](const std::vector<torch::Tensor>& t) { return torch::cat(t).to(opt.device, torch::kFloat32); };
-  auto real = dev(pairs.real), scene = dev(pairs.scene), latent = dev(pairs.latent);
+// Every tenth sample's views are held out of the MLP's steps (none with fewer than ten samples): rows of the pairs.
+struct Split {
+  torch::Tensor fit, held_out;
+};
+Split split_by_sample(const PosePairs& pairs) {
+  std::vector<int64_t> fit, held_out;
+  int64_t row = 0, sample = 0;
+  for (const auto& r : pairs.real) {
+    const int64_t samples = r.size(0) / pairs.views_per_sample;
+    for (int64_t s = 0; s < samples; ++s, ++sample)
+      for (int64_t v = 0; v < pairs.views_per_sample; ++v, ++row)
+        (sample % 10 == 9 && pairs.views >= 10 * pairs.views_per_sample ? held_out : fit).push_back(row);
+  }
+  return {torch::tensor(fit), torch::tensor(held_out)};
+}
+
+// The MLP mapper (and its linear part) by full-batch Adam on the pairs, from the least-squares start; the parameters
+// kept are those of the check (every 100 steps) with the lowest held-out residual, so that a few scenes do not end
+// in an over-fitted map.
+void regress(model::PoseMapperImpl& mapper, const PosePairs& pairs, const MapperFitOptions& opt,
+             MapperFitReport& report) {
+  auto split = split_by_sample(pairs);
+  auto all = [&](const std::vector<torch::Tensor>& t) { return torch::cat(t).to(opt.device, torch::kFloat32); };
+  auto real = all(pairs.real), scene = all(pairs.scene), latent = all(pairs.latent);
+  auto rms = [&](const torch::Tensor& rows) {
+    torch::NoGradGuard no_grad;
+    auto r = rows.to(opt.device);
+    return std::sqrt(
+        (mapper.forward(real.index({r}), scene.index({r})) - latent.index({r})).pow(2).mean().item<double>());
+  };
+  const bool checked = split.held_out.numel() > 0;
+  auto fit_rows = split.fit.to(opt.device);
+  auto x = real.index({fit_rows}), s = scene.index({fit_rows}), y = latent.index({fit_rows});
   torch::optim::Adam adam(mapper.parameters(), torch::optim::AdamOptions(opt.regression_lr));
   const int64_t steps = opt.regression_steps;
+  // state_dict's CPU tensors share the parameters' storage: the kept state is a copy.
+  auto snapshot = [&] {
+    auto state = model::state_dict(mapper);
+    for (auto& [name, t] : state) t = t.clone();
+    return state;
+  };
+  double best = checked ? rms(split.held_out) : 0;
+  report.start_held_out_rms = checked ? best : std::nan("");
+  auto best_state = snapshot();
   for (int64_t i = 0; i < steps; ++i) {
     set_learning_rate(adam, opt.regression_lr * lr_lambda(i, std::max<int64_t>(1, steps / 20), steps));
     adam.zero_grad();
-    auto loss = (mapper.forward(real, scene) - latent).pow(2).mean();
-    loss.backward();
+    (mapper.forward(x, s) - y).pow(2).mean().backward();
     adam.step();
-  }
-  torch::NoGradGuard no_grad;
-  return std::sqrt((mapper.forward(real, scene) - latent).pow(2).mean().item<double>());
-}
-
-// Research: the mapper alone trained on the rendering error at real cameras, through the frozen model.
-class FrozenParameters {
- public:
-  explicit FrozenParameters(torch::nn::Module& net) {
-    for (auto& p : net.parameters()) {
-      flags_.emplace_back(p, p.requires_grad());
-      p.set_requires_grad(false);
+    if (checked && ((i + 1) % 100 == 0 || i + 1 == steps)) {
+      const double now = rms(split.held_out);
+      if (now < best) {
+        best = now;
+        best_state = snapshot();
+      }
     }
   }
-  ~FrozenParameters() {
-    for (auto& [p, flag] : flags_) p.set_requires_grad(flag);
-  }
-
- private:
-  std::vector<std::pair<torch::Tensor, bool>> flags_;
-};
-
-double render_step(model::UPLVSMImpl& net, model::PoseMapperImpl& mapper, torch::optim::Adam& adam,
-                   const data::TrainingBatch& batch, const MapperFitOptions& opt) {
-  const int64_t vi = opt.loader.num_input_views;
-  auto dev = [&](const torch::Tensor& t) { return t.to(opt.device); };
-  torch::Tensor latents, scene, real, targets = dev(batch.target_images());
-  {
-    torch::NoGradGuard no_grad;
-    AutocastGuard amp(opt.device, opt.bf16);
-    auto inputs = dev(batch.input_images(vi));
-    latents = net.encode_scene(inputs, dev(batch.input_fxfycxcy(vi)));
-    scene = model::scene_conditioning(net.estimate_poses(inputs, latents));
-    real = geometry::camera_control_poses(dev(batch.input_c2w(vi)), dev(batch.target_c2w()));
-  }
-  adam.zero_grad();
-  auto poses = mapper.forward(real, scene);
-  torch::Tensor render;
-  {
-    AutocastGuard amp(opt.device, opt.bf16);
-    render = net.render_views(latents, poses, dev(batch.target_fxfycxcy()), targets.size(3), targets.size(4));
-  }
-  auto loss = torch::mse_loss(render.to(torch::kFloat32), targets);
-  loss.backward();
-  torch::nn::utils::clip_grad_norm_(mapper.parameters(), 1.0);
-  adam.step();
-  return loss.item<double>();
-}
-
-void train_through_model(model::UPLVSMImpl& net, model::PoseMapperImpl& mapper, const data::ChunkDataset& dataset,
-                         const MapperFitOptions& opt) {
-  FrozenParameters frozen(net);
-  torch::optim::Adam adam(mapper.parameters(), torch::optim::AdamOptions(opt.render_lr).betas({0.9, 0.99}));
-  data::TrainingLoader loader(dataset, opt.loader, 0);
-  ProgressBar bar("fit-mapper: through the model", opt.render_steps, "step");
-  double recent = 0;
-  for (int64_t step = 0; step < opt.render_steps; ++step) {
-    set_learning_rate(adam, opt.render_lr * lr_lambda(step, 30, opt.render_steps));
-    const double loss = render_step(net, mapper, adam, loader.next(), opt);
-    recent = step == 0 ? loss : 0.95 * recent + 0.05 * loss;
-    bar.update(step + 1, {{"mse", fmt::format("{:.5f}", recent)}});
-  }
-  bar.finish();
+  if (checked) model::load_state_dict(mapper, best_state, "the best held-out check");
+  report.fit_rms = rms(split.fit);
+  report.held_out_rms = checked ? rms(split.held_out) : std::nan("");
 }
 
 void check_posed(const data::ChunkDataset& dataset, int64_t scenes) {
@@ -159,12 +149,31 @@ void check_posed(const data::ChunkDataset& dataset, int64_t scenes) {
           dataset.key(i), dataset.root(), dataset.split()));
 }
 
+// Every scene too short for the view sampling would only be skipped, one warning each: say so once, with the fix.
+void check_some_scene_fits(const data::ChunkDataset& dataset, int64_t scenes, const data::LoaderOptions& lo) {
+  if (!lo.ordered_views) return;
+  int64_t longest = 0;
+  for (int64_t i = 0; i < scenes; ++i) {
+    longest = std::max(longest, dataset.num_frames(i));
+    if (data::can_sample(dataset.num_frames(i), lo.num_views, lo.min_frame_dist)) return;
+  }
+  throw std::runtime_error(fmt::format(
+      "fit-mapper: no scene of {} is long enough for {} views with the inputs more than {} frames apart (the longest "
+      "has {} frames): give input distances that fit the scenes (--min-frame-dist, --max-frame-dist) or fewer "
+      "targets (--targets)",
+      dataset.root(), lo.num_views, lo.min_frame_dist, longest));
+}
+
 }  // namespace
 
 nlohmann::json MapperFitReport::to_json() const {
-  return {{"scenes", scenes},       {"calibration_views", calibration_views},
-          {"least_squares_rms", least_squares_rms}, {"fit_rms", fit_rms},
-          {"skipped_samples", skipped_samples},     {"seconds", seconds}};
+  return {{"scenes", scenes},
+          {"calibration_views", calibration_views},
+          {"least_squares_rms", least_squares_rms},
+          {"fit_rms", fit_rms},
+          {"held_out_rms", std::isfinite(held_out_rms) ? nlohmann::json(held_out_rms) : nlohmann::json()},
+          {"skipped_samples", skipped_samples},
+          {"seconds", seconds}};
 }
 
 MapperFitReport fit_mapper_to_model(model::UPLVSMImpl& net, model::PoseMapperImpl& mapper,
@@ -174,6 +183,7 @@ MapperFitReport fit_mapper_to_model(model::UPLVSMImpl& net, model::PoseMapperImp
   report.scenes = opt.loader.max_scenes > 0 ? std::min(opt.loader.max_scenes, dataset.size()) : dataset.size();
   if (report.scenes == 0) throw std::runtime_error("fit-mapper: " + dataset.root() + " has no scenes");
   check_posed(dataset, report.scenes);
+  check_some_scene_fits(dataset, report.scenes, opt.loader);
   model::EvalModeGuard mode(net);
   mapper.to(opt.device);
   const auto pairs = collect_pairs(net, dataset, opt);
@@ -182,10 +192,13 @@ MapperFitReport fit_mapper_to_model(model::UPLVSMImpl& net, model::PoseMapperImp
   if (pairs.skipped > 0)
     spdlog::warn("fit-mapper: skipped {} samples whose two input views coincide (no baseline)", pairs.skipped);
   report.least_squares_rms = model::fit_pose_mapper(mapper, torch::cat(pairs.real), torch::cat(pairs.latent));
-  report.fit_rms = mapper.reads_scene() ? regress(mapper, pairs, opt) : report.least_squares_rms;
-  spdlog::info("pose mapper: fitted to {} target views (least-squares RMS {:.4f}, {} mapper RMS {:.4f} latent units)",
-               pairs.views, report.least_squares_rms, model::to_string(mapper.options.kind), report.fit_rms);
-  if (opt.render_steps > 0) train_through_model(net, mapper, dataset, opt);
+  report.fit_rms = report.least_squares_rms;
+  if (mapper.reads_scene()) regress(mapper, pairs, opt, report);
+  spdlog::info(
+      "pose mapper: fitted to {} target views (least-squares RMS {:.4f}; {} mapper RMS {:.4f}, on held-out "
+      "samples {:.4f} latent units)",
+      pairs.views, report.least_squares_rms, model::to_string(mapper.options.kind), report.fit_rms,
+      report.held_out_rms);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
 }

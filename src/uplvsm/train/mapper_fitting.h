@@ -2,12 +2,15 @@
 // scenes, the model's weights unchanged. The model gives, for each posed target view, the latent pose its estimator
 // reads from the image; the mapper is fitted to reproduce it from the view's real camera (camera-control units):
 // the linear mapper by least squares, the MLP mapper from there by full-batch Adam on the same pairs (pose space:
-// no model in the loop, seconds). Training the mapper through the frozen renderer instead was measured and lost
-// (docs/research/camera-control.md). `train --stage mapper` fine-tunes the whole model through its mapper instead.
+// no model in the loop, seconds), every tenth sample held out to keep the best of its checks. Training the mapper
+// through the frozen renderer instead was measured and lost (docs/research/camera-control.md). `train --stage mapper`
+// fine-tunes the whole model through its mapper instead.
 #pragma once
 #include <torch/torch.h>
 
 #include <nlohmann/json.hpp>
+
+#include <cmath>
 
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/loader.h"
@@ -18,23 +21,21 @@ namespace uplvsm::train {
 
 struct MapperFitOptions {
   int64_t calibration_views = 24000;  // posed target views the mapper is fitted on
-  int64_t regression_steps = 4000;   // MLP: full-batch Adam steps (linear warmup, cosine decay)
+  int64_t regression_steps = 4000;    // MLP: full-batch Adam steps (linear warmup, cosine decay)
   double regression_lr = 1e-2;
-  // Research (docs/research/camera-control.md): then this many Adam steps training the mapper through the frozen
-  // model on the render MSE at real cameras (0: none).
-  int64_t render_steps = 0;
-  double render_lr = 1e-3;
   data::LoaderOptions loader;  // the scenes (max_scenes: the first N), views and samples per batch
   torch::Device device = torch::kCPU;
   bool bf16 = false;  // the frozen model's forward under bf16 autocast (the mapper stays fp32)
 };
 
 struct MapperFitReport {
-  int64_t scenes = 0;             // posed scenes the fit could draw from
-  int64_t calibration_views = 0;  // (real pose, latent pose) pairs fitted
-  double least_squares_rms = 0;   // the linear fit's residual, latent units
-  double fit_rms = 0;             // the fitted mapper's residual (the MLP's after its steps; else the linear one's)
-  int64_t skipped_samples = 0;    // samples whose two inputs coincide (no baseline to measure in)
+  int64_t scenes = 0;               // posed scenes the fit could draw from
+  int64_t calibration_views = 0;    // (real pose, latent pose) pairs fitted
+  double least_squares_rms = 0;     // the linear fit's residual, latent units
+  double fit_rms = 0;               // the fitted mapper's residual (the MLP's after its steps; else the linear one's)
+  double held_out_rms = NAN;        // MLP: on every tenth sample, held out of its steps (NaN: under ten samples)
+  double start_held_out_rms = NAN;  // MLP: the same for its least-squares start (the kept map is never worse)
+  int64_t skipped_samples = 0;      // samples whose two inputs coincide (no baseline to measure in)
   double seconds = 0;
   nlohmann::json to_json() const;
 };
