@@ -1,7 +1,7 @@
 // Camera control for the authors' released model without fine-tuning it: `fit-mapper` on the official-format
 // checkpoint fixture (any UP-LVSM the authors' code writes), then the mapper beside it drives `render --mapper` (an
-// orbit from two photos) and `eval --mapper --jitter`; a mapper of another model and a dataset too short for the
-// asked frame distances are refused with what to do.
+// orbit from dataset scenes and from two photos) and `eval --mapper --jitter`; a mapper of another model and a
+// dataset too short for the asked frame distances are refused with what to do.
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -10,6 +10,8 @@
 
 #include "test_util.h"
 #include "train/train_test_util.h"
+#include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/io/image.h"
 
 namespace fs = std::filesystem;
 using namespace uplvsm;
@@ -41,6 +43,22 @@ TEST(FitMapperCli, TheAuthorsCheckpointGetsAMapperBesideItThatRendersAnOrbitAndS
   ASSERT_EQ(test::run_cli(render, &out), 0) << out;
   auto listing = nlohmann::json::parse(std::ifstream(dir / "v" / "videos.json"));
   ASSERT_EQ(listing.size(), 1u);
+
+  // Two photos without cameras: an orbit around the first, the second's real pose read back through the mapper.
+  data::ChunkDataset rooms(test::micro_dataset(), "test");
+  auto views = rooms.load_views(0, {0, 5}, test::micro_prep());
+  std::vector<std::string> photos;
+  for (int i = 0; i < 2; ++i) {
+    photos.push_back((dir / ("photo_" + std::to_string(i) + ".png")).string());
+    io::write_png(photos.back(), (views.images[i].permute({1, 2, 0}) * 255).round().to(torch::kUInt8).contiguous());
+  }
+  ASSERT_EQ(
+      test::run_cli("render --checkpoint " + checkpoint + " --mapper " + mapper.string() + " --images " + photos[0] +
+                        " " + photos[1] + " --frames 3 --trajectory orbit --out " + (dir / "photos").string(),
+                    &out),
+      0)
+      << out;
+  EXPECT_TRUE(fs::exists(dir / "photos" / "video.mp4")) << out;
 
   const auto eval = "eval --checkpoint " + checkpoint + " --mapper " + mapper.string() + " --data " +
                     test::micro_dataset() + " --jitter --visualise 0 --out " + (dir / "e").string();
