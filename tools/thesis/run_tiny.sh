@@ -2,7 +2,7 @@
 # The paper's thesis at `tiny` on the CPU (docs/research/thesis.md): the pose-noise curve, whole-split against
 # chunk-pair shuffling, and the scaling table. Every study skips runs whose result.json exists and resumes a run
 # from its last checkpoint, so this script continues where it stopped (a fresh machine: the same command).
-#   tools/thesis/run_tiny.sh [pose-noise|shuffle|scaling|all]   (default all; OUT=out/thesis, THREADS=1)
+#   tools/thesis/run_tiny.sh [pose-noise|shuffle|scaling|scaling-exact|scaling-noise|all]   (default all; OUT=out/thesis, THREADS=1)
 # Two cores: run it twice at once, SEEDS=777 and SEEDS=778 (distinct run folders), then once with both seeds to
 # write the combined tables and plots (every run is then found done).
 set -euo pipefail
@@ -11,7 +11,7 @@ UPLVSM=${UPLVSM:-build/uplvsm}
 OUT=${OUT:-out/thesis}
 THREADS=${THREADS:-1}
 STEPS=${STEPS:-4000}
-SCALE_STEPS=${SCALE_STEPS:-600}  # the smallest subset's budget; each 4x subset trains 2x longer
+SCALE_STEPS=${SCALE_STEPS:-8000}  # every scaling run's budget (issue 72: fixed, large enough for 8000 rooms)
 read -r -a SEEDS <<<"${SEEDS:-777 778}"
 WHAT=${1:-all}
 COMMON=(--threads "$THREADS" --seeds "${SEEDS[@]}" --set training.eval_every=1000 --set training.checkpoint_every=500)
@@ -36,15 +36,23 @@ if [ "$WHAT" = pose-noise ] || [ "$WHAT" = all ]; then
 fi
 
 
-if [ "$WHAT" = scaling ] || [ "$WHAT" = all ]; then
-  # Nested subsets 4x apart; the budget grows 2x per subset (the steps, not the data, must not run out first).
-  # Three subsets (two 4x steps, ~80 min with two seeds at once): a fourth (8000 rooms, 4800 steps) would double it.
-  [ -f "$OUT/rooms_2000/evaluation_index.json" ] || $UPLVSM make-dataset --config configs/tiny.json \
-    --train-scenes 2000 --out "$OUT/rooms_2000"
-  SCALE=(--data "$OUT/rooms_2000" --subsets 125 500 2000 --steps "$SCALE_STEPS" --steps-growth 2)
-  $UPLVSM study scaling --config configs/tiny.json configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" \
-    "${COMMON[@]}" --out "$OUT/scaling"
-  # The posed models again with pose noise on their cameras (UP-LVSM never reads them).
-  $UPLVSM study scaling --config configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" --noise-std 0.1 \
-    "${COMMON[@]}" --out "$OUT/scaling_noise0.1"
+if [ "$WHAT" = scaling ] || [ "$WHAT" = scaling-exact ] || [ "$WHAT" = scaling-noise ] || [ "$WHAT" = all ]; then
+  # Issue 72: nested subsets 4x apart up to 8000 rooms, every run the same fixed budget (SCALE_STEPS, the largest
+  # subset's need: every smaller subset then gets more epochs, so no run is limited by its steps) and held-out PSNR
+  # every 500 steps to show each curve levelling off. scaling-exact and scaling-noise split the work between the two
+  # cores; SEEDS=778 with --subsets of its own adds the second seed where the verdict needs it.
+  [ -f "$OUT/rooms_8000/evaluation_index.json" ] || $UPLVSM make-dataset --config configs/tiny.json \
+    --train-scenes 8000 --out "$OUT/rooms_8000"
+  read -r -a SUBSETS <<<"${SUBSETS:-125 500 2000 8000}"
+  SCALE=(--data "$OUT/rooms_8000" --subsets "${SUBSETS[@]}" --steps "$SCALE_STEPS" --threads "$THREADS"
+    --seeds "${SEEDS[@]}" --set training.eval_every=500 --set training.checkpoint_every=500)
+  if [ "$WHAT" != scaling-noise ]; then
+    $UPLVSM study scaling --config configs/tiny.json configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" \
+      ${REPORT_ONLY:+--report-only} --out "$OUT/scaling"
+  fi
+  if [ "$WHAT" != scaling-exact ]; then
+    # The posed models again with pose noise on their cameras (UP-LVSM never reads them).
+    $UPLVSM study scaling --config configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" --noise-std 0.1 \
+      ${REPORT_ONLY:+--report-only} --out "$OUT/scaling_noise0.1"
+  fi
 fi
