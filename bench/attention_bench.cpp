@@ -13,7 +13,7 @@
 #include <chrono>
 
 #include "bench_util.h"
-#include "uplvsm/model/flash_attention.h"
+#include "uplvsm/kernels/flash_attention.h"
 #include "uplvsm/model/transformer.h"
 
 namespace {

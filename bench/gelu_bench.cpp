@@ -8,7 +8,7 @@
 
 #include <optional>
 
-#include "uplvsm/model/gelu.h"
+#include "uplvsm/kernels/gelu.h"
 
 namespace {
 

@@ -15,6 +15,7 @@
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/render/renderer.h"
+#include "uplvsm/train/flops.h"
 
 namespace {
 

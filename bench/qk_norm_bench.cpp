@@ -9,7 +9,7 @@
 
 #include <optional>
 
-#include "uplvsm/model/qk_norm.h"
+#include "uplvsm/kernels/qk_norm.h"
 
 namespace {
 

@@ -17,6 +17,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/flops.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/train_step.h"
 

@@ -4,7 +4,7 @@
 // step's backward finds these operands out of cache (written long before, in the forward), so each iteration first
 // streams through 64 MiB; that pass is outside the timed region. Run:
 //   build/uplvsm_bench --benchmark_filter=WeightGradient
-// (On a CPU with AMX-BF16 training takes ATen's; see model/bf16_linear.h.)
+// (On a CPU with AMX-BF16 training takes ATen's; see kernels/bf16_linear.h.)
 #include <benchmark/benchmark.h>
 
 #include <torch/torch.h>
@@ -12,7 +12,7 @@
 #include <chrono>
 
 #include "bench_util.h"
-#include "uplvsm/model/bf16_linear.h"
+#include "uplvsm/kernels/bf16_linear.h"
 
 namespace {
 

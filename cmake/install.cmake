@@ -17,10 +17,10 @@ set(UPLVSM_PUBLIC_HEADERS
     io/gif_writer.h io/mp4_writer.h
     geometry/camera.h geometry/camera_control.h
     data/scene.h data/preprocess.h data/photo.h data/chunk_dataset.h data/chunk_cache.h data/dataset_info.h data/lvsm_layout.h
-    model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h model/pretrained_weights.h
-    model/checkpoint_io.h model/state_dict.h model/flops.h model/dinov2.h model/transformer.h model/rgb_head.h
-    model/latent_plucker_learner.h model/pose_mapper.h model/pose_tokenizer.h model/vgg_features.h
-    model/cast_once_linear.h
+    model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h io/pretrained_weights.h
+    io/checkpoint_io.h io/state_dict.h model/dinov2.h model/transformer.h model/rgb_head.h
+    model/latent_plucker_learner.h model/pose_mapper.h model/pose_tokenizer.h backbones/vgg_features.h
+    kernels/cast_once_linear.h
     eval/metrics.h eval/lpips.h
     render/renderer.h render/trajectory.h)
 foreach(header ${UPLVSM_PUBLIC_HEADERS})

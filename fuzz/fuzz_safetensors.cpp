@@ -5,8 +5,8 @@
 #include <exception>
 
 #include "fuzz_util.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/checkpoint_io.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const auto path = uplvsm::fuzz::write_scratch("weights.safetensors", data, size);

@@ -5,7 +5,7 @@
 
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/train/perceptual_loss.h"
 
 namespace {

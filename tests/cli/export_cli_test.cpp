@@ -5,7 +5,7 @@
 
 #include "test_util.h"
 #include "train/train_test_util.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 
 using namespace uplvsm;
 

@@ -8,8 +8,8 @@
 #include "test_util.h"
 #include "uplvsm/core/config.h"
 #include "uplvsm/core/retired_keys.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/checkpoint_io.h"
 
 using namespace uplvsm;
 

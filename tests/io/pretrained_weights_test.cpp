@@ -3,11 +3,11 @@
 #include <gtest/gtest.h>
 
 #include "test_util.h"
+#include "uplvsm/io/checkpoint_io.h"
+#include "uplvsm/io/pretrained_weights.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/dinov2.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 
 using namespace uplvsm;

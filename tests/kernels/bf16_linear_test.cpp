@@ -2,7 +2,7 @@
 // shapes that exercise the odd row, the output-row and column tails and the split into parts; its independence of
 // the thread count; the linear's forward and gradients against autocast's ATen linear; CastOnceLinear taking it in
 // autocast training only; ATen's weight gradient where the CPU has AMX-BF16 or where chosen.
-#include "uplvsm/model/bf16_linear.h"
+#include "uplvsm/kernels/bf16_linear.h"
 
 #include <ATen/Parallel.h>
 #include <gtest/gtest.h>
@@ -11,8 +11,8 @@
 #include <cstdlib>
 
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/model/bf16_simd.h"
-#include "uplvsm/model/cast_once_linear.h"
+#include "uplvsm/kernels/bf16_simd.h"
+#include "uplvsm/kernels/cast_once_linear.h"
 
 using namespace uplvsm;
 

@@ -1,7 +1,7 @@
 // Tests of model/bf16_simd (internal): the row kernels' rounding of fp32 to bf16 against c10::BFloat16 itself, bit
 // for bit — on a sweep over all fp32 bit patterns, on the cases where vcvtneps2bf16 and c10 disagree (denormals,
 // NaNs with a sign or payload), and on blocks that mix them with ordinary values.
-#include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/kernels/bf16_simd.h"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Tests of model/cast_once_linear: bit-equal to torch::nn::Linear under bf16 autocast, fp32 and with gradients;
 // the bf16 copy follows every change of the weights.
-#include "uplvsm/model/cast_once_linear.h"
+#include "uplvsm/kernels/cast_once_linear.h"
 
 #include <c10/core/impl/LocalDispatchKeySet.h>
 #include <gtest/gtest.h>

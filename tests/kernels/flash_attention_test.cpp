@@ -8,9 +8,9 @@
 
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/model/flash_attention.h"
-#include "uplvsm/model/flash_attention_simd.h"  // internal: the kernels' exp2
-#include "uplvsm/model/qk_norm.h"
+#include "uplvsm/kernels/flash_attention.h"
+#include "uplvsm/kernels/flash_attention_simd.h"  // internal: the kernels' exp2
+#include "uplvsm/kernels/qk_norm.h"
 #include "uplvsm/model/transformer.h"
 
 using namespace uplvsm;

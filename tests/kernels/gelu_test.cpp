@@ -1,7 +1,7 @@
 // Tests of model/gelu: the fused bf16 GELU against LibTorch's gelu and gelu_backward and against an independent
 // fp64 computation with std::erfc, values and gradients, over lengths that exercise the masked tail and the thread
 // split; non-finite inputs; the inputs it leaves to LibTorch.
-#include "uplvsm/model/gelu.h"
+#include "uplvsm/kernels/gelu.h"
 
 #include <gtest/gtest.h>
 

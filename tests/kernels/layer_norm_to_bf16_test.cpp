@@ -2,7 +2,7 @@
 // layer_norm, then the cast): values and gradients of x, weight and bias, with and without bias, widths with and
 // without the vectorised path, bf16 and fp32 upstream gradients, independent of the thread count; and the residual
 // add joined to it (add_layer_norm_to_bf16) against LibTorch's add followed by the same chain.
-#include "uplvsm/model/layer_norm_to_bf16.h"
+#include "uplvsm/kernels/layer_norm_to_bf16.h"
 
 #include <gtest/gtest.h>
 

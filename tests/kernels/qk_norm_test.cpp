@@ -1,6 +1,6 @@
 // Tests of model/qk_norm: the fused QK-Norm against the exact unfused chain (values and gradients of x and the
 // weight; fp32, bf16, bf16 -> fp32), on strided head views, independent of the thread count.
-#include "uplvsm/model/qk_norm.h"
+#include "uplvsm/kernels/qk_norm.h"
 
 #include <gtest/gtest.h>
 

@@ -4,8 +4,8 @@
 
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/model/dinov2.h"
-#include "uplvsm/model/state_dict.h"
 
 using namespace uplvsm;
 

@@ -8,9 +8,9 @@
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/io/safetensors.h"
+#include "uplvsm/io/state_dict.h"
+#include "uplvsm/kernels/flash_attention.h"
 #include "uplvsm/model/dinov2.h"
-#include "uplvsm/model/flash_attention.h"
-#include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/transformer.h"
 
 using namespace uplvsm;

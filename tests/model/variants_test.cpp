@@ -8,10 +8,11 @@
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/plucker.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/posed_lvsm.h"
-#include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/flops.h"
 
 using namespace uplvsm;
 using torch::indexing::Slice;

@@ -7,7 +7,7 @@
 #include "train/train_test_util.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/metrics.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/render/renderer.h"
 #include "uplvsm/train/trainer.h"

@@ -4,7 +4,7 @@
 
 #include "serve_test_util.h"
 #include "uplvsm/data/chunk_dataset.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::test {

@@ -14,7 +14,7 @@
 #include <optional>
 
 #include "train_test_util.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 
 using namespace uplvsm;
 namespace fs = std::filesystem;

@@ -4,7 +4,7 @@
 
 #include "test_util.h"
 #include "train/train_test_util.h"
-#include "uplvsm/model/masked_image_modeling.h"
+#include "uplvsm/train/masked_image_modeling.h"
 
 using namespace uplvsm;
 

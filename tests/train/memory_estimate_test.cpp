@@ -3,8 +3,8 @@
 #include <gtest/gtest.h>
 
 #include "train/train_test_util.h"
-#include "uplvsm/model/memory_estimate.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/train/memory_estimate.h"
 
 using namespace uplvsm;
 

@@ -6,7 +6,7 @@
 #include "train/train_test_util.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pose_mapper_file.h"
+#include "uplvsm/train/pose_mapper_file.h"
 
 using namespace uplvsm;
 

@@ -8,8 +8,8 @@
 #include "test_util.h"
 #include "train_test_util.h"
 #include "uplvsm/io/safetensors.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/state_dict.h"
 #include "uplvsm/train/tokenizer_pretraining.h"
 #include "uplvsm/train/trainer.h"
 

@@ -3,11 +3,11 @@
 #include <fstream>
 
 #include "train_test_util.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/posed_lvsm.h"
-#include "uplvsm/model/state_dict.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/perceptual_loss.h"
 #include "uplvsm/train/trainer.h"

@@ -7,7 +7,7 @@
 
 #include "train_test_util.h"
 #include "uplvsm/data/loader.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/trainer.h"

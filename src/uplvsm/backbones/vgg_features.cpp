@@ -1,8 +1,8 @@
-#include "uplvsm/model/vgg_features.h"
+#include "uplvsm/backbones/vgg_features.h"
 
 #include <fmt/format.h>
 
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/io/pretrained_weights.h"
 
 namespace uplvsm::model {
 

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 
 namespace uplvsm::model {
 

@@ -9,10 +9,10 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
+#include "uplvsm/io/checkpoint_io.h"
+#include "uplvsm/io/pretrained_weights.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/train/perceptual_loss.h"
 
 namespace uplvsm::cli {

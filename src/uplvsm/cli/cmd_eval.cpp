@@ -12,7 +12,7 @@
 #include "uplvsm/eval/eval_pose_noise.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/io/atomic_file.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/train/distributed.h"
 

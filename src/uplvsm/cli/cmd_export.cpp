@@ -6,7 +6,7 @@
 #include <fmt/format.h>
 
 #include "uplvsm/cli/commands.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 
 namespace uplvsm::cli {
 

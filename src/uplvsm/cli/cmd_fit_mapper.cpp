@@ -11,10 +11,10 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/study/mapper_scenes.h"
 #include "uplvsm/train/mapper_fitting.h"
+#include "uplvsm/train/pose_mapper_file.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {

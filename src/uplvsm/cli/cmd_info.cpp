@@ -7,8 +7,8 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/config.h"
 #include "uplvsm/core/runtime.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/mp4_writer.h"
-#include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::cli {

@@ -12,7 +12,7 @@
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/eval/evaluator.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/train/global_batch.h"
 #include "uplvsm/train/run_plan.h"
 #include "uplvsm/train/tokenizer_pretraining.h"

@@ -5,8 +5,8 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
+#include "uplvsm/train/pose_mapper_file.h"
 
 namespace uplvsm::cli {
 

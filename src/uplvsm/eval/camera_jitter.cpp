@@ -5,11 +5,11 @@
 #include <numeric>
 
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/quaternion.h"
-#include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::eval {
 

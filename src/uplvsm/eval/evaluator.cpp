@@ -15,6 +15,7 @@
 #include <utility>
 
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/eval_index.h"
 #include "uplvsm/eval/baselines.h"
@@ -22,7 +23,6 @@
 #include "uplvsm/eval/metrics.h"
 #include "uplvsm/eval/result_files.h"
 #include "uplvsm/io/image.h"
-#include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::eval {
 namespace {

@@ -1,4 +1,4 @@
-#include "uplvsm/model/latent_pose_refinement.h"
+#include "uplvsm/eval/latent_pose_refinement.h"
 
 namespace uplvsm::model {
 

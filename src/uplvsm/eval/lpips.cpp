@@ -4,7 +4,7 @@
 
 #include <fmt/format.h>
 
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/io/pretrained_weights.h"
 
 namespace uplvsm::eval {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "uplvsm/model/vgg_features.h"
+#include "uplvsm/backbones/vgg_features.h"
 
 namespace uplvsm::eval {
 

@@ -5,7 +5,7 @@
 #pragma once
 #include <torch/torch.h>
 
-#include "uplvsm/model/latent_pose_refinement.h"
+#include "uplvsm/eval/latent_pose_refinement.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::eval {

@@ -1,4 +1,4 @@
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 
 #include <algorithm>
 #include <filesystem>

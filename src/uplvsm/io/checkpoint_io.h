@@ -8,7 +8,7 @@
 #include <string>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 
 namespace uplvsm::model {
 

@@ -1,4 +1,4 @@
-#include "uplvsm/model/pretrained_weights.h"
+#include "uplvsm/io/pretrained_weights.h"
 
 #include <filesystem>
 #include <regex>
@@ -6,9 +6,9 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/torch_file.h"
-#include "uplvsm/model/checkpoint_io.h"
 
 namespace uplvsm::model {
 
@@ -134,13 +134,6 @@ PretrainedWeights read_pretrained_weights(const std::string& path) {
                     path, some_keys(raw)));
   }
   return w;
-}
-
-LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const NamedTensors& meta, const std::string& source) {
-  LoadOptions options;
-  options.skip_prefixes = {"mask_token"};  // only used by DINOv2's masked-image pretraining; deleted officially
-  if (net.config.dinov2.qk_norm) options.allow_missing_substrings = {"attn.q_norm.", "attn.k_norm."};
-  return load_state_dict(*net.tokenizer->dino_vit, meta, source, options);
 }
 
 }  // namespace uplvsm::model

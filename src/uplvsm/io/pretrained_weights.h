@@ -1,15 +1,15 @@
 // Weight files users bring, in any of their formats (official UP-LVSM .pt, Meta DINOv2 .pth, HuggingFace DINOv2
 // safetensors, our own checkpoints), read and renamed to our module names. Our parameter names equal the official
 // UP-LVSM state_dict names, so official checkpoints need no renaming; DINOv2 files map onto the image tokenizer's
-// ViT. Building a model from them (and inferring its dimensions) is model_factory.h's.
+// ViT. Building a model from them (inferring its dimensions) and loading DINOv2 into its tokenizer is
+// model/model_factory.h's.
 #pragma once
 #include <torch/torch.h>
 
 #include <string>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/novel_view_model.h"
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 
 namespace uplvsm::model {
 
@@ -36,10 +36,5 @@ PretrainedWeights read_pretrained_weights(const std::string& path);
 
 // HuggingFace Dinov2Model names -> Meta names. Unknown keys are an error listing them.
 NamedTensors dinov2_from_huggingface(const NamedTensors& hf, const std::string& source);
-
-// Loads Meta-named DINOv2 weights into a model's image tokenizer (strict over the ViT): mask_token is dropped (the
-// official model deletes it) and the QK-norm weights that Meta's files lack stay at ones — the report lists them so
-// the user is told.
-LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const NamedTensors& meta, const std::string& source);
 
 }  // namespace uplvsm::model

@@ -1,4 +1,4 @@
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 
 #include <stdexcept>
 

@@ -1,4 +1,4 @@
-#include "uplvsm/model/bf16_linear.h"
+#include "uplvsm/kernels/bf16_linear.h"
 
 #include <ATen/Parallel.h>
 #include <ATen/record_function.h>
@@ -9,8 +9,8 @@
 #include <cstring>
 #include <vector>
 
-#include "uplvsm/model/bf16_micro_kernel.h"
-#include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/kernels/bf16_micro_kernel.h"
+#include "uplvsm/kernels/bf16_simd.h"
 
 namespace uplvsm::model {
 namespace {

@@ -1,4 +1,4 @@
-#include "uplvsm/model/cast_once_linear.h"
+#include "uplvsm/kernels/cast_once_linear.h"
 
 #include <cstdlib>
 #include <cstring>
@@ -6,7 +6,7 @@
 #include <ATen/autocast_mode.h>
 
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/model/bf16_linear.h"
+#include "uplvsm/kernels/bf16_linear.h"
 
 namespace uplvsm::model {
 

@@ -2,7 +2,7 @@
 #pragma once
 #include <immintrin.h>
 
-#include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/kernels/bf16_simd.h"
 
 namespace uplvsm::model::row_simd {
 

@@ -1,4 +1,4 @@
-#include "uplvsm/model/flash_attention.h"
+#include "uplvsm/kernels/flash_attention.h"
 
 #include <ATen/Parallel.h>
 #include <ATen/record_function.h>
@@ -8,9 +8,9 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "uplvsm/model/block_sums.h"
-#include "uplvsm/model/flash_attention_kernels.h"
-#include "uplvsm/model/qk_norm.h"
+#include "uplvsm/kernels/block_sums.h"
+#include "uplvsm/kernels/flash_attention_kernels.h"
+#include "uplvsm/kernels/qk_norm.h"
 
 namespace uplvsm::model {
 namespace {

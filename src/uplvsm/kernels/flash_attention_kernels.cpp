@@ -1,8 +1,8 @@
-#include "uplvsm/model/flash_attention_kernels.h"
+#include "uplvsm/kernels/flash_attention_kernels.h"
 
-#include "uplvsm/model/bf16_simd.h"
-#include "uplvsm/model/flash_attention_simd.h"
-#include "uplvsm/model/qk_norm_rows.h"
+#include "uplvsm/kernels/bf16_simd.h"
+#include "uplvsm/kernels/flash_attention_simd.h"
+#include "uplvsm/kernels/qk_norm_rows.h"
 
 namespace uplvsm::model::flash {
 namespace {

@@ -1,10 +1,10 @@
 // The bf16 fused attention kernels: every matmul is an AVX-512 BF16 dot product of bf16 pairs with fp32
 // accumulation (twice the fp32 FMA rate); softmax, running max/sum and gradients accumulate in fp32. Operands are
 // packed per head into pair layouts (O(L d) work) so that the micro-kernel only streams.
-#include "uplvsm/model/bf16_micro_kernel.h"
-#include "uplvsm/model/bf16_simd.h"
-#include "uplvsm/model/flash_attention_packing_bf16.h"
-#include "uplvsm/model/flash_attention_simd.h"
+#include "uplvsm/kernels/bf16_micro_kernel.h"
+#include "uplvsm/kernels/bf16_simd.h"
+#include "uplvsm/kernels/flash_attention_packing_bf16.h"
+#include "uplvsm/kernels/flash_attention_simd.h"
 
 namespace uplvsm::model::flash::detail {
 namespace {

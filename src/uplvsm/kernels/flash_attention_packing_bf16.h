@@ -5,8 +5,8 @@
 #include <cstdint>
 #include <cstring>
 
-#include "uplvsm/model/flash_attention_simd.h"
-#include "uplvsm/model/qk_norm_rows.h"
+#include "uplvsm/kernels/flash_attention_simd.h"
+#include "uplvsm/kernels/qk_norm_rows.h"
 
 namespace uplvsm::model::flash::detail::bf16_packing {
 

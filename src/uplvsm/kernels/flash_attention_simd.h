@@ -9,8 +9,8 @@
 #include <limits>
 #include <vector>
 
-#include "uplvsm/model/exp_simd.h"
-#include "uplvsm/model/flash_attention_kernels.h"
+#include "uplvsm/kernels/exp_simd.h"
+#include "uplvsm/kernels/flash_attention_kernels.h"
 
 // GCC 12's AVX-512 reduction intrinsics start from _mm512_undefined_ps, which -Wmaybe-uninitialized misreads.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"

@@ -1,4 +1,4 @@
-#include "uplvsm/model/gelu.h"
+#include "uplvsm/kernels/gelu.h"
 
 #include <ATen/Parallel.h>
 #include <ATen/record_function.h>
@@ -6,8 +6,8 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "uplvsm/model/bf16_simd.h"
-#include "uplvsm/model/exp_simd.h"
+#include "uplvsm/kernels/bf16_simd.h"
+#include "uplvsm/kernels/exp_simd.h"
 
 namespace uplvsm::model {
 namespace {

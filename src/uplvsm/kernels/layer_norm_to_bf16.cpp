@@ -1,4 +1,4 @@
-#include "uplvsm/model/layer_norm_to_bf16.h"
+#include "uplvsm/kernels/layer_norm_to_bf16.h"
 
 #include <ATen/Parallel.h>
 #include <ATen/record_function.h>
@@ -7,8 +7,8 @@
 #include <cstdlib>
 #include <cstring>
 
-#include "uplvsm/model/bf16_simd.h"
-#include "uplvsm/model/block_sums.h"
+#include "uplvsm/kernels/bf16_simd.h"
+#include "uplvsm/kernels/block_sums.h"
 
 namespace uplvsm::model {
 namespace {

@@ -1,4 +1,4 @@
-#include "uplvsm/model/qk_norm.h"
+#include "uplvsm/kernels/qk_norm.h"
 
 #include <ATen/Parallel.h>
 #include <ATen/record_function.h>
@@ -8,9 +8,9 @@
 #include <cstring>
 #include <vector>
 
-#include "uplvsm/model/bf16_simd.h"
-#include "uplvsm/model/block_sums.h"
-#include "uplvsm/model/qk_norm_rows.h"
+#include "uplvsm/kernels/bf16_simd.h"
+#include "uplvsm/kernels/block_sums.h"
+#include "uplvsm/kernels/qk_norm_rows.h"
 
 namespace uplvsm::model {
 namespace {

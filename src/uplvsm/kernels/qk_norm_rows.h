@@ -7,7 +7,7 @@
 
 #include <cstdint>
 
-#include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/kernels/bf16_simd.h"
 
 namespace uplvsm::model::qk_norm_rows {
 

@@ -1,10 +1,10 @@
 #include "uplvsm/model/dinov2.h"
 
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/model/flash_attention.h"
-#include "uplvsm/model/gelu.h"
+#include "uplvsm/kernels/flash_attention.h"
+#include "uplvsm/kernels/gelu.h"
+#include "uplvsm/kernels/qk_norm.h"
 #include "uplvsm/model/gradient_checkpoint.h"
-#include "uplvsm/model/qk_norm.h"
 
 #include <cmath>
 

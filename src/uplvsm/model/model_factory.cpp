@@ -7,22 +7,16 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/io/checkpoint_io.h"
+#include "uplvsm/io/pretrained_weights.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/torch_file.h"
-#include "uplvsm/model/checkpoint_io.h"
 #include "uplvsm/model/posed_lvsm.h"
-#include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::model {
 
 namespace {
-
-// Which input views of a posed variant carry their rays.
-PosedInputs posed_inputs(Variant variant) {
-  TORCH_CHECK(variant != Variant::UPLVSM, "the uplvsm variant has no posed inputs");
-  return variant == Variant::PTLVSM ? PosedInputs::First : PosedInputs::All;
-}
 
 const torch::Tensor& require(const NamedTensors& w, const std::string& key) {
   auto it = w.find(key);
@@ -42,12 +36,6 @@ NovelViewModel make_model(const ModelConfig& config) {
     model = std::make_shared<PosedLVSMImpl>(config, posed);
   }
   return model;
-}
-
-FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views) {
-  if (config.variant == Variant::UPLVSM) return uplvsm_forward_flops(config, batch, input_views, target_views);
-  const int64_t posed = posed_inputs(config.variant) == PosedInputs::All ? input_views : 1;
-  return posed_lvsm_forward_flops(config, batch, input_views, target_views, posed);
 }
 
 ModelConfig infer_model_config(const NamedTensors& w, ModelConfig c) {
@@ -133,6 +121,13 @@ NovelViewModel load_model_with_config_file(const std::string& path, const std::s
   if (config_hint_path.empty()) return load_model(path, device, config_out);
   const Config hint = load_config(config_hint_path);
   return load_model(path, device, config_out, &hint);
+}
+
+LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const NamedTensors& meta, const std::string& source) {
+  LoadOptions options;
+  options.skip_prefixes = {"mask_token"};  // only used by DINOv2's masked-image pretraining; deleted officially
+  if (net.config.dinov2.qk_norm) options.allow_missing_substrings = {"attn.q_norm.", "attn.k_norm."};
+  return load_state_dict(*net.tokenizer->dino_vit, meta, source, options);
 }
 
 }  // namespace uplvsm::model

@@ -7,9 +7,8 @@
 #include <string>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/flops.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/model/novel_view_model.h"
-#include "uplvsm/model/state_dict.h"
 
 namespace uplvsm::model {
 
@@ -33,7 +32,9 @@ NovelViewModel load_model(const std::string& path, const torch::Device& device, 
 NovelViewModel load_model_with_config_file(const std::string& path, const std::string& config_hint_path,
                                            const torch::Device& device, Config* config_out = nullptr);
 
-// One forward of config's model (flops.h), without building it.
-FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
+// Loads Meta-named DINOv2 weights (io/pretrained_weights.h) into a model's image tokenizer (strict over the ViT):
+// mask_token is dropped (the official model deletes it) and the QK-norm weights that Meta's files lack stay at ones —
+// the report lists them so the user is told.
+LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const NamedTensors& meta, const std::string& source);
 
 }  // namespace uplvsm::model

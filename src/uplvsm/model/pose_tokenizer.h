@@ -3,7 +3,7 @@
 #pragma once
 #include <torch/torch.h>
 
-#include "uplvsm/model/cast_once_linear.h"
+#include "uplvsm/kernels/cast_once_linear.h"
 
 namespace uplvsm::model {
 

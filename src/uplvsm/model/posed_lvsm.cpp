@@ -83,4 +83,9 @@ CameraRenderer PosedLVSMImpl::camera_control(const Views& inputs) {
   };
 }
 
+PosedInputs posed_inputs(Variant variant) {
+  TORCH_CHECK(variant != Variant::UPLVSM, "the uplvsm variant has no posed inputs");
+  return variant == Variant::PTLVSM ? PosedInputs::First : PosedInputs::All;
+}
+
 }  // namespace uplvsm::model

@@ -19,6 +19,8 @@ enum class PosedInputs {
   First,  // PT-LVSM: view 0, as UP-LVSM's canonical marker
   All,    // LVSM: every input view
 };
+// The posed variant's choice (ptlvsm: First, lvsm: All); the uplvsm variant has none (an error).
+PosedInputs posed_inputs(Variant variant);
 
 struct PosedLVSMImpl : NovelViewModelImpl {
   PosedLVSMImpl(const ModelConfig& config, PosedInputs posed_inputs);

@@ -1,11 +1,11 @@
 #include "uplvsm/model/transformer.h"
 
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/model/flash_attention.h"
-#include "uplvsm/model/gelu.h"
+#include "uplvsm/kernels/flash_attention.h"
+#include "uplvsm/kernels/gelu.h"
+#include "uplvsm/kernels/layer_norm_to_bf16.h"
+#include "uplvsm/kernels/qk_norm.h"
 #include "uplvsm/model/gradient_checkpoint.h"
-#include "uplvsm/model/layer_norm_to_bf16.h"
-#include "uplvsm/model/qk_norm.h"
 
 #include <algorithm>
 #include <cmath>

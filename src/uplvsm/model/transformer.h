@@ -8,7 +8,7 @@
 #include <optional>
 #include <vector>
 
-#include "uplvsm/model/cast_once_linear.h"
+#include "uplvsm/kernels/cast_once_linear.h"
 
 namespace uplvsm::model {
 

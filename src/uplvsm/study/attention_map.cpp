@@ -4,8 +4,8 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/io/raster.h"
-#include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::study {
 

@@ -5,12 +5,12 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/geometry/quaternion.h"
 #include "uplvsm/io/atomic_file.h"
-#include "uplvsm/model/eval_mode.h"
 #include "uplvsm/model/pose_mapper.h"
 
 namespace uplvsm::study {

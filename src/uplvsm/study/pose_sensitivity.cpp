@@ -3,10 +3,10 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/eval/metrics.h"
 #include "uplvsm/io/atomic_file.h"
-#include "uplvsm/model/eval_mode.h"
 
 namespace uplvsm::study {
 

@@ -1,4 +1,4 @@
-// Training checkpoints: model + AdamW state + training state in one safetensors file (model/checkpoint_io.h),
+// Training checkpoints: model + AdamW state + training state in one safetensors file (io/checkpoint_io.h),
 // written atomically as <run>/checkpoints/ckpt_<step:016>.safetensors, the oldest beyond `keep` deleted; plus
 // best.safetensors (model only), the weights of the best periodic evaluation so far.
 #pragma once
@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/checkpoint_io.h"
+#include "uplvsm/io/checkpoint_io.h"
 
 namespace uplvsm::train {
 

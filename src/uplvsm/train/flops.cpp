@@ -1,4 +1,6 @@
-#include "uplvsm/model/flops.h"
+#include "uplvsm/train/flops.h"
+
+#include "uplvsm/model/posed_lvsm.h"
 
 namespace uplvsm::model {
 
@@ -72,6 +74,12 @@ FlopCount posed_lvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t 
   f.decoder = b * vt * transformer_stack_flops(t.n_layer, input_views * s.n + s.n, s.n, t.d, 4 * t.d);
   f.other = b * (static_cast<double>(posed_input_views) * s.plucker_tokens + vt * (s.plucker_tokens + s.rgb_head));
   return f;
+}
+
+FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views) {
+  if (config.variant == Variant::UPLVSM) return uplvsm_forward_flops(config, batch, input_views, target_views);
+  const int64_t posed = posed_inputs(config.variant) == PosedInputs::All ? input_views : 1;
+  return posed_lvsm_forward_flops(config, batch, input_views, target_views, posed);
 }
 
 }  // namespace uplvsm::model

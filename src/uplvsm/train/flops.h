@@ -26,4 +26,7 @@ FlopCount uplvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t
 FlopCount posed_lvsm_forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views,
                                    int64_t posed_input_views);
 
+// One forward of config's model (the one of the two above that it is), without building it.
+FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
+
 }  // namespace uplvsm::model

@@ -8,11 +8,11 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/geometry/camera_control.h"
-#include "uplvsm/model/eval_mode.h"
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 #include "uplvsm/train/optimizer.h"
 
 namespace uplvsm::train {

@@ -1,4 +1,4 @@
-#include "uplvsm/model/masked_image_modeling.h"
+#include "uplvsm/train/masked_image_modeling.h"
 
 #include <cmath>
 

@@ -1,4 +1,4 @@
-#include "uplvsm/model/memory_estimate.h"
+#include "uplvsm/train/memory_estimate.h"
 
 namespace uplvsm::model {
 namespace {

@@ -4,7 +4,7 @@
 
 #include <cmath>
 
-#include "uplvsm/model/bf16_simd.h"
+#include "uplvsm/kernels/bf16_simd.h"
 
 // GCC 12's _mm512_sqrt_ps starts from _mm512_undefined_ps, which -Wmaybe-uninitialized misreads.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"

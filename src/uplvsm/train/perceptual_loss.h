@@ -13,8 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "uplvsm/backbones/vgg_features.h"
 #include "uplvsm/core/config.h"
-#include "uplvsm/model/vgg_features.h"
 
 namespace uplvsm::train {
 

@@ -1,4 +1,4 @@
-#include "uplvsm/model/pose_mapper_file.h"
+#include "uplvsm/train/pose_mapper_file.h"
 
 #include <cstring>
 #include <stdexcept>
@@ -6,7 +6,7 @@
 #include <fmt/format.h>
 
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/state_dict.h"
+#include "uplvsm/io/state_dict.h"
 
 namespace uplvsm::model {
 

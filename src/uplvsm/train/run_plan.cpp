@@ -4,7 +4,7 @@
 
 #include <fmt/format.h>
 
-#include "uplvsm/model/memory_estimate.h"
+#include "uplvsm/train/memory_estimate.h"
 
 namespace uplvsm::train {
 

@@ -5,13 +5,13 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/geometry/camera_control.h"
-#include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/model/eval_mode.h"
+#include "uplvsm/io/checkpoint_io.h"
+#include "uplvsm/io/pretrained_weights.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pretrained_weights.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/optimizer.h"
 

@@ -12,7 +12,7 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/io/safetensors.h"
-#include "uplvsm/model/masked_image_modeling.h"
+#include "uplvsm/train/masked_image_modeling.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/trainer.h"
 

@@ -1,5 +1,5 @@
 // `uplvsm train --stage tokenizer`: self-supervised pretraining of the image tokenizer by masked image modelling
-// (model/masked_image_modeling.h) on the training split's images, the paper's recipe with our own pretrained
+// (train/masked_image_modeling.h) on the training split's images, the paper's recipe with our own pretrained
 // features where it starts from Meta's DINOv2. The result is a DINOv2-format file (Meta names) that a UP-LVSM run
 // reads with `--init`, exactly as it would read Meta's weights. No camera is read.
 #pragma once

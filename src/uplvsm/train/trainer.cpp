@@ -12,6 +12,7 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/core/eval_mode.h"
 #include "uplvsm/core/progress.h"
 #include "uplvsm/core/psnr.h"
 #include "uplvsm/core/runtime.h"
@@ -19,12 +20,11 @@
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/io/atomic_file.h"
-#include "uplvsm/model/checkpoint_io.h"
-#include "uplvsm/model/eval_mode.h"
-#include "uplvsm/model/memory_estimate.h"
+#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/global_batch.h"
+#include "uplvsm/train/memory_estimate.h"
 #include "uplvsm/train/optimizer.h"
 #include "uplvsm/train/perceptual_loss.h"
 #include "uplvsm/train/run_plan.h"
