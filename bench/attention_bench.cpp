@@ -14,6 +14,7 @@
 
 #include "bench_util.h"
 #include "uplvsm/kernels/flash_attention.h"
+#include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/transformer.h"
 
 namespace {
@@ -23,8 +24,8 @@ using namespace uplvsm;
 void run_attention(benchmark::State& state, int64_t B, int64_t heads, int64_t L, int64_t head_dim) {
   const bool bf16 = state.range(1) != 0, fused = state.range(2) != 0, backward = state.range(3) != 0;
   const auto dtype = bf16 ? torch::kBFloat16 : torch::kFloat32;
-  model::set_attention_kernel(fused ? model::AttentionKernel::Fused : model::AttentionKernel::Unfused);
-  if (fused && !model::fused_attention_applies(torch::kCPU, dtype, head_dim)) {
+  kernels::set_attention_kernel(fused ? kernels::AttentionKernel::Fused : kernels::AttentionKernel::Unfused);
+  if (fused && !kernels::fused_attention_applies(torch::kCPU, dtype, head_dim)) {
     state.SkipWithError("the fused kernel does not run on this CPU");
     return;
   }
@@ -35,9 +36,9 @@ void run_attention(benchmark::State& state, int64_t B, int64_t heads, int64_t L,
   auto run = [&] {
     if (!backward) {
       torch::NoGradGuard no_grad;
-      return model::attention(q, k, v);
+      return kernels::attention(q, k, v);
     }
-    auto o = model::attention(q, k, v);
+    auto o = kernels::attention(q, k, v);
     o.backward(grad);
     return q.grad();
   };
@@ -49,7 +50,7 @@ void run_attention(benchmark::State& state, int64_t B, int64_t heads, int64_t L,
   bench::set_flop_counters(state, forward_flops * (backward ? 3.0 : 1.0), seconds, bf16);
   state.SetLabel(std::string(bf16 ? "bf16" : "fp32") + (fused ? " fused" : " unfused") +
                  (backward ? " fwd+bwd" : " fwd"));
-  model::set_attention_kernel(model::AttentionKernel::Fused);
+  kernels::set_attention_kernel(kernels::AttentionKernel::Fused);
 }
 void BM_Attention(benchmark::State& state) { run_attention(state, 1, 12, state.range(0), 64); }
 void BM_AttentionDemo(benchmark::State& state) { run_attention(state, 8, 4, state.range(0), 32); }

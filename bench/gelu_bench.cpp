@@ -17,7 +17,7 @@ using namespace uplvsm;
 void BM_Gelu(benchmark::State& state) {
   const bool paper = state.range(0) != 0, fused = state.range(1) != 0, backward = state.range(2) != 0;
   const int64_t B = paper ? 3 : 8, L = paper ? 1280 : 544, H = paper ? 3072 : 512;
-  if (fused && !model::gelu_fuses(torch::ones({1}, torch::kBFloat16))) {
+  if (fused && !kernels::gelu_fuses(torch::ones({1}, torch::kBFloat16))) {
     state.SkipWithError("the fused kernel does not run here (no AVX-512, or UPLVSM_GELU=aten)");
     return;
   }
@@ -27,7 +27,7 @@ void BM_Gelu(benchmark::State& state) {
   auto run = [&] {
     std::optional<torch::NoGradGuard> no_grad;
     if (!backward) no_grad.emplace();
-    auto y = fused ? model::gelu(x) : torch::gelu(x);
+    auto y = fused ? kernels::gelu(x) : torch::gelu(x);
     if (backward) y.backward(grad);
     return y;
   };

@@ -28,7 +28,7 @@ void BM_QKNorm(benchmark::State& state) {
     std::optional<torch::NoGradGuard> no_grad;
     if (!backward) no_grad.emplace();
     auto x = projection.chunk(3, -1)[0].view({B, L, H, D});
-    auto y = fused ? model::qk_norm(x, weight, 1e-3, dtype) : model::qk_norm_unfused(x, weight, 1e-3, dtype);
+    auto y = fused ? kernels::qk_norm(x, weight, 1e-3, dtype) : kernels::qk_norm_unfused(x, weight, 1e-3, dtype);
     if (backward) y.backward(grad);
     return y;
   };

@@ -23,10 +23,10 @@ void BM_WeightGradient(benchmark::State& state) {
   const bool ours = state.range(3) != 0;
   auto input = torch::randn({K, I}).to(torch::kBFloat16);
   // Our product is measured wherever it can run, also where training takes ATen's (a CPU with AMX-BF16).
-  const auto chosen = model::weight_gradient_path();
-  model::set_weight_gradient_path(model::WeightGradientPath::Ours);
-  const bool runs = model::bf16_linear_applies(input, torch::zeros({O, I}, torch::kBFloat16));
-  model::set_weight_gradient_path(chosen);
+  const auto chosen = kernels::weight_gradient_path();
+  kernels::set_weight_gradient_path(kernels::WeightGradientPath::Ours);
+  const bool runs = kernels::bf16_linear_applies(input, torch::zeros({O, I}, torch::kBFloat16));
+  kernels::set_weight_gradient_path(chosen);
   if (ours && !runs) {
     state.SkipWithError("our product does not run here (no AVX-512 BF16)");
     return;
@@ -34,7 +34,9 @@ void BM_WeightGradient(benchmark::State& state) {
   torch::manual_seed(0);
   auto grad_output = torch::randn({K, O}).to(torch::kBFloat16);
   auto flush = torch::empty({64 << 20}, torch::kByte);
-  auto run = [&] { return ours ? model::weight_gradient_bf16(grad_output, input) : torch::mm(grad_output.t(), input); };
+  auto run = [&] {
+    return ours ? kernels::weight_gradient_bf16(grad_output, input) : torch::mm(grad_output.t(), input);
+  };
   run();
   double seconds = 0;
   int64_t fill = 0;

@@ -5,27 +5,15 @@
 include(GNUInstallDirs)
 include(CMakePackageConfigHelpers)
 
-# The public API: the model family (load any weight file, UP-LVSM's pieces), views, metrics, datasets, rendering,
-# readers.
-# Installed with every uplvsm header they include (model internals such as the transformer blocks, which the model
-# classes hold as members); everything else (cli, train, study, eval's evaluator and reports, the loader, the
-# fused attention kernels, the PCH) stays private. tests/install checks the set is closed under #include.
-set(UPLVSM_PUBLIC_HEADERS
-    uplvsm.h
-    core/config.h core/runtime.h core/autocast.h core/psnr.h
-    io/safetensors.h io/torch_file.h io/torch_pickle.h io/image.h io/video.h
-    io/gif_writer.h io/mp4_writer.h
-    geometry/camera.h geometry/camera_control.h
-    data/scene.h data/preprocess.h data/photo.h data/chunk_dataset.h data/chunk_cache.h data/dataset_info.h data/lvsm_layout.h
-    model/model_factory.h model/novel_view_model.h model/uplvsm.h model/posed_lvsm.h io/pretrained_weights.h
-    io/checkpoint_io.h io/state_dict.h model/dinov2.h model/transformer.h model/rgb_head.h
-    model/latent_plucker_learner.h model/pose_mapper.h model/pose_tokenizer.h backbones/vgg_features.h
-    kernels/cast_once_linear.h
-    eval/metrics.h eval/lpips.h
-    render/renderer.h render/trajectory.h)
-foreach(header ${UPLVSM_PUBLIC_HEADERS})
-  get_filename_component(dir ${header} DIRECTORY)
-  install(FILES src/uplvsm/${header} DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/uplvsm/${dir})
+# The public API is a folder rule: every header of the rooms a user builds on (core, io, geometry, data, model,
+# backbones, eval, render) and uplvsm.h; the rooms above them (train, study, serve, cli), the kernels below model
+# (reached only through model's modules) and the precompiled header stay private. tests/install checks that the
+# installed set is closed under #include and that private headers stay out.
+set(UPLVSM_PUBLIC_ROOMS core io geometry data model backbones eval render)
+install(FILES src/uplvsm/uplvsm.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/uplvsm)
+foreach(room ${UPLVSM_PUBLIC_ROOMS})
+  install(DIRECTORY src/uplvsm/${room}/ DESTINATION ${CMAKE_INSTALL_INCLUDEDIR}/uplvsm/${room}
+          FILES_MATCHING PATTERN "*.h" PATTERN "pch.h" EXCLUDE)
 endforeach()
 
 file(RELATIVE_PATH UPLVSM_BIN_TO_LIB /${CMAKE_INSTALL_BINDIR} /${CMAKE_INSTALL_LIBDIR})

@@ -27,7 +27,7 @@ missing=$(grep -rhoE '#include "uplvsm/[^"]+"' "$prefix/include/uplvsm" | sed -E
           while read -r h; do test -f "$prefix/include/$h" || echo "$h"; done)
 test -z "$missing" || { echo "installed headers include headers that are not installed: $missing"; exit 1; }
 # Internals stay private.
-for private in cli/commands.h train/trainer.h core/pch.h kernels/flash_attention.h; do
+for private in cli/commands.h train/trainer.h core/pch.h kernels/flash_attention.h kernels/ops.h; do
   test ! -e "$prefix/include/uplvsm/$private" || { echo "private header installed: $private"; exit 1; }
 done
 

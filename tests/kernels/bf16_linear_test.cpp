@@ -1,6 +1,6 @@
 // Tests of model/bf16_linear: the weight-gradient product against an fp64 computation rounded once to bf16, over
 // shapes that exercise the odd row, the output-row and column tails and the split into parts; its independence of
-// the thread count; the linear's forward and gradients against autocast's ATen linear; CastOnceLinear taking it in
+// the thread count; the linear's forward and gradients against autocast's ATen linear; Linear taking it in
 // autocast training only; ATen's weight gradient where the CPU has AMX-BF16 or where chosen.
 #include "uplvsm/kernels/bf16_linear.h"
 
@@ -12,19 +12,19 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/kernels/bf16_simd.h"
-#include "uplvsm/kernels/cast_once_linear.h"
+#include "uplvsm/model/linear.h"
 
 using namespace uplvsm;
 
 namespace {
 
-bool has_bf16_dot_products() { return model::row_simd::cpu_has_avx512_bf16; }
+bool has_bf16_dot_products() { return kernels::row_simd::cpu_has_avx512_bf16; }
 
 // Our weight gradient for a scope, whatever the start-up chose (ATen's on a CPU with AMX-BF16).
 struct OurWeightGradient {
-  model::WeightGradientPath before = model::weight_gradient_path();
-  OurWeightGradient() { model::set_weight_gradient_path(model::WeightGradientPath::Ours); }
-  ~OurWeightGradient() { model::set_weight_gradient_path(before); }
+  kernels::WeightGradientPath before = kernels::weight_gradient_path();
+  OurWeightGradient() { kernels::set_weight_gradient_path(kernels::WeightGradientPath::Ours); }
+  ~OurWeightGradient() { kernels::set_weight_gradient_path(before); }
 };
 
 torch::Tensor bf16_randn(std::vector<int64_t> shape, uint64_t seed) {
@@ -49,7 +49,7 @@ TEST(Bf16Linear, WeightGradientIsTheExactProductRoundedOnce) {
   for (const auto& [K, O, I] : shapes) {
     SCOPED_TRACE(testing::Message() << "K " << K << " O " << O << " I " << I);
     auto dy = bf16_randn({K, O}, 11 + K), x = bf16_randn({K, I}, 13 + O);
-    auto got = model::weight_gradient_bf16(dy, x);
+    auto got = kernels::weight_gradient_bf16(dy, x);
     ASSERT_EQ(got.sizes(), (std::vector<int64_t>{O, I}));
     ASSERT_EQ(got.scalar_type(), torch::kBFloat16);
     auto exact = dy.to(torch::kFloat64).t().mm(x.to(torch::kFloat64));
@@ -71,27 +71,27 @@ TEST(Bf16Linear, WeightGradientDoesNotDependOnTheThreadCount) {
   auto dy = bf16_randn({40000, 200}, 3), x = bf16_randn({40000, 64}, 4);
   const int threads = at::get_num_threads();
   at::set_num_threads(1);
-  auto one = model::weight_gradient_bf16(dy, x);
+  auto one = kernels::weight_gradient_bf16(dy, x);
   at::set_num_threads(3);
-  auto three = model::weight_gradient_bf16(dy, x);
+  auto three = kernels::weight_gradient_bf16(dy, x);
   at::set_num_threads(threads);
-  auto all = model::weight_gradient_bf16(dy, x);
+  auto all = kernels::weight_gradient_bf16(dy, x);
   EXPECT_TRUE(torch::equal(one, three));
   EXPECT_TRUE(torch::equal(one, all));
 }
 
 TEST(Bf16Linear, WeightGradientRejectsOperandsItCannotServeByName) {
   auto dy = bf16_randn({10, 8}, 1);
-  EXPECT_THROW(model::weight_gradient_bf16(dy, bf16_randn({11, 16}, 2)), c10::Error);      // rows differ
-  EXPECT_THROW(model::weight_gradient_bf16(dy, bf16_randn({10, 24}, 2)), c10::Error);      // I not 16k
-  EXPECT_THROW(model::weight_gradient_bf16(dy, torch::randn({10, 16})), c10::Error);       // fp32
-  EXPECT_THROW(model::weight_gradient_bf16(dy, bf16_randn({16, 10}, 2).t()), c10::Error);  // strided
+  EXPECT_THROW(kernels::weight_gradient_bf16(dy, bf16_randn({11, 16}, 2)), c10::Error);      // rows differ
+  EXPECT_THROW(kernels::weight_gradient_bf16(dy, bf16_randn({10, 24}, 2)), c10::Error);      // I not 16k
+  EXPECT_THROW(kernels::weight_gradient_bf16(dy, torch::randn({10, 16})), c10::Error);       // fp32
+  EXPECT_THROW(kernels::weight_gradient_bf16(dy, bf16_randn({16, 10}, 2).t()), c10::Error);  // strided
   try {
-    model::weight_gradient_bf16(dy, bf16_randn({11, 16}, 2));
+    kernels::weight_gradient_bf16(dy, bf16_randn({11, 16}, 2));
   } catch (const c10::Error& e) {
     EXPECT_NE(std::string(e.what()).find("weight_gradient_bf16"), std::string::npos) << e.what();
   }
-  auto zero = model::weight_gradient_bf16(bf16_randn({0, 8}, 1), bf16_randn({0, 16}, 2));
+  auto zero = kernels::weight_gradient_bf16(bf16_randn({0, 8}, 1), bf16_randn({0, 16}, 2));
   EXPECT_TRUE(torch::equal(zero, torch::zeros({8, 16}, torch::kBFloat16)));
 }
 
@@ -100,8 +100,8 @@ TEST(Bf16Linear, WeightGradientRejectsOperandsItCannotServeByName) {
 // orders, each rounded once).
 void expect_linear_matches_autocast(bool with_bias) {
   torch::manual_seed(5);
-  model::CastOnceLinear ours(torch::nn::LinearOptions(96, 200).bias(with_bias));
-  model::CastOnceLinear reference(torch::nn::LinearOptions(96, 200).bias(with_bias));
+  model::Linear ours(torch::nn::LinearOptions(96, 200).bias(with_bias));
+  model::Linear reference(torch::nn::LinearOptions(96, 200).bias(with_bias));
   {
     torch::NoGradGuard no_grad;
     for (size_t i = 0; i < ours->parameters().size(); ++i) reference->parameters()[i].copy_(ours->parameters()[i]);
@@ -137,7 +137,7 @@ TEST(Bf16Linear, TrainsAsAutocastsLinearWithAndWithoutBias) {
 TEST(Bf16Linear, CastOnceLinearTakesItOnlyInAutocastTraining) {
   if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
   OurWeightGradient ours;
-  model::CastOnceLinear linear(torch::nn::LinearOptions(32, 16).bias(false));
+  model::Linear linear(torch::nn::LinearOptions(32, 16).bias(false));
   auto x = torch::randn({5, 32});
   const auto node = [&] {
     auto y = linear(x);
@@ -150,7 +150,7 @@ TEST(Bf16Linear, CastOnceLinearTakesItOnlyInAutocastTraining) {
     torch::NoGradGuard no_grad;
     EXPECT_EQ(node(), "none") << "inference keeps the cast-once path";
   }
-  model::CastOnceLinear odd(torch::nn::LinearOptions(24, 16).bias(false));  // input width not a multiple of 16
+  model::Linear odd(torch::nn::LinearOptions(24, 16).bias(false));  // input width not a multiple of 16
   AutocastGuard autocast(torch::kCPU, true);
   auto y = odd(torch::randn({5, 24}));
   EXPECT_EQ(y.grad_fn()->name().find("Bf16Linear"), std::string::npos) << y.grad_fn()->name();
@@ -161,20 +161,20 @@ TEST(Bf16Linear, AtensWeightGradientWhereTheCpuHasAmxOrWhenChosen) {
   bf16_only.avx512 = bf16_only.avx512_bf16 = true;
   amx = bf16_only;
   amx.amx_bf16 = true;
-  EXPECT_EQ(model::default_weight_gradient_path(bf16_only), model::WeightGradientPath::Ours);
-  EXPECT_EQ(model::default_weight_gradient_path(amx), model::WeightGradientPath::Aten);
+  EXPECT_EQ(kernels::default_weight_gradient_path(bf16_only), kernels::WeightGradientPath::Ours);
+  EXPECT_EQ(kernels::default_weight_gradient_path(amx), kernels::WeightGradientPath::Aten);
   if (std::getenv("UPLVSM_WEIGHT_GRADIENT") == nullptr)
-    EXPECT_EQ(model::weight_gradient_path(), model::default_weight_gradient_path(detect_cpu_features()));
-  // Chosen at run time, CastOnceLinear follows: autocast training takes ATen's linear with ATen's chosen.
-  const auto before = model::weight_gradient_path();
-  model::set_weight_gradient_path(model::WeightGradientPath::Aten);
-  model::CastOnceLinear linear(torch::nn::LinearOptions(32, 16).bias(false));
+    EXPECT_EQ(kernels::weight_gradient_path(), kernels::default_weight_gradient_path(detect_cpu_features()));
+  // Chosen at run time, Linear follows: autocast training takes ATen's linear with ATen's chosen.
+  const auto before = kernels::weight_gradient_path();
+  kernels::set_weight_gradient_path(kernels::WeightGradientPath::Aten);
+  model::Linear linear(torch::nn::LinearOptions(32, 16).bias(false));
   {
     AutocastGuard autocast(torch::kCPU, true);
     auto y = linear(torch::randn({5, 32}));
     EXPECT_EQ(y.grad_fn()->name().find("Bf16Linear"), std::string::npos) << y.grad_fn()->name();
   }
-  model::set_weight_gradient_path(before);
+  kernels::set_weight_gradient_path(before);
 }
 
 }  // namespace

@@ -13,6 +13,7 @@
 namespace {
 
 using namespace uplvsm::model;
+using namespace uplvsm::kernels;
 
 uint16_t c10_bits(uint32_t pattern) {
   float f;

@@ -1,6 +1,6 @@
 // Tests of model/cast_once_linear: bit-equal to torch::nn::Linear under bf16 autocast, fp32 and with gradients;
 // the bf16 copy follows every change of the weights.
-#include "uplvsm/kernels/cast_once_linear.h"
+#include "uplvsm/model/linear.h"
 
 #include <c10/core/impl/LocalDispatchKeySet.h>
 #include <gtest/gtest.h>
@@ -9,21 +9,22 @@
 
 using namespace uplvsm;
 using namespace uplvsm::model;
+using namespace uplvsm::kernels;
 
 namespace {
 
 // What autocast computes for a linear layer: operands rounded to bf16 (cast here explicitly, since autocast's own
 // cache would keep a stale copy of a weight changed in place within one region), or fp32 as it is.
-torch::Tensor reference(const CastOnceLinear& layer, const torch::Tensor& x) {
+torch::Tensor reference(const Linear& layer, const torch::Tensor& x) {
   if (!autocast_active(x.device())) return torch::linear(x, layer->weight, layer->bias);
   c10::impl::ExcludeDispatchKeyGuard no_autocast(c10::autocast_dispatch_keyset);
   auto b = layer->bias.defined() ? layer->bias.to(torch::kBFloat16) : torch::Tensor();
   return torch::linear(x.to(torch::kBFloat16), layer->weight.to(torch::kBFloat16), b);
 }
 
-TEST(CastOnceLinear, InferenceUnderAutocastEqualsLinearBitForBit) {
+TEST(Linear, InferenceUnderAutocastEqualsLinearBitForBit) {
   torch::manual_seed(1);
-  CastOnceLinear layer(torch::nn::LinearOptions(48, 80).bias(true));
+  Linear layer(torch::nn::LinearOptions(48, 80).bias(true));
   auto x = torch::randn({3, 7, 48});
   torch::NoGradGuard no_grad;
   AutocastGuard autocast(torch::kCPU, true);
@@ -34,9 +35,9 @@ TEST(CastOnceLinear, InferenceUnderAutocastEqualsLinearBitForBit) {
   }
 }
 
-TEST(CastOnceLinear, FollowsEveryChangeOfTheWeights) {
+TEST(Linear, FollowsEveryChangeOfTheWeights) {
   torch::manual_seed(2);
-  CastOnceLinear layer(torch::nn::LinearOptions(32, 16).bias(true));
+  Linear layer(torch::nn::LinearOptions(32, 16).bias(true));
   auto x = torch::randn({5, 32});
   torch::NoGradGuard no_grad;
   AutocastGuard autocast(torch::kCPU, true);
@@ -51,9 +52,9 @@ TEST(CastOnceLinear, FollowsEveryChangeOfTheWeights) {
   EXPECT_TRUE(torch::equal(layer(x), reference(layer, x)));
 }
 
-TEST(CastOnceLinear, TrainingAndFp32TakeLinearsOwnPath) {
+TEST(Linear, TrainingAndFp32TakeLinearsOwnPath) {
   torch::manual_seed(3);
-  CastOnceLinear layer(torch::nn::LinearOptions(24, 8).bias(false));
+  Linear layer(torch::nn::LinearOptions(24, 8).bias(false));
   auto x = torch::randn({4, 24});
   EXPECT_TRUE(torch::equal(layer(x), reference(layer, x)));  // fp32
   {
@@ -69,9 +70,9 @@ TEST(CastOnceLinear, TrainingAndFp32TakeLinearsOwnPath) {
 // With a bias and tokens ([batch, tokens, features], as DINOv2's blocks call it), training computes ATen's linear too:
 // the bias inside the bf16 matmul, one rounding — not LibTorch 1.13's nn::Linear, which rounds the product to bf16
 // and then adds the fp32 bias in a second pass.
-TEST(CastOnceLinear, TrainingWithABiasOnTokensIsATensLinear) {
+TEST(Linear, TrainingWithABiasOnTokensIsATensLinear) {
   torch::manual_seed(4);
-  CastOnceLinear layer(torch::nn::LinearOptions(40, 24).bias(true));
+  Linear layer(torch::nn::LinearOptions(40, 24).bias(true));
   {
     torch::NoGradGuard no_grad;
     layer->bias.copy_(torch::randn({24}) * 3.0);  // large enough that a second rounding shows

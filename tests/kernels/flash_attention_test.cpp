@@ -10,6 +10,7 @@
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/kernels/flash_attention.h"
 #include "uplvsm/kernels/flash_attention_simd.h"  // internal: the kernels' exp2
+#include "uplvsm/kernels/ops.h"
 #include "uplvsm/kernels/qk_norm.h"
 #include "uplvsm/model/transformer.h"
 
@@ -18,7 +19,7 @@ using namespace uplvsm;
 namespace {
 
 bool fused_available(torch::ScalarType dtype, int64_t d_head) {
-  return model::fused_attention_applies(torch::kCPU, dtype, d_head);
+  return kernels::fused_attention_applies(torch::kCPU, dtype, d_head);
 }
 
 // The unfused reference: softmax(q k^T / sqrt(d)) v in LibTorch ops, in double so it is the exact answer.
@@ -52,7 +53,7 @@ void expect_close(const Grads& a, const Grads& b, double tol, bool relative = fa
 }
 
 UPLVSM_AVX512 void exp2_16(const float* t, float* out) {
-  _mm512_storeu_ps(out, model::flash::detail::exp2_ps(_mm512_loadu_ps(t)));
+  _mm512_storeu_ps(out, kernels::flash::detail::exp2_ps(_mm512_loadu_ps(t)));
 }
 
 }  // namespace
@@ -88,7 +89,7 @@ TEST(FlashAttention, Fp32MatchesExactAttentionAndGradients) {
     auto q = torch::randn({B, H, Lq, D}) * 2, k = torch::randn({B, H, Lk, D}) * 2, v = torch::randn({B, H, Lk, D});
     auto w = torch::randn({B, H, Lq, D}, torch::kFloat64);
     SCOPED_TRACE(testing::Message() << "B H Lq Lk D = " << B << " " << H << " " << Lq << " " << Lk << " " << D);
-    expect_close(run(model::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 1e-5);
+    expect_close(run(kernels::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 1e-5);
   }
 }
 
@@ -100,7 +101,7 @@ TEST(FlashAttention, ReadsStridedHeadViewsWithoutCopies) {
   auto qkv = torch::randn({B, L, 3 * H * D});
   auto heads = [&](int i) { return qkv.chunk(3, -1)[i].view({B, L, H, D}).transpose(1, 2); };
   auto w = torch::randn({B, H, L, D}, torch::kFloat64);
-  auto fused = run(model::fused_attention, heads(0), heads(1), heads(2), w);
+  auto fused = run(kernels::fused_attention, heads(0), heads(1), heads(2), w);
   expect_close(fused, run(reference_attention, heads(0), heads(1), heads(2), w), 1e-5);
   // The output is a head view of a [B, L, H, D] tensor: merging heads is a free reshape.
   EXPECT_TRUE(fused.o.transpose(1, 2).is_contiguous());
@@ -114,7 +115,7 @@ TEST(FlashAttention, Bf16StaysWithinDocumentedTolerance) {
        k = torch::randn({2, 2, 131, 64}).mul(2).to(torch::kBFloat16),
        v = torch::randn({2, 2, 131, 64}).to(torch::kBFloat16);
   auto w = torch::randn({2, 2, 97, 64}, torch::kFloat64);
-  auto fused = run(model::fused_attention, q, k, v, w);
+  auto fused = run(kernels::fused_attention, q, k, v, w);
   EXPECT_EQ(fused.o.scalar_type(), torch::kBFloat16);
   EXPECT_EQ(fused.dq.scalar_type(), torch::kBFloat16);
   // Against exact attention of the same bf16 inputs: fp32 accumulation leaves the bf16 rounding of the
@@ -134,7 +135,7 @@ TEST(FlashAttention, Bf16GradientsAtTheDemoHeadWidthAndSeveralKeyTiles) {
          v = torch::randn({2, 3, 1000, D}).to(torch::kBFloat16);
     auto w = torch::randn({2, 3, 203, D}, torch::kFloat64);
     SCOPED_TRACE(testing::Message() << "D = " << D);
-    expect_close(run(model::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 2e-2, true);
+    expect_close(run(kernels::fused_attention, q, k, v, w), run(reference_attention, q, k, v, w), 2e-2, true);
   }
 }
 
@@ -156,8 +157,8 @@ TEST(FlashAttention, Bf16PackingOfOddStridesEqualsContiguousOperandsBitForBit) {
       auto q = odd_view(Lq, 2), k = odd_view(Lk, 2), v = odd_view(Lk, 1);
       ASSERT_EQ(q.stride(2) % 2, 1);
       auto w = torch::randn({B, H, Lq, D}, torch::kFloat64);
-      auto strided = run(model::fused_attention, q, k, v, w);
-      auto packed = run(model::fused_attention, q.contiguous(), k.contiguous(), v.contiguous(), w);
+      auto strided = run(kernels::fused_attention, q, k, v, w);
+      auto packed = run(kernels::fused_attention, q.contiguous(), k.contiguous(), v.contiguous(), w);
       SCOPED_TRACE(testing::Message() << "D " << D << ", Lq " << Lq << ", Lk " << Lk);
       EXPECT_TRUE(torch::equal(strided.o, packed.o));
       EXPECT_TRUE(torch::equal(strided.dq, packed.dq));
@@ -182,13 +183,13 @@ QkvGrads qkv_attention(bool fused, const torch::Tensor& qkv_in, int64_t H, const
   const int64_t B = qkv.size(0), L = qkv.size(1), D = qkv.size(2) / 3 / H;
   torch::Tensor o;
   if (fused) {
-    o = model::fused_qk_norm_attention(qkv, H, wq, wk, 1e-3, start, count);
+    o = kernels::fused_qk_norm_attention(qkv, H, wq, wk, 1e-3, start, count);
   } else {
     auto parts = qkv.chunk(3, -1);
     auto split = [&](const torch::Tensor& t) { return t.view({B, L, H, D}); };
-    auto q = model::qk_norm(split(parts[0]).narrow(1, start, count), wq, 1e-3, torch::kBFloat16).transpose(1, 2);
-    auto k = model::qk_norm(split(parts[1]), wk, 1e-3, torch::kBFloat16).transpose(1, 2);
-    o = model::fused_attention(q, k, split(parts[2]).transpose(1, 2));
+    auto q = kernels::qk_norm(split(parts[0]).narrow(1, start, count), wq, 1e-3, torch::kBFloat16).transpose(1, 2);
+    auto k = kernels::qk_norm(split(parts[1]), wk, 1e-3, torch::kBFloat16).transpose(1, 2);
+    o = kernels::fused_attention(q, k, split(parts[2]).transpose(1, 2));
   }
   (o.to(torch::kFloat64) * w).sum().backward();
   return {o.detach(), qkv.grad(), wq.grad(), wk.grad()};
@@ -214,7 +215,7 @@ TEST(FlashAttention, QKNormOnReadEqualsQKNormThenAttentionBitForBit) {
           auto w = torch::randn({B, H, count, D}, torch::kFloat64);
           SCOPED_TRACE(testing::Message() << "D " << D << ", L " << L << ", odd rows " << odd_rows << ", queries "
                                           << start << " + " << count);
-          ASSERT_TRUE(model::fused_qk_norm_attention_applies(qkv, wq, D));
+          ASSERT_TRUE(kernels::fused_qk_norm_attention_applies(qkv, wq, D));
           auto fused = qkv_attention(true, qkv, H, wq, wk, start, count, w);
           auto composed = qkv_attention(false, qkv, H, wq, wk, start, count, w);
           EXPECT_TRUE(torch::equal(fused.o, composed.o));
@@ -237,15 +238,15 @@ TEST(FlashAttention, QKNormOnReadInFp32InferenceEqualsQKNormThenAttentionBitForB
         auto qkv = (torch::randn({B, L, width + 1}) * 2).narrow(2, 0, width);  // rows an odd number apart
         auto wq = 1 + 0.3 * torch::randn({D}), wk = 1 + 0.3 * torch::randn({D});
         SCOPED_TRACE(testing::Message() << "D " << D << ", L " << L << ", queries " << start << " + " << count);
-        EXPECT_FALSE(model::fused_qk_norm_attention_applies(qkv, wq, D)) << "gradients on: not served";
+        EXPECT_FALSE(kernels::fused_qk_norm_attention_applies(qkv, wq, D)) << "gradients on: not served";
         torch::NoGradGuard no_grad;
-        ASSERT_TRUE(model::fused_qk_norm_attention_applies(qkv, wq, D));
-        auto fused = model::fused_qk_norm_attention(qkv, H, wq, wk, 1e-3, start, count);
+        ASSERT_TRUE(kernels::fused_qk_norm_attention_applies(qkv, wq, D));
+        auto fused = kernels::fused_qk_norm_attention(qkv, H, wq, wk, 1e-3, start, count);
         auto parts = qkv.chunk(3, -1);
         auto split = [&](const torch::Tensor& t) { return t.view({B, L, H, D}); };
-        auto q = model::qk_norm(split(parts[0]).narrow(1, start, count), wq, 1e-3, torch::kFloat32).transpose(1, 2);
-        auto k = model::qk_norm(split(parts[1]), wk, 1e-3, torch::kFloat32).transpose(1, 2);
-        auto composed = model::fused_attention(q, k, split(parts[2]).transpose(1, 2));
+        auto q = kernels::qk_norm(split(parts[0]).narrow(1, start, count), wq, 1e-3, torch::kFloat32).transpose(1, 2);
+        auto k = kernels::qk_norm(split(parts[1]), wk, 1e-3, torch::kFloat32).transpose(1, 2);
+        auto composed = kernels::fused_attention(q, k, split(parts[2]).transpose(1, 2));
         ASSERT_EQ(fused.scalar_type(), torch::kFloat32);
         EXPECT_TRUE(torch::equal(fused, composed));
       }
@@ -263,13 +264,13 @@ TEST(FlashAttention, QKNormOnReadRejectsWhatItCannotServeByName) {
       EXPECT_NE(std::string(e.what()).find(part), std::string::npos) << e.what();
     }
   };
-  expect_error([&] { model::fused_qk_norm_attention(qkv, 5, w, w, 1e-3, 0, 8); }, "[B, L, 3 H D] for 5 heads");
-  expect_error([&] { model::fused_qk_norm_attention(qkv.to(torch::kFloat32), 2, w, w, 1e-3, 0, 8); },
+  expect_error([&] { kernels::fused_qk_norm_attention(qkv, 5, w, w, 1e-3, 0, 8); }, "[B, L, 3 H D] for 5 heads");
+  expect_error([&] { kernels::fused_qk_norm_attention(qkv.to(torch::kFloat32), 2, w, w, 1e-3, 0, 8); },
                "fp32 qkv with AVX-512, gradients off");
-  expect_error([&] { model::fused_qk_norm_attention(qkv.to(torch::kFloat64), 2, w, w, 1e-3, 0, 8); }, "bf16 qkv");
-  expect_error([&] { model::fused_qk_norm_attention(qkv, 2, torch::ones({16}), w, 1e-3, 0, 8); }, "weights of size");
-  expect_error([&] { model::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 4, 5); }, "query rows [4, 9) outside the 8");
-  expect_error([&] { model::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 0, 0); }, "query rows [0, 0)");
+  expect_error([&] { kernels::fused_qk_norm_attention(qkv.to(torch::kFloat64), 2, w, w, 1e-3, 0, 8); }, "bf16 qkv");
+  expect_error([&] { kernels::fused_qk_norm_attention(qkv, 2, torch::ones({16}), w, 1e-3, 0, 8); }, "weights of size");
+  expect_error([&] { kernels::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 4, 5); }, "query rows [4, 9) outside the 8");
+  expect_error([&] { kernels::fused_qk_norm_attention(qkv, 2, w, w, 1e-3, 0, 0); }, "query rows [0, 0)");
 }
 
 TEST(FlashAttention, QKNormOnReadWeightGradientsDoNotDependOnTheThreadCount) {
@@ -294,22 +295,23 @@ TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsew
   torch::manual_seed(6);
   auto q = torch::randn({1, 2, 20, 32}), k = torch::randn({1, 2, 20, 32}), v = torch::randn({1, 2, 20, 32});
   auto exact = reference_attention(q, k, v);
-  EXPECT_LE(test::max_abs_diff(model::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
+  EXPECT_LE(test::max_abs_diff(kernels::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
   {
     AutocastGuard amp(torch::kCPU, true);
-    auto o = model::attention(q, k, v);
+    auto o = kernels::attention(q, k, v);
     EXPECT_EQ(o.scalar_type(), torch::kBFloat16);
     EXPECT_LE(test::max_abs_diff(o.to(torch::kFloat64), exact), 3e-2);
   }
   // d_head 24 is not a multiple of 16: the unfused path serves it.
   EXPECT_FALSE(fused_available(torch::kFloat32, 24));
   auto q24 = torch::randn({1, 2, 9, 24}), k24 = torch::randn({1, 2, 9, 24}), v24 = torch::randn({1, 2, 9, 24});
-  EXPECT_LE(test::max_abs_diff(model::attention(q24, k24, v24).to(torch::kFloat64), reference_attention(q24, k24, v24)),
-            1e-5);
-  model::set_attention_kernel(model::AttentionKernel::Unfused);
+  EXPECT_LE(
+      test::max_abs_diff(kernels::attention(q24, k24, v24).to(torch::kFloat64), reference_attention(q24, k24, v24)),
+      1e-5);
+  kernels::set_attention_kernel(kernels::AttentionKernel::Unfused);
   EXPECT_FALSE(fused_available(torch::kFloat32, 32));
-  EXPECT_LE(test::max_abs_diff(model::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
-  model::set_attention_kernel(model::AttentionKernel::Fused);
+  EXPECT_LE(test::max_abs_diff(kernels::attention(q, k, v).to(torch::kFloat64), exact), 1e-5);
+  kernels::set_attention_kernel(kernels::AttentionKernel::Fused);
 }
 
 TEST(FlashAttention, NonFiniteInputsGiveNonFiniteOutputsLikeTheReference) {
@@ -318,13 +320,13 @@ TEST(FlashAttention, NonFiniteInputsGiveNonFiniteOutputsLikeTheReference) {
     if (!fused_available(dtype, 32)) continue;
     auto q = torch::randn({1, 1, 20, 32}), k = torch::randn({1, 1, 20, 32}), v = torch::randn({1, 1, 20, 32});
     q[0][0][3][5] = std::numeric_limits<float>::quiet_NaN();
-    auto o = model::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
+    auto o = kernels::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
     EXPECT_TRUE(torch::isnan(o[0][0][3]).all().item<bool>()) << "the NaN query's row";
     EXPECT_TRUE(torch::isfinite(o[0][0][4]).all().item<bool>()) << "other rows stay finite";
     // A NaN key makes one score of every row NaN: every output row is NaN, as in softmax(q k^T) v.
     q[0][0][3][5] = 0.0f;
     k[0][0][7][3] = std::numeric_limits<float>::quiet_NaN();
-    o = model::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
+    o = kernels::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
     EXPECT_TRUE(torch::isnan(o).all().item<bool>()) << "a NaN key";
     EXPECT_TRUE(torch::isnan(reference_attention(q, k, v)).all().item<bool>());
   }
@@ -332,8 +334,8 @@ TEST(FlashAttention, NonFiniteInputsGiveNonFiniteOutputsLikeTheReference) {
 
 TEST(FlashAttention, RejectsMismatchedShapes) {
   auto q = torch::randn({1, 2, 8, 32}), k = torch::randn({1, 2, 9, 32}), v = torch::randn({1, 2, 10, 32});
-  EXPECT_THROW(model::fused_attention(q, k, v), c10::Error);
-  EXPECT_THROW(model::fused_attention(q, k.to(torch::kBFloat16), k), c10::Error);
+  EXPECT_THROW(kernels::fused_attention(q, k, v), c10::Error);
+  EXPECT_THROW(kernels::fused_attention(q, k.to(torch::kBFloat16), k), c10::Error);
   auto q24 = torch::randn({1, 2, 8, 24});  // d_head not a multiple of 16: only attention()'s fallback serves it
-  EXPECT_THROW(model::fused_attention(q24, q24, q24), c10::Error);
+  EXPECT_THROW(kernels::fused_attention(q24, q24, q24), c10::Error);
 }

@@ -45,12 +45,12 @@ torch::Tensor map_exact(const torch::Tensor& x, double (*f)(double)) {
 
 TEST(Gelu, MatchesLibTorchAndAnExactComputationValuesAndGradients) {
   // The fused kernel needs AVX-512; elsewhere gelu() is LibTorch's (checked by the fallback test below).
-  if (!model::gelu_fuses(torch::ones({1}, torch::kBFloat16))) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!kernels::gelu_fuses(torch::ones({1}, torch::kBFloat16))) GTEST_SKIP() << "no AVX-512 on this CPU";
   for (int64_t n : {1, 15, 16, 17, 33, 100003}) {  // the masked tail alone, exact blocks, a tail, several threads
     SCOPED_TRACE(testing::Message() << "n " << n);
     auto x = inputs(n, 7 + n).requires_grad_(true);
     auto upstream = torch::randn({n}).to(torch::kBFloat16);
-    auto y = model::gelu(x);
+    auto y = kernels::gelu(x);
     y.backward(upstream);
     auto x_ref = x.detach().clone().requires_grad_(true);
     auto y_ref = torch::gelu(x_ref);
@@ -74,7 +74,7 @@ TEST(Gelu, AgreesWithLibTorchBitForBitOnTypicalActivations) {
   torch::manual_seed(4);
   auto x = torch::randn({200000}).to(torch::kBFloat16).requires_grad_(true);
   auto upstream = torch::randn({200000}).to(torch::kBFloat16);
-  auto y = model::gelu(x);
+  auto y = kernels::gelu(x);
   y.backward(upstream);
   auto x_ref = x.detach().clone().requires_grad_(true);
   auto y_ref = torch::gelu(x_ref);
@@ -90,7 +90,7 @@ TEST(Gelu, AgreesWithLibTorchBitForBitOnTypicalActivations) {
 TEST(Gelu, NonFiniteInputsGiveIeeeResultsAndExtremesLibTorchs) {
   const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
   auto x = torch::tensor({0.0f, -0.0f, inf, -inf, nan, 200.0f, -200.0f, 1e-30f, -1e-30f}).to(torch::kBFloat16);
-  auto y = model::gelu(x).to(torch::kFloat32);
+  auto y = kernels::gelu(x).to(torch::kFloat32);
   EXPECT_EQ(y[2].item<float>(), inf) << y;
   EXPECT_TRUE(std::isnan(y[3].item<float>())) << y;
   EXPECT_TRUE(std::isnan(y[4].item<float>())) << y;
@@ -102,13 +102,13 @@ TEST(Gelu, NonFiniteInputsGiveIeeeResultsAndExtremesLibTorchs) {
 TEST(Gelu, LeavesFp32ToLibTorchAndComputesStridedInputsContiguously) {
   torch::manual_seed(1);
   auto x = torch::randn({3, 50});
-  EXPECT_FALSE(model::gelu_fuses(x));
-  EXPECT_TRUE(torch::equal(model::gelu(x), torch::gelu(x)));
+  EXPECT_FALSE(kernels::gelu_fuses(x));
+  EXPECT_TRUE(torch::equal(kernels::gelu(x), torch::gelu(x)));
   // A non-contiguous bf16 input is computed on a contiguous copy (LibTorch's strided path is a scalar loop that rounds
   // every intermediate to bf16, so it is compared with LibTorch on the copy).
   auto strided = inputs(64, 2).view({8, 8}).t();
-  EXPECT_TRUE(torch::equal(model::gelu(strided), model::gelu(strided.contiguous())));
-  expect_within_a_rounding(model::gelu(strided), torch::gelu(strided.contiguous()), 2e-6, "strided", -7);
+  EXPECT_TRUE(torch::equal(kernels::gelu(strided), kernels::gelu(strided.contiguous())));
+  expect_within_a_rounding(kernels::gelu(strided), torch::gelu(strided.contiguous()), 2e-6, "strided", -7);
 }
 
 }  // namespace

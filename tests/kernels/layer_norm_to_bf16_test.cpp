@@ -13,6 +13,7 @@
 
 using namespace uplvsm;
 using namespace uplvsm::model;
+using namespace uplvsm::kernels;
 
 namespace {
 

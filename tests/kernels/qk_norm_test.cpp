@@ -11,6 +11,7 @@
 
 using namespace uplvsm;
 using namespace uplvsm::model;
+using namespace uplvsm::kernels;
 
 namespace {
 

@@ -162,7 +162,7 @@ bool has_node(const std::vector<std::string>& names, const std::string& part) {
 // Under bf16 autocast, where the fused kernels run, the QKNorm attention of a block (and DINOv2's) is the single
 // QK-Norm-and-attention node; in fp32 it stays QK-Norm then attention (the official comparisons' path).
 TEST(Transformer, QKNormAttentionUnderAutocastIsOneFusedNode) {
-  if (!model::fused_qk_norm_attention_applies(torch::zeros({1, 1, 96}, torch::kBFloat16), torch::ones({32}), 32))
+  if (!kernels::fused_qk_norm_attention_applies(torch::zeros({1, 1, 96}, torch::kBFloat16), torch::ones({32}), 32))
     GTEST_SKIP() << "no fused bf16 attention on this CPU";
   torch::manual_seed(2);
   model::QKNormAttention layer(64, 32, 1e-3);

@@ -12,7 +12,7 @@
 #include "uplvsm/kernels/bf16_micro_kernel.h"
 #include "uplvsm/kernels/bf16_simd.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 namespace {
 
 using torch::autograd::AutogradContext;
@@ -219,4 +219,4 @@ torch::Tensor bf16_linear(const torch::Tensor& input, const torch::Tensor& weigh
                         : Bf16LinearFunction::apply(input, weight);
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -10,7 +10,7 @@
 
 #include "uplvsm/core/runtime.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 // Whose weight gradient bf16 training uses. Ours is faster where oneDNN has AVX-512 BF16 only (above); on a CPU with
 // AMX-BF16 oneDNN's tile kernels win (0.73-0.82 TFLOP/s against ours 0.19 on a 2-core Xeon with AMX, the
@@ -35,4 +35,4 @@ torch::Tensor bf16_linear(const torch::Tensor& input, const torch::Tensor& weigh
 // slices of the K rows whatever the thread count (up to 16 slices, O x I floats each), rounded once to bf16.
 torch::Tensor weight_gradient_bf16(const torch::Tensor& grad_output, const torch::Tensor& input);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

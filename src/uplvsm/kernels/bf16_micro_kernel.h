@@ -9,7 +9,7 @@
 
 #define UPLVSM_AVX512_BF16_TILE __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16")))
 
-namespace uplvsm::model::bf16_tile {
+namespace uplvsm::kernels::bf16_tile {
 
 // Where A's word for output row r and pair p sits: kRowMajor at A[r * lda + p] (the attention's q rows, pairs along
 // the head dimension), kPairMajor at A[p * lda + r] (the weight gradient's interleaved rows).
@@ -60,4 +60,4 @@ MicroKernel kernel_for(int64_t rows, int64_t vectors) {
   return table[vectors - 1][rows - 1];
 }
 
-}  // namespace uplvsm::model::bf16_tile
+}  // namespace uplvsm::kernels::bf16_tile

@@ -15,7 +15,7 @@
 
 #define UPLVSM_ROW_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
 
-namespace uplvsm::model::row_simd {
+namespace uplvsm::kernels::row_simd {
 
 inline bool cpu_has_avx512() {
   static const bool has = [] {
@@ -96,4 +96,4 @@ UPLVSM_ROW_AVX512 inline void store16(T* p, __m512 v) {
   }
 }
 
-}  // namespace uplvsm::model::row_simd
+}  // namespace uplvsm::kernels::row_simd

@@ -3,7 +3,7 @@
 #pragma once
 #include <torch/torch.h>
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 // Sums partial [blocks, D] (fp32, contiguous) over its blocks in order: [D].
 inline torch::Tensor sum_blocks_in_order(const torch::Tensor& partial) {
@@ -16,4 +16,4 @@ inline torch::Tensor sum_blocks_in_order(const torch::Tensor& partial) {
   return sum;
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -7,8 +7,9 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/kernels/bf16_linear.h"
+#include "uplvsm/kernels/ops.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 namespace {
 
@@ -29,7 +30,8 @@ bool cast_once_enabled() {
 
 }  // namespace
 
-std::pair<torch::Tensor, torch::Tensor> CastOnceLinearImpl::bf16_weights() {
+std::pair<torch::Tensor, torch::Tensor> LinearWeightCache::bf16_weights(const torch::Tensor& weight,
+                                                                        const torch::Tensor& bias) {
   std::lock_guard<std::mutex> lock(mutex_);
   const bool current = weight_bf16_.defined() && same_storage(weight_storage_, weight) &&
                        same_storage(bias_storage_, bias) && weight_version_ == version_of(weight) &&
@@ -46,9 +48,12 @@ std::pair<torch::Tensor, torch::Tensor> CastOnceLinearImpl::bf16_weights() {
   return {weight_bf16_, bias_bf16_};
 }
 
+namespace {
+
 // Training under CPU bf16 autocast: autocast's own casts (the weight's cached per autocast region, as aten::linear's
 // autocast wrapper caches it), then bf16_linear for its faster weight gradient; nullopt where it does not serve.
-std::optional<torch::Tensor> CastOnceLinearImpl::train_bf16(const torch::Tensor& input) {
+std::optional<torch::Tensor> train_bf16(const torch::Tensor& input, const torch::Tensor& weight,
+                                        const torch::Tensor& bias) {
   if (!torch::GradMode::is_enabled() || !input.device().is_cpu() || !autocast_active(input.device()) ||
       autocast_dtype(input.device()) != torch::kBFloat16 || !input.is_floating_point())
     return std::nullopt;
@@ -60,15 +65,20 @@ std::optional<torch::Tensor> CastOnceLinearImpl::train_bf16(const torch::Tensor&
   return bf16_linear(x, w, to_bf16(bias));
 }
 
-torch::Tensor CastOnceLinearImpl::forward(const torch::Tensor& input) {
-  if (auto trained = train_bf16(input)) return *trained;
+}  // namespace
+
+std::shared_ptr<LinearWeightCache> make_linear_weight_cache() { return std::make_shared<LinearWeightCache>(); }
+
+torch::Tensor linear(const torch::Tensor& input, const torch::Tensor& weight, const torch::Tensor& bias,
+                     LinearWeightCache& cache) {
+  if (auto trained = train_bf16(input, weight, bias)) return *trained;
   const bool cast_once = cast_once_enabled() && !torch::GradMode::is_enabled() &&
                          weight.scalar_type() == torch::kFloat32 && autocast_active(weight.device());
   // ATen's linear, as PyTorch's nn.Linear: a bias folds into the matmul (addmm, also for 3-D inputs), where LibTorch
   // 1.13's C++ frontend (nn::LinearImpl) adds it in a separate pass — under autocast into a bf16 output via fp32.
   if (!cast_once) return torch::linear(input, weight, bias);
-  auto [w, b] = bf16_weights();
+  auto [w, b] = cache.bf16_weights(weight, bias);
   return torch::linear(input, w, b);  // autocast casts the input; the weights are bf16 already
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

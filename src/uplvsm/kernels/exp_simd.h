@@ -4,7 +4,7 @@
 
 #include "uplvsm/kernels/bf16_simd.h"
 
-namespace uplvsm::model::row_simd {
+namespace uplvsm::kernels::row_simd {
 
 // exp(x) for x <= 0 (attention scores minus their running max, the -x^2/2 of a normal density): Cody-Waite
 // reduction x = n ln2 + r and a degree-7 Taylor polynomial on |r| <= ln2 / 2 (relative error < 1e-8 before
@@ -27,4 +27,4 @@ UPLVSM_ROW_AVX512 inline __m512 exp_ps(__m512 x) {
   return _mm512_scalef_ps(poly, n);
 }
 
-}  // namespace uplvsm::model::row_simd
+}  // namespace uplvsm::kernels::row_simd

@@ -12,7 +12,7 @@
 #include "uplvsm/kernels/flash_attention_kernels.h"
 #include "uplvsm/kernels/qk_norm.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 namespace {
 
 using torch::autograd::AutogradContext;
@@ -198,4 +198,4 @@ torch::Tensor fused_qk_norm_attention(const torch::Tensor& qkv, int64_t heads, c
   return FusedQKNormAttentionFunction::apply(qkv, q_weight, k_weight, eps, heads, q_start, q_count);
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -1,11 +1,11 @@
 // Fused attention for CPU as a LibTorch autograd function: softmax(q k^T / sqrt(d)) v with the flash kernels of
 // flash_attention_kernels.h (O(L) memory, fp32 accumulation), forward and backward. `attention()` in
-// transformer.h picks it when it applies; everything else (CUDA, other head sizes, CPUs without AVX-512) keeps the
+// ops.h picks it when it applies; everything else (CUDA, other head sizes, CPUs without AVX-512) keeps the
 // unfused LibTorch path.
 #pragma once
 #include <torch/torch.h>
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 enum class AttentionKernel { Fused, Unfused };
 
@@ -23,7 +23,7 @@ torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, co
 
 // QK-Norm and attention from one projection, as one autograd node: qkv [B, L, 3 H D] (q | k | v, each head-major,
 // bf16, or fp32 without gradients (inference); last dimension contiguous), queries rows [q_start, q_start +
-// q_count) of it. Exactly qk_norm(q, q_weight, eps, qkv's dtype) and qk_norm(k, ...) (model/qk_norm) followed by
+// q_count) of it. Exactly qk_norm(q, q_weight, eps, qkv's dtype) and qk_norm(k, ...) (kernels/qk_norm) followed by
 // fused_attention — the same bits, with the norm applied as the kernels read q and k and (bf16) a backward that
 // writes qkv's gradient as one tensor, so neither the normalised q and k nor the three separate gradients are ever
 // stored. Returns o [B, H, q_count, D] as fused_attention does. Applies where fused_qk_norm_attention_applies (fused
@@ -33,4 +33,4 @@ bool fused_qk_norm_attention_applies(const torch::Tensor& qkv, const torch::Tens
 torch::Tensor fused_qk_norm_attention(const torch::Tensor& qkv, int64_t heads, const torch::Tensor& q_weight,
                                       const torch::Tensor& k_weight, double eps, int64_t q_start, int64_t q_count);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -4,7 +4,7 @@
 #include "uplvsm/kernels/flash_attention_simd.h"
 #include "uplvsm/kernels/qk_norm_rows.h"
 
-namespace uplvsm::model::flash {
+namespace uplvsm::kernels::flash {
 namespace {
 
 using namespace detail;
@@ -135,7 +135,7 @@ UPLVSM_AVX512 void transpose_rows(const float* rows, int64_t L, int64_t D, int64
     }
 }
 
-// Rows [row, row + count) of head bh of an fp32 operand through QK-Norm with weight w (Problem::norm: model/qk_norm's
+// Rows [row, row + count) of head bh of an fp32 operand through QK-Norm with weight w (Problem::norm: kernels/qk_norm's
 // fp32 bits, qk_norm_rows.h), times `mul` as load_row multiplies, into dst ([count x D]).
 UPLVSM_AVX512 void load_rows_through_norm(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row,
                                           int64_t count, const float* w, float mul, float* dst) {
@@ -313,4 +313,4 @@ void backward_tasks(const Problem& p, const void* dout, Strides sdo, const float
   }
 }
 
-}  // namespace uplvsm::model::flash
+}  // namespace uplvsm::kernels::flash

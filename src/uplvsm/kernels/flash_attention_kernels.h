@@ -5,7 +5,7 @@
 #pragma once
 #include <cstdint>
 
-namespace uplvsm::model::flash {
+namespace uplvsm::kernels::flash {
 
 // Element strides of a [B, H, L, D] operand whose last dimension is contiguous.
 struct Strides {
@@ -14,7 +14,7 @@ struct Strides {
 
 enum class Precision { Fp32, Bf16 };
 
-// QK-Norm applied to q and k as the kernels read them, with model/qk_norm's arithmetic and rounding
+// QK-Norm applied to q and k as the kernels read them, with kernels/qk_norm's arithmetic and rounding
 // (qk_norm_rows.h): each row of q becomes bf16(bf16(row r) q_weight), r = 1 / sqrt(mean(row^2) + eps), and k
 // likewise (fp32: (row r) q_weight, unrounded). Then the bf16 backward's dq and dk are the gradients of the raw q
 // and k, and the weights' gradients are added per (batch, head) into q_weight_grad and k_weight_grad ([B*H, D],
@@ -52,4 +52,4 @@ void backward_delta(const Problem& p, const void* o, Strides so, const void* dou
 void backward_tasks(const Problem& p, const void* dout, Strides sdo, const float* lse, const float* delta,
                     int64_t begin, int64_t end, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv);
 
-}  // namespace uplvsm::model::flash
+}  // namespace uplvsm::kernels::flash

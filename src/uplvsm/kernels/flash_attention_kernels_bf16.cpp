@@ -6,7 +6,7 @@
 #include "uplvsm/kernels/flash_attention_packing_bf16.h"
 #include "uplvsm/kernels/flash_attention_simd.h"
 
-namespace uplvsm::model::flash::detail {
+namespace uplvsm::kernels::flash::detail {
 namespace {
 
 using namespace bf16_packing;
@@ -299,4 +299,4 @@ void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides 
   store_query_gradient(p, bh, b, dQ, dq, sdq);
 }
 
-}  // namespace uplvsm::model::flash::detail
+}  // namespace uplvsm::kernels::flash::detail

@@ -8,7 +8,7 @@
 #include "uplvsm/kernels/flash_attention_simd.h"
 #include "uplvsm/kernels/qk_norm_rows.h"
 
-namespace uplvsm::model::flash::detail::bf16_packing {
+namespace uplvsm::kernels::flash::detail::bf16_packing {
 
 inline const uint16_t* row_ptr(const Problem& p, const void* base, Strides s, int64_t bh, int64_t row) {
   return static_cast<const uint16_t*>(base) + head_offset(p, s, bh, row);
@@ -158,4 +158,4 @@ UPLVSM_AVX512 inline void norm_backward_rows(const Problem& p, int64_t bh, HeadR
   }
 }
 
-}  // namespace uplvsm::model::flash::detail::bf16_packing
+}  // namespace uplvsm::kernels::flash::detail::bf16_packing

@@ -18,7 +18,7 @@
 #define UPLVSM_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
 #define UPLVSM_AVX512_BF16 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16")))
 
-namespace uplvsm::model::flash::detail {
+namespace uplvsm::kernels::flash::detail {
 
 using row_simd::exp_ps;
 using row_simd::tail_mask;
@@ -107,4 +107,4 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
 void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
                         const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv);
 
-}  // namespace uplvsm::model::flash::detail
+}  // namespace uplvsm::kernels::flash::detail

@@ -9,7 +9,7 @@
 #include "uplvsm/kernels/bf16_simd.h"
 #include "uplvsm/kernels/exp_simd.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 namespace {
 
 using torch::autograd::AutogradContext;
@@ -120,4 +120,4 @@ bool gelu_fuses(const torch::Tensor& x) {
 
 torch::Tensor gelu(const torch::Tensor& x) { return gelu_fuses(x) ? GeluFunction::apply(x) : torch::gelu(x); }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

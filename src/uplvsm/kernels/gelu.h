@@ -6,7 +6,7 @@
 #pragma once
 #include <torch/torch.h>
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 // Whether `gelu` runs fused for this input (CPU, bf16, AVX-512); elsewhere — fp32 (whose results must match the
 // official code's to the last bits), CUDA — it is torch::gelu. UPLVSM_GELU=aten forces torch::gelu (benchmarks).
@@ -16,4 +16,4 @@ bool gelu_fuses(const torch::Tensor& x);
 // autograd node. The result is contiguous, of x's shape and dtype.
 torch::Tensor gelu(const torch::Tensor& x);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -10,7 +10,7 @@
 #include "uplvsm/kernels/bf16_simd.h"
 #include "uplvsm/kernels/block_sums.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 namespace {
 
 using torch::autograd::AutogradContext;
@@ -320,4 +320,4 @@ std::pair<torch::Tensor, torch::Tensor> add_layer_norm_to_bf16(const torch::Tens
   return {out[0], out[1]};
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -6,7 +6,7 @@
 #pragma once
 #include <torch/torch.h>
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 // Whether `layer_norm_to_bf16` runs fused for this input (CPU, fp32 x with a contiguous last dimension, fp32
 // weight and optional bias of x's last size); elsewhere it computes the unfused chain. UPLVSM_LAYER_NORM=unfused
@@ -38,4 +38,4 @@ std::pair<torch::Tensor, torch::Tensor> add_layer_norm_to_bf16_unfused(const tor
                                                                        const torch::Tensor& weight,
                                                                        const torch::Tensor& bias, double eps);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -12,7 +12,7 @@
 #include "uplvsm/kernels/block_sums.h"
 #include "uplvsm/kernels/qk_norm_rows.h"
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 namespace {
 
 using torch::autograd::AutogradContext;
@@ -217,4 +217,4 @@ torch::Tensor qk_norm(const torch::Tensor& x, const torch::Tensor& weight, doubl
   return QKNormFunction::apply(x, weight, eps, static_cast<int64_t>(out_dtype));
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

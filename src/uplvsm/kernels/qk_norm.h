@@ -4,7 +4,7 @@
 #pragma once
 #include <torch/torch.h>
 
-namespace uplvsm::model {
+namespace uplvsm::kernels {
 
 // Whether `qk_norm` runs fused for this input (CPU, fp32 or bf16 x with a contiguous last dimension, fp32 weight);
 // elsewhere it computes the unfused chain. UPLVSM_QK_NORM=unfused forces the unfused chain (benchmarks, tests).
@@ -19,4 +19,4 @@ torch::Tensor qk_norm(const torch::Tensor& x, const torch::Tensor& weight, doubl
 torch::Tensor qk_norm_unfused(const torch::Tensor& x, const torch::Tensor& weight, double eps,
                               torch::ScalarType out_dtype);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::kernels

@@ -9,7 +9,7 @@
 
 #include "uplvsm/kernels/bf16_simd.h"
 
-namespace uplvsm::model::qk_norm_rows {
+namespace uplvsm::kernels::qk_norm_rows {
 
 constexpr int64_t kGroup = 16;  // rows whose horizontal sums are taken together
 
@@ -114,4 +114,4 @@ UPLVSM_ROW_AVX512 inline void backward_group(const T* const x[kGroup], const TOu
   }
 }
 
-}  // namespace uplvsm::model::qk_norm_rows
+}  // namespace uplvsm::kernels::qk_norm_rows

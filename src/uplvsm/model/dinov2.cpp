@@ -1,9 +1,6 @@
 #include "uplvsm/model/dinov2.h"
 
-#include "uplvsm/core/autocast.h"
-#include "uplvsm/kernels/flash_attention.h"
-#include "uplvsm/kernels/gelu.h"
-#include "uplvsm/kernels/qk_norm.h"
+#include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/gradient_checkpoint.h"
 
 #include <cmath>
@@ -13,8 +10,8 @@ namespace uplvsm::model {
 using torch::indexing::Slice;
 
 DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, double eps) : heads(heads_) {
-  qkv = register_module("qkv", CastOnceLinear(torch::nn::LinearOptions(dim, 3 * dim).bias(true)));
-  proj = register_module("proj", CastOnceLinear(torch::nn::LinearOptions(dim, dim).bias(true)));
+  qkv = register_module("qkv", Linear(torch::nn::LinearOptions(dim, 3 * dim).bias(true)));
+  proj = register_module("proj", Linear(torch::nn::LinearOptions(dim, dim).bias(true)));
   if (qk_norm) {
     q_norm = register_module("q_norm", RMSNorm(dim / heads, eps));
     k_norm = register_module("k_norm", RMSNorm(dim / heads, eps));
@@ -22,37 +19,21 @@ DinoAttentionImpl::DinoAttentionImpl(int64_t dim, int64_t heads_, bool qk_norm, 
 }
 
 torch::Tensor DinoAttentionImpl::forward(const torch::Tensor& x) {
-  const int64_t B = x.size(0), N = x.size(1), C = x.size(2);
-  auto projected = qkv(x);
-  const bool fused_norm_dtype = autocast_active(x.device()) || projected.scalar_type() == torch::kFloat32;
-  if (q_norm && fused_norm_dtype && fused_qk_norm_attention_applies(projected, q_norm->weight, C / heads)) {
-    // The same bits as the path below (under autocast, or fp32 without gradients), in one node (flash_attention.h).
-    auto o = fused_qk_norm_attention(projected, heads, q_norm->weight, k_norm->weight, q_norm->eps, 0, N);
-    return proj(o.transpose(1, 2).reshape({B, N, C}));
-  }
-  // unbind, not three selects: its backward stacks the three gradients in one pass instead of zero-filling and
-  // copying into the whole qkv gradient three times.
-  auto qkv_ = projected.view({B, N, 3, heads, C / heads}).permute({2, 0, 3, 1, 4}).unbind(0);
-  auto q = qkv_[0], k = qkv_[1], v = qkv_[2];
-  if (q_norm) {
-    const auto dtype = qk_norm_output_dtype(q, C / heads);
-    q = qk_norm(q, q_norm->weight, q_norm->eps, dtype);
-    k = qk_norm(k, k_norm->weight, k_norm->eps, dtype);
-  }
-  auto o = attention(q, k, v);
-  return proj(o.transpose(1, 2).reshape({B, N, C}));
+  const auto no_norm = torch::Tensor();
+  return proj(kernels::qk_norm_attention(qkv(x), heads, q_norm ? q_norm->weight : no_norm, q_norm ? q_norm->eps : 0,
+                                         k_norm ? k_norm->weight : no_norm, k_norm ? k_norm->eps : 0));
 }
 
 DinoMlpImpl::DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out) {
-  fc1 = register_module("fc1", CastOnceLinear(dim, hidden));
-  fc2 = register_module("fc2", CastOnceLinear(hidden, out));
+  fc1 = register_module("fc1", Linear(dim, hidden));
+  fc2 = register_module("fc2", Linear(hidden, out));
 }
 
 LayerScaleImpl::LayerScaleImpl(int64_t dim, double init) {
   gamma = register_parameter("gamma", torch::full({dim}, init));
 }
 
-torch::Tensor DinoMlpImpl::forward(const torch::Tensor& x) { return fc2(model::gelu(fc1(x))); }
+torch::Tensor DinoMlpImpl::forward(const torch::Tensor& x) { return fc2(kernels::gelu(fc1(x))); }
 
 DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
   norm1 = register_module("norm1", LayerNorm(c.embed_dim, 1e-6, true));
@@ -64,16 +45,8 @@ DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
 }
 
 torch::Tensor DinoBlockImpl::forward(const torch::Tensor& x) {
-  auto [h, mlp_out] = forward_deferred(x, {});
-  return h + mlp_out;
-}
-
-std::pair<torch::Tensor, torch::Tensor> DinoBlockImpl::forward_deferred(const torch::Tensor& stream,
-                                                                        const torch::Tensor& pending) {
-  auto [x, normed1] = pending.defined() ? norm1->add_then_forward_into_linear(stream, pending)
-                                        : std::pair{stream, norm1->forward_into_linear(stream)};
-  auto [h, normed2] = norm2->add_then_forward_into_linear(x, ls1(attn(normed1)));
-  return {h, ls2(mlp(normed2))};
+  const auto h = x + ls1(attn(norm1->forward_into_linear(x)));
+  return h + ls2(mlp(norm2->forward_into_linear(h)));
 }
 
 torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
@@ -137,16 +110,32 @@ torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width
   return torch::cat({cls_pe, patches}, 1).to(pos_embed.scalar_type());
 }
 
+namespace {
+
+// A block as the kernels' stack runner takes it (kernels/ops.h): its norms and its two branches, LayerScale included.
+kernels::PreNormBlock dino_pre_norm_block(const std::shared_ptr<DinoBlockImpl>& block) {
+  kernels::PreNormBlock b;
+  b.norm1_weight = block->norm1->weight, b.norm1_bias = block->norm1->bias, b.norm1_eps = block->norm1->eps;
+  b.norm2_weight = block->norm2->weight, b.norm2_bias = block->norm2->bias, b.norm2_eps = block->norm2->eps;
+  b.attention = [attn = block->attn.ptr(), ls1 = block->ls1.ptr()](const torch::Tensor& normed, int64_t, int64_t) {
+    return ls1->forward(attn->forward(normed));
+  };
+  b.mlp = [mlp = block->mlp.ptr(), ls2 = block->ls2.ptr()](const torch::Tensor& normed) {
+    return ls2->forward(mlp->forward(normed));
+  };
+  return b;
+}
+
+}  // namespace
+
 torch::Tensor Dinov2Impl::run_blocks(torch::Tensor t) {
-  if (grad_checkpoint_every > 0 && torch::GradMode::is_enabled())
-    return run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list = blocks](size_t i, const torch::Tensor& x) {
-      return list->ptr<DinoBlockImpl>(i)->forward(x);
-    });
-  // Nothing checkpointed: each block's closing residual add is deferred into the next block's first norm.
-  torch::Tensor pending;
-  for (size_t i = 0; i < blocks->size(); ++i)
-    std::tie(t, pending) = blocks->ptr<DinoBlockImpl>(i)->forward_deferred(t, pending);
-  return pending.defined() ? t + pending : t;
+  std::vector<kernels::PreNormBlock> list;
+  for (size_t i = 0; i < blocks->size(); ++i) list.push_back(dino_pre_norm_block(blocks->ptr<DinoBlockImpl>(i)));
+  if (grad_checkpoint_every <= 0 || !torch::GradMode::is_enabled() || list.empty())
+    return kernels::run_pre_norm_stack(list, std::move(t));
+  return run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list](size_t i, const torch::Tensor& x) {
+    return kernels::run_pre_norm_stack({list[i]}, x);
+  });
 }
 
 DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x, const torch::Tensor& mask,

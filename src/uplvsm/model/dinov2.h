@@ -13,7 +13,7 @@ namespace uplvsm::model {
 struct DinoAttentionImpl : torch::nn::Module {
   DinoAttentionImpl(int64_t dim, int64_t heads, bool qk_norm, double qk_norm_eps);
   torch::Tensor forward(const torch::Tensor& x);
-  CastOnceLinear qkv{nullptr}, proj{nullptr};
+  Linear qkv{nullptr}, proj{nullptr};
   RMSNorm q_norm{nullptr}, k_norm{nullptr};  // only with qk_norm
   int64_t heads;
 };
@@ -22,7 +22,7 @@ TORCH_MODULE(DinoAttention);
 struct DinoMlpImpl : torch::nn::Module {
   DinoMlpImpl(int64_t dim, int64_t hidden, int64_t out);
   torch::Tensor forward(const torch::Tensor& x);
-  CastOnceLinear fc1{nullptr}, fc2{nullptr};
+  Linear fc1{nullptr}, fc2{nullptr};
 };
 TORCH_MODULE(DinoMlp);
 
@@ -35,9 +35,8 @@ TORCH_MODULE(LayerScale);
 
 struct DinoBlockImpl : torch::nn::Module {
   DinoBlockImpl(const Dinov2Config& c);
+  // x = x + ls1(attn(norm1(x))); x = x + ls2(mlp(norm2(x))).
   torch::Tensor forward(const torch::Tensor& x);
-  // As TransformerBlockImpl::forward_deferred: the block on x = stream + pending, returning {h, ls2(mlp(...))}.
-  std::pair<torch::Tensor, torch::Tensor> forward_deferred(const torch::Tensor& stream, const torch::Tensor& pending);
   LayerNorm norm1{nullptr}, norm2{nullptr};
   DinoAttention attn{nullptr};
   LayerScale ls1{nullptr}, ls2{nullptr};

@@ -14,7 +14,7 @@ torch::Tensor unpatchify(const torch::Tensor& t, int64_t p, int64_t H, int64_t W
 }
 
 PoseTokenizerImpl::PoseTokenizerImpl(int64_t p, int64_t d, int64_t channels) : patch_size(p) {
-  linear = register_module("1", CastOnceLinear(torch::nn::LinearOptions(channels * p * p, d).bias(false)));
+  linear = register_module("1", Linear(torch::nn::LinearOptions(channels * p * p, d).bias(false)));
 }
 
 torch::Tensor PoseTokenizerImpl::forward(const torch::Tensor& plucker) { return linear(patchify(plucker, patch_size)); }

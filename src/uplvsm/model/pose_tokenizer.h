@@ -3,7 +3,7 @@
 #pragma once
 #include <torch/torch.h>
 
-#include "uplvsm/kernels/cast_once_linear.h"
+#include "uplvsm/model/linear.h"
 
 namespace uplvsm::model {
 
@@ -18,7 +18,7 @@ struct PoseTokenizerImpl : torch::nn::Module {
   PoseTokenizerImpl(int64_t patch_size, int64_t d, int64_t channels = 6);
   // plucker [N, 6, H, W] -> tokens [N, n, d]
   torch::Tensor forward(const torch::Tensor& plucker);
-  CastOnceLinear linear{nullptr};
+  Linear linear{nullptr};
   int64_t patch_size;
 };
 TORCH_MODULE(PoseTokenizer);

@@ -6,7 +6,7 @@ namespace uplvsm::model {
 
 RgbHeadImpl::RgbHeadImpl(int64_t d, int64_t p) : patch_size(p) {
   norm = register_module("0", LayerNorm(d, 1e-5, false));
-  linear = register_module("1", CastOnceLinear(torch::nn::LinearOptions(d, p * p * 3).bias(false)));
+  linear = register_module("1", Linear(torch::nn::LinearOptions(d, p * p * 3).bias(false)));
 }
 
 torch::Tensor RgbHeadImpl::forward(const torch::Tensor& tokens, int64_t b, int64_t v, int64_t H, int64_t W) {

@@ -12,8 +12,8 @@ struct RgbHeadImpl : torch::nn::Module {
   RgbHeadImpl(int64_t d, int64_t patch_size);
   // target tokens [b v, n, d] -> images [b, v, 3, H, W] in [0, 1]
   torch::Tensor forward(const torch::Tensor& tokens, int64_t b, int64_t v, int64_t height, int64_t width);
-  LayerNorm norm{nullptr};         // "0"
-  CastOnceLinear linear{nullptr};  // "1"
+  LayerNorm norm{nullptr};  // "0"
+  Linear linear{nullptr};   // "1"
   int64_t patch_size;
 };
 TORCH_MODULE(RgbHead);

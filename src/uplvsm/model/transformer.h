@@ -8,7 +8,7 @@
 #include <optional>
 #include <vector>
 
-#include "uplvsm/kernels/cast_once_linear.h"
+#include "uplvsm/model/linear.h"
 
 namespace uplvsm::model {
 
@@ -16,13 +16,9 @@ namespace uplvsm::model {
 struct LayerNormImpl : torch::nn::Module {
   LayerNormImpl(int64_t dim, double eps, bool bias);
   torch::Tensor forward(const torch::Tensor& x);
-  // For a norm whose result only feeds linear layers: under bf16 autocast it comes out in bf16, the dtype those
-  // layers cast to, from one fused pass (layer_norm_to_bf16.h); otherwise forward(x).
+  // For a norm whose result only feeds linear layers: under bf16 autocast it may come out in bf16, the dtype those
+  // layers cast to (kernels/ops.h: layer_norm's into_linear).
   torch::Tensor forward_into_linear(const torch::Tensor& x);
-  // A residual connection and this norm: {x + branch, forward_into_linear(x + branch)}, in one pass under bf16
-  // autocast on the CPU.
-  std::pair<torch::Tensor, torch::Tensor> add_then_forward_into_linear(const torch::Tensor& x,
-                                                                       const torch::Tensor& branch);
   torch::Tensor weight, bias;
   int64_t dim;
   double eps;
@@ -47,25 +43,16 @@ struct OutputRows {
   bool all(int64_t length) const { return count < 0 || (start == 0 && count == length); }
 };
 
-// The dtype in which QK-Norm hands q and k to `attention` for a projection `projected` (qk_norm.h).
-torch::ScalarType qk_norm_output_dtype(const torch::Tensor& projected, int64_t d_head);
-
-// softmax(q k^T * scale) v for q, k, v [B, heads, L, d_head]. One seam for the attention kernel.
-torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v);
-
+// softmax(rms(q) rms(k)^T / sqrt(d_head)) v per head, q | k | v = to_qkv(x), heads merged and projected by fc.
 struct QKNormAttentionImpl : torch::nn::Module {
   QKNormAttentionImpl(int64_t d, int64_t d_head, double qk_norm_eps);
   // Attention over every row of x; the result only for `rows`.
   torch::Tensor forward(const torch::Tensor& x, OutputRows rows = {});
   // The attention probabilities (head-mean, [B, L, L]) for analysis tools; not used by forward.
   torch::Tensor attention_map(const torch::Tensor& x);
-  CastOnceLinear to_qkv{nullptr}, fc{nullptr};
+  Linear to_qkv{nullptr}, fc{nullptr};
   RMSNorm q_norm{nullptr}, k_norm{nullptr};
   int64_t heads, d_head;
-
- private:
-  // q, k (normalised) and v [B, heads, L or rows, d_head] of the projection to_qkv(x).
-  std::tuple<torch::Tensor, torch::Tensor, torch::Tensor> project(const torch::Tensor& projected, OutputRows rows);
 };
 TORCH_MODULE(QKNormAttention);
 
@@ -76,14 +63,11 @@ struct MLPImpl : torch::nn::Module {
 };
 TORCH_MODULE(MLP);
 
+// The pre-norm block: x = x + attn(norm1(x)); x = x + mlp(norm2(x)). `rows`: only those rows' queries, attention
+// outputs and MLP (every row still serves as a key and value).
 struct TransformerBlockImpl : torch::nn::Module {
   TransformerBlockImpl(int64_t d, int64_t d_head, double qk_norm_eps);
   torch::Tensor forward(const torch::Tensor& x, OutputRows rows = {});
-  // The block on the residual stream x = stream + pending, where `pending` is the previous block's MLP output not
-  // yet added (or undefined): returns {h, mlp output}, whose sum is forward's result. Deferring the closing add lets
-  // it join the next block's first norm (LayerNormImpl::add_then_forward_into_linear).
-  std::pair<torch::Tensor, torch::Tensor> forward_deferred(const torch::Tensor& stream, const torch::Tensor& pending,
-                                                           OutputRows rows = {});
   LayerNorm norm1{nullptr}, norm2{nullptr};
   QKNormAttention attn{nullptr};
   MLP mlp{nullptr};
@@ -113,8 +97,9 @@ torch::nn::ModuleList make_transformer_stack(int64_t d, int64_t d_head, double q
 // false: 0.02 for every block).
 torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double qk_norm_eps,
                                              bool depth_init);
-// Runs the blocks in order. checkpoint_every > 0: each group of that many blocks is gradient-checkpointed (the
-// official `grad_checkpoint_every`); 0 keeps every activation. `span` names the stack in profiler traces
+// Runs the blocks in order, each as its forward (through the kernels' stack runner, which defers each residual add
+// into the next norm: kernels/ops.h). checkpoint_every > 0: each group of that many blocks is gradient-checkpointed
+// (the official `grad_checkpoint_every`); 0 keeps every activation. `span` names the stack in profiler traces
 // (UPLVSM_PROFILE), so the forwards that call it need no profiling code of their own. Returns `rows` of the output.
 torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every = 0,
                         const char* span = "uplvsm::transformer_stack", OutputRows rows = {});

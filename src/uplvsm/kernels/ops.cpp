@@ -1,0 +1,118 @@
+// The dispatch of ops.h: each op's plain LibTorch reference, and the choice of the fused CPU kernel where it computes
+// the same (layer_norm_to_bf16.h, qk_norm.h, flash_attention.h).
+#include "uplvsm/kernels/ops.h"
+
+#include <cmath>
+
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/kernels/flash_attention.h"
+#include "uplvsm/kernels/layer_norm_to_bf16.h"
+#include "uplvsm/kernels/qk_norm.h"
+
+namespace uplvsm::kernels {
+
+torch::Tensor layer_norm(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias, double eps,
+                         bool into_linear) {
+  if (into_linear && autocast_active(x.device()) && layer_norm_to_bf16_fuses(x, weight, bias))
+    return layer_norm_to_bf16(x, weight, bias, eps);
+  return torch::layer_norm(x, {x.size(-1)}, weight, bias, eps);
+}
+
+std::pair<torch::Tensor, torch::Tensor> add_layer_norm(const torch::Tensor& x, const torch::Tensor& branch,
+                                                       const torch::Tensor& weight, const torch::Tensor& bias,
+                                                       double eps, bool into_linear) {
+  if (into_linear && autocast_active(x.device()) && add_layer_norm_to_bf16_fuses(x, branch, weight, bias))
+    return add_layer_norm_to_bf16(x, branch, weight, bias, eps);
+  auto h = x + branch;
+  return {h, layer_norm(h, weight, bias, eps, into_linear)};
+}
+
+torch::Tensor rms_norm(const torch::Tensor& x, const torch::Tensor& weight, double eps, torch::ScalarType out_dtype) {
+  return qk_norm(x, weight, eps, out_dtype);  // fused where qk_norm_fuses, else qk_norm_unfused (the reference)
+}
+
+torch::ScalarType qk_norm_output_dtype(const torch::Tensor& projected, int64_t d_head) {
+  // The dtype `attention` casts to under autocast (bf16 for the fused kernel) saves that pass; otherwise RMSNorm's
+  // own result dtype (that of x times an fp32 weight).
+  const auto device = projected.device();
+  if (autocast_active(device) && fused_attention_applies(device, torch::kBFloat16, d_head)) return torch::kBFloat16;
+  return torch::promote_types(projected.scalar_type(), torch::kFloat32);
+}
+
+torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  // Under autocast the fused kernel takes bf16 operands (as autocast's matmuls would) and accumulates in fp32.
+  const auto dtype = autocast_active(q.device()) ? torch::kBFloat16 : q.scalar_type();
+  if (q.dim() == 4 && fused_attention_applies(q.device(), dtype, q.size(3)))
+    return fused_attention(q.to(dtype), k.to(dtype), v.to(dtype));
+#if TORCH_VERSION_MAJOR >= 2
+  return at::scaled_dot_product_attention(q, k, v);
+#else
+  const double scale = 1.0 / std::sqrt(static_cast<double>(q.size(-1)));
+  auto scores = torch::matmul(q, k.transpose(-2, -1)).mul_(scale);
+  return torch::matmul(torch::softmax(scores, -1), v);
+#endif
+}
+
+namespace {
+
+// The reference: split the heads, QK-Norm q (of the kept rows) and k, attend.
+torch::Tensor qk_norm_attention_reference(const torch::Tensor& qkv, int64_t heads, const torch::Tensor& q_weight,
+                                          double q_eps, const torch::Tensor& k_weight, double k_eps, int64_t row_start,
+                                          int64_t row_count) {
+  const int64_t B = qkv.size(0), L = qkv.size(1), d_head = qkv.size(2) / (3 * heads);
+  // unbind, not three selects: its backward stacks the three gradients in one pass instead of zero-filling and
+  // copying into the whole qkv gradient three times.
+  auto split = qkv.view({B, L, 3, heads, d_head}).permute({2, 0, 3, 1, 4}).unbind(0);  // 3 x [B, heads, L, d_head]
+  auto q = row_count == L ? split[0] : split[0].narrow(2, row_start, row_count), k = split[1];
+  if (q_weight.defined()) {
+    const auto dtype = qk_norm_output_dtype(qkv, d_head);
+    q = rms_norm(q, q_weight, q_eps, dtype);
+    k = rms_norm(k, k_weight, k_eps, dtype);
+  }
+  return attention(q, k, split[2]);
+}
+
+}  // namespace
+
+torch::Tensor qk_norm_attention(const torch::Tensor& qkv, int64_t heads, const torch::Tensor& q_weight, double q_eps,
+                                const torch::Tensor& k_weight, double k_eps, int64_t row_start, int64_t row_count) {
+  const int64_t B = qkv.size(0), L = qkv.size(1), d_head = qkv.size(2) / (3 * heads);
+  if (row_count < 0) row_start = 0, row_count = L;
+  TORCH_CHECK(row_start >= 0 && row_start + row_count <= L, "qk_norm_attention: rows [", row_start, ", ",
+              row_start + row_count, ") outside a sequence of ", L);
+  // The fused node computes the same bits (under autocast, or fp32 without gradients) without storing q and k
+  // normalised or three separate gradients (flash_attention.h).
+  const bool fused_dtype = autocast_active(qkv.device()) || qkv.scalar_type() == torch::kFloat32;
+  torch::Tensor o;  // [B, heads, rows, d_head]
+  if (q_weight.defined() && row_count > 0 && q_eps == k_eps && fused_dtype &&
+      fused_qk_norm_attention_applies(qkv, q_weight, d_head))
+    o = fused_qk_norm_attention(qkv, heads, q_weight, k_weight, q_eps, row_start, row_count);
+  else
+    o = qk_norm_attention_reference(qkv, heads, q_weight, q_eps, k_weight, k_eps, row_start, row_count);
+  return o.transpose(1, 2).reshape({B, row_count, heads * d_head});
+}
+
+torch::Tensor run_pre_norm_stack(const std::vector<PreNormBlock>& blocks, torch::Tensor x, int64_t row_start,
+                                 int64_t row_count) {
+  const bool all_rows = row_count < 0 || (row_start == 0 && row_count == x.size(1));
+  if (blocks.empty()) return all_rows ? x : x.narrow(1, row_start, row_count);
+  torch::Tensor stream = std::move(x), pending;  // the residual stream is stream + pending (the last MLP output)
+  for (size_t i = 0; i < blocks.size(); ++i) {
+    const auto& b = blocks[i];
+    const bool rows_only = i + 1 == blocks.size() && !all_rows;
+    const int64_t start = rows_only ? row_start : 0, count = rows_only ? row_count : -1;
+    torch::Tensor normed1;
+    if (pending.defined())
+      std::tie(stream, normed1) = add_layer_norm(stream, pending, b.norm1_weight, b.norm1_bias, b.norm1_eps, true);
+    else
+      normed1 = layer_norm(stream, b.norm1_weight, b.norm1_bias, b.norm1_eps, true);
+    const auto kept = rows_only ? stream.narrow(1, start, count) : stream;
+    auto [h, normed2] =
+        add_layer_norm(kept, b.attention(normed1, start, count), b.norm2_weight, b.norm2_bias, b.norm2_eps, true);
+    stream = std::move(h);
+    pending = b.mlp(normed2);
+  }
+  return stream + pending;
+}
+
+}  // namespace uplvsm::kernels
