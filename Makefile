@@ -138,7 +138,7 @@ sanitize: deps
 DEMO_MODEL ?= models/demo.safetensors
 DEMO_MAPPER_MODEL ?= models/demo_mapper.safetensors
 DEMO_CEILING_MODEL ?= models/demo_lvsm.safetensors
-DEMO_MODEL_CONFIG ?= configs/demo_rotation_first.json
+DEMO_MODEL_CONFIG ?= configs/demo_model_stage1.json
 # Camera control for the shipped model without fine-tuning it (uplvsm fit-mapper), fitted by make demo.
 DEMO_FITTED_MAPPER = $(DEMO)/fitted_mapper/mapper.safetensors
 DEMO_RENDER = --data $(DEMO)/dataset_demo --split test --scenes 3 --frames 48 --side-by-side
@@ -159,21 +159,21 @@ demo: build-cli
 	$(UPLVSM) eval --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --out $(DEMO)/eval
 	$(UPLVSM) render --checkpoint $(DEMO)/run --data $(DEMO)/dataset --split test --side-by-side --out $(DEMO)/video
 	$(UPLVSM) report --title "uplvsm demo" --out $(DEMO)/report \
-	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train on the built-in rooms with the rotation-first recipe (configs/demo_rotation_first.json: 4000 steps x 8 with a rotation-only latent camera on 2 CPU cores; then configs/demo_rotation_first_long_gpu.json: 4000 steps x 32 with the full camera on a GPU; then configs/demo_gradient_difference.json: 1500 steps x 8 with the gradient difference loss against the blur on 2 CPU cores; then configs/demo_gradient_difference_long_gpu.json: 2000 steps x 32 with the same loss on a GPU); unposed: target poses from the Latent Plücker Learner; the encoder also reads the inputs' latent cameras and the decoder the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
-	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_gradient_difference_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
+	  --model "label=Shipped demo model ($(DEMO_MODEL)),eval=$(DEMO)/shipped/eval,video=$(DEMO)/shipped/interpolation,caption=UP-LVSM at 96x96 trained by uplvsm train on the built-in rooms with the rotation-first recipe (configs/demo_model_stage1.json: 4000 steps x 8 with a rotation-only latent camera on 2 CPU cores; then configs/demo_model_stage2_gpu.json: 4000 steps x 32 with the full camera on a GPU; then configs/demo_model_stage3.json: 1500 steps x 8 with the gradient difference loss against the blur on 2 CPU cores; then configs/demo_model_stage4_gpu.json: 2000 steps x 32 with the same loss on a GPU); unposed: target poses from the Latent Plücker Learner; the encoder also reads the inputs' latent cameras and the decoder the input images' tokens; video: interpolation between the two inputs' latent poses; held-out scenes" \
+	  --model "label=Shipped model with camera control ($(DEMO_MAPPER_MODEL)),eval=$(DEMO)/shipped_mapper/eval,video=$(DEMO)/shipped_mapper/orbit,caption=the same after the camera-mapper fine-tune (configs/demo_model_mapper.json); targets rendered from their real cameras through the linear mapper; video: an explicit orbit around the scene" \
 	  --model "label=The shipped model with a fitted mapper ($(DEMO_MODEL) + fit-mapper),eval=$(DEMO)/fitted_mapper/eval,video=$(DEMO)/fitted_mapper/orbit,caption=camera control without fine-tuning: uplvsm fit-mapper fitted an MLP pose mapper (reading the inputs' latent poses) to the frozen shipped model on this demo's 400 training rooms in minutes; targets rendered from their real cameras through it; video: the same orbit" \
-	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_lvsm_same_budget_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; trained on the unposed model's budget (5375 steps x 32 = 172000 scenes of 6 targets; one GPU); video: interpolation between the inputs' real cameras" \
+	  --model "label=With known cameras: the ceiling ($(DEMO_CEILING_MODEL)),eval=$(DEMO)/ceiling/eval,video=$(DEMO)/ceiling/interpolation,caption=LVSM of the same width (decoder-only; configs/demo_ceiling_gpu.json) told every camera in training and at test: what a perfect latent camera could approach; trained on the unposed model's budget (5375 steps x 32 = 172000 scenes of 6 targets; one GPU); video: interpolation between the inputs' real cameras" \
 	  --model "label=tiny trained here from scratch ($(CONFIG)),run=$(DEMO)/run,eval=$(DEMO)/eval,video=$(DEMO)/video,caption=the same model family at 48x48 trained by this make demo"
 	@echo "interactive viewer: $(UPLVSM) serve --checkpoint $(SERVE_CHECKPOINT) --data $(DEMO)/dataset_demo  (then open http://127.0.0.1:8080/)"
 
 # Reproduces the shipped demo models from scratch with our own trainer: the built-in 96x96 rooms, the rotation-first
-# recipe's first stage (configs/demo_rotation_first.json: 4000 steps at batch 8 with a rotation-only latent camera; 2 CPU
+# recipe's first stage (configs/demo_model_stage1.json: 4000 steps at batch 8 with a rotation-only latent camera; 2 CPU
 # cores, ~78 min at one thread, the thread count it was trained with: bf16 sums split across threads round
-# differently), its second stage with the full latent camera (configs/demo_rotation_first_long_gpu.json: 4000 steps
+# differently), its second stage with the full latent camera (configs/demo_model_stage2_gpu.json: 4000 steps
 # at batch 32; one H200, 330 s), a third stage that adds the gradient difference loss against the blur
-# (configs/demo_gradient_difference.json: 1500 steps at batch 8; 2 CPU cores, ~27 min at one thread), a fourth with
-# more compute and the same loss (configs/demo_gradient_difference_long_gpu.json: 2000 steps at batch 32; one H200,
-# 170 s), the camera-mapper fine-tune with the same loss (configs/demo_gradient_difference_mapper.json, 2000 steps at
+# (configs/demo_model_stage3.json: 1500 steps at batch 8; 2 CPU cores, ~27 min at one thread), a fourth with
+# more compute and the same loss (configs/demo_model_stage4_gpu.json: 2000 steps at batch 32; one H200,
+# 170 s), the camera-mapper fine-tune with the same loss (configs/demo_model_mapper.json, 2000 steps at
 # batch 8; 2 CPU cores), then the weights-only exports. DEMO_MODEL_DEVICE=cpu runs the second and fourth stages on a
 # CPU too (hours on 2 cores). Every step resumes, so run it again after an interruption.
 DEMO_MODEL_WORK ?= out/demo_model
@@ -187,22 +187,22 @@ demo-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
 	$(UPLVSM) train --config $(DEMO_MODEL_CONFIG) --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/rotation \
 	  --resume auto --device $(DEMO_FIRST_STAGE_DEVICE) --threads $(DEMO_FIRST_STAGE_THREADS)
-	$(UPLVSM) train --config configs/demo_rotation_first_long_gpu.json --init $(DEMO_MODEL_WORK)/rotation --data $(DEMO_MODEL_WORK)/data \
+	$(UPLVSM) train --config configs/demo_model_stage2_gpu.json --init $(DEMO_MODEL_WORK)/rotation --data $(DEMO_MODEL_WORK)/data \
 	  --run $(DEMO_MODEL_WORK)/main --resume auto --device $(DEMO_MODEL_DEVICE)
-	$(UPLVSM) train --config configs/demo_gradient_difference.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data \
+	$(UPLVSM) train --config configs/demo_model_stage3.json --init $(DEMO_MODEL_WORK)/main --data $(DEMO_MODEL_WORK)/data \
 	  --run $(DEMO_MODEL_WORK)/sharp --resume auto --device $(DEMO_SHARPEN_DEVICE) --threads $(DEMO_SHARPEN_THREADS)
-	$(UPLVSM) train --config configs/demo_gradient_difference_long_gpu.json --init $(DEMO_MODEL_WORK)/sharp --data $(DEMO_MODEL_WORK)/data \
+	$(UPLVSM) train --config configs/demo_model_stage4_gpu.json --init $(DEMO_MODEL_WORK)/sharp --data $(DEMO_MODEL_WORK)/data \
 	  --run $(DEMO_MODEL_WORK)/long --resume auto --device $(DEMO_MODEL_DEVICE)
-	$(UPLVSM) train --stage mapper --config configs/demo_gradient_difference_mapper.json --init $(DEMO_MODEL_WORK)/long --data $(DEMO_MODEL_WORK)/data \
+	$(UPLVSM) train --stage mapper --config configs/demo_model_mapper.json --init $(DEMO_MODEL_WORK)/long --data $(DEMO_MODEL_WORK)/data \
 	  --run $(DEMO_MODEL_WORK)/mapper --resume auto --device $(DEMO_MAPPER_DEVICE)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/long --out $(DEMO_MODEL)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/mapper --out $(DEMO_MAPPER_MODEL)
 
-# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_lvsm_same_budget_gpu.json: the unposed model's
+# Reproduces the shipped ceiling (LVSM told every camera, configs/demo_ceiling_gpu.json: the unposed model's
 # budget up to its third stage, 5375 steps at batch 32 of 6 targets = 172000 scenes; one H200, 430 s).
 demo-ceiling-model: build-cli
 	test -f $(DEMO_MODEL_WORK)/data/evaluation_index.json || $(UPLVSM) make-dataset --config $(DEMO_MODEL_CONFIG) --out $(DEMO_MODEL_WORK)/data
-	$(UPLVSM) train --config configs/demo_lvsm_same_budget_gpu.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling \
+	$(UPLVSM) train --config configs/demo_ceiling_gpu.json --data $(DEMO_MODEL_WORK)/data --run $(DEMO_MODEL_WORK)/ceiling \
 	  --resume auto --device $(DEMO_MODEL_DEVICE)
 	$(UPLVSM) export --checkpoint $(DEMO_MODEL_WORK)/ceiling --out $(DEMO_CEILING_MODEL)
 

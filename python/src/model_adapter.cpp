@@ -76,9 +76,9 @@ torch::Tensor ModelAdapter::render_views(const torch::Tensor& scene_latents, con
 
 ForwardResult ModelAdapter::forward(const model::Views& inputs, const model::Views& targets,
                                     const std::string& target_poses, const std::string& amp) {
-  TargetPoseChoice choice;
+  TargetPoses choice;
   try {
-    choice = parse_target_pose_choice(target_poses, "target_poses");
+    choice = parse_target_poses(target_poses, "target_poses");
   } catch (const std::runtime_error& e) {
     throw std::invalid_argument(e.what());
   }

@@ -42,7 +42,7 @@ class ModelAdapter {
                                const std::string& amp);
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& poses,
                              const torch::Tensor& fxfycxcy, int64_t height, int64_t width, const std::string& amp);
-  // target_poses: "auto" | "estimator" | "mapper" | "dataset" (parse_target_pose_choice).
+  // target_poses: "auto" | "estimator" | "mapper" | "dataset" (parse_target_poses).
   ForwardResult forward(const model::Views& inputs, const model::Views& targets, const std::string& target_poses,
                         const std::string& amp);
   render::InterpolationVideo render_interpolation(const torch::Tensor& images, const torch::Tensor& fxfycxcy,

@@ -236,9 +236,9 @@ TEST(ChunkDataset, WrongSizeFrameThrowsBadFrameError) {
   test::remove_tree(dir);
 }
 
-// With a count to add to, a frame of another size is preprocessed from its own size, as every frame is (the
+// Under FrameSizePolicy::Resize a frame of another size is preprocessed from its own size, as every frame is (the
 // official dataset): the views stack and the frame is counted. Without a square crop a frame whose resized width
-// differs cannot stack: still a BadFrameError, and nothing is counted.
+// differs cannot stack: still a BadFrameError. Under Skip (the default) any other size is pixelSplat's skip.
 TEST(ChunkDataset, FramesOfAnotherSizeAreResizedWhenAsked) {
   auto dir = test::temp_dir("chunk_resized");
   RawScene s = make_scene("eeee000000000002", 4, 24, 32);
@@ -247,19 +247,21 @@ TEST(ChunkDataset, FramesOfAnotherSizeAreResizedWhenAsked) {
   write_split(dir, "train", {s});
   ChunkDataset ds(dir.string(), "train");
   const PreprocessOptions square{32, 8, true}, wide{32, 8, false};
-  int64_t resized = 0;
-  auto v = ds.load_views(0, {0, 1, 2, 3}, square, &resized);
-  EXPECT_EQ(resized, 2);
+  constexpr auto resize = FrameSizePolicy::Resize;
+  auto v = ds.load_views(0, {0, 1, 2, 3}, square, resize);
+  EXPECT_EQ(v.resized_frames, 2);
   EXPECT_EQ(v.images.sizes(), (std::vector<int64_t>{4, 3, 32, 32}));
   // Frame 1 comes out as frame 0 would from its own size (a flat image: the same pixels; the same intrinsics).
   EXPECT_LE((v.images[1] - v.images[0]).abs().max().item<double>(), 2.5 / 255.0);
   EXPECT_TRUE(torch::allclose(v.fxfycxcy[1], v.fxfycxcy[0]));
-  EXPECT_EQ(ds.load_views(0, {0, 1}, wide, &resized).images.size(3), 40);
-  EXPECT_EQ(resized, 3);
-  EXPECT_THROW(ds.load_views(0, {0, 2}, wide, &resized), BadFrameError);
-  EXPECT_THROW(ds.load_views(0, {2, 3}, wide, &resized), BadFrameError);
-  EXPECT_EQ(resized, 3);
-  EXPECT_THROW(ds.load_views(0, {0, 1}, square), BadFrameError);  // without a count: pixelSplat's rule
+  auto wide_views = ds.load_views(0, {0, 1}, wide, resize);
+  EXPECT_EQ(wide_views.images.size(3), 40);
+  EXPECT_EQ(wide_views.resized_frames, 1);
+  EXPECT_THROW(ds.load_views(0, {0, 2}, wide, resize), BadFrameError);
+  EXPECT_THROW(ds.load_views(0, {2, 3}, wide, resize), BadFrameError);
+  EXPECT_EQ(ds.load_views(0, {0, 3}, square, resize).resized_frames, 0);
+  EXPECT_THROW(ds.load_views(0, {0, 1}, square), BadFrameError);  // the default: pixelSplat's rule
+  EXPECT_THROW(ds.load_views(0, {0, 1}, square, FrameSizePolicy::Skip), BadFrameError);
   test::remove_tree(dir);
 }
 

@@ -199,6 +199,24 @@ def config_keys_in_code():
     return keys
 
 
+def resolved_config(path):
+    """A config file's JSON with its "extends" chain resolved as load_config does (sections merged key by key)."""
+    config = json.loads(path.read_text())
+    base = config.pop("extends", None)
+    if base is None:
+        return config
+    merged = resolved_config(path.parent / base)
+
+    def merge(into, over):
+        for key, value in over.items():
+            if isinstance(value, dict) and isinstance(into.get(key), dict):
+                merge(into[key], value)
+            else:
+                into[key] = value
+    merge(merged, config)
+    return merged
+
+
 def config_keys_documented():
     """(section.key, ...) of every row of docs/config.md's key tables: the section from the heading (`## `model``),
     the keys from the row's first cell (`a`, `b` documents both)."""
@@ -225,7 +243,7 @@ def test_training_commands_say_what_the_perceptual_loss_needs():
                 words = m.group(1).split()
                 configs = [w for w in words if w.startswith("configs/") and w.endswith(".json")]
                 weighted = [c for c in configs if (REPO / c).exists()  # the notebook also quotes retired configs
-                            and json.loads((REPO / c).read_text()).get("training", {}).get("perceptual_loss_weight", 0) > 0]
+                            and resolved_config(REPO / c).get("training", {}).get("perceptual_loss_weight", 0) > 0]
                 if not weighted or "--help" in words:
                     continue
                 checked += 1

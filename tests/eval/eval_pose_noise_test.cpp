@@ -128,7 +128,8 @@ struct RecordingLVSM : model::PosedLVSMImpl {
                          model::ForwardTrace* trace) override {
     inputs.push_back(in.c2w.clone());
     targets.push_back(tg.c2w.clone());
-    in_scene_frame.push_back(in.in_scene_frame && tg.in_scene_frame);
+    in_scene_frame.push_back(in.camera_frame == model::CameraFrame::Scene &&
+                             tg.camera_frame == model::CameraFrame::Scene);
     return PosedLVSMImpl::render(in, tg, source, trace);
   }
   std::vector<torch::Tensor> inputs, targets;
@@ -138,7 +139,7 @@ struct RecordingLVSM : model::PosedLVSMImpl {
 // Each scene's model PSNR by key (the index may list the scenes in any order).
 std::map<std::string, double> scene_psnrs(const EvalSummary& s) {
   std::map<std::string, double> out;
-  for (const auto& r : s.per_scene) out[r.key] = r.psnr;
+  for (const auto& r : s.per_scene) out[r.key] = r.model.psnr;
   return out;
 }
 
@@ -176,8 +177,9 @@ TEST(EvalPoseNoise, EvaluatorTellsAPosedModelTheNoisyCameras) {
     const auto told = noisy_scene_cameras(c2w, 2, kStd, 9, key);
     EXPECT_TRUE(torch::equal(recorder->inputs[1][b], told.inputs)) << key;
     EXPECT_TRUE(torch::equal(recorder->targets[1][b], told.targets)) << key;
-    EXPECT_NE(noisy.per_scene[b].psnr, clean.per_scene[b].psnr) << key;
-    EXPECT_EQ(noisy.per_scene[b].psnr_copy, clean.per_scene[b].psnr_copy) << key;  // baselines: clean cameras
+    EXPECT_NE(noisy.per_scene[b].model.psnr, clean.per_scene[b].model.psnr) << key;
+    EXPECT_EQ(noisy.per_scene[b].copy_nearest.psnr, clean.per_scene[b].copy_nearest.psnr)
+        << key;  // baselines: clean cameras
   }
   EXPECT_EQ(noisy.pose_noise.at("std"), kStd);
   EXPECT_EQ(noisy.pose_noise.at("seed"), 9);
@@ -215,7 +217,7 @@ TEST(EvalPoseNoise, ReachesUplvsmOnlyWhenItReadsDatasetCameras) {
     opt.pose_noise_std = kStd;
     const auto noisy = evaluate(net, dataset, test::micro_prep(), opt);
     const bool reads = poses == model::TargetPoses::Dataset;
-    EXPECT_EQ(scene_psnrs(noisy) != clean, reads) << model::to_string(poses);
+    EXPECT_EQ(scene_psnrs(noisy) != clean, reads) << uplvsm::to_string(poses);
     std::ifstream f(dir / "out" / "metrics.json");
     const auto j = nlohmann::json::parse(f).at("pose_noise");
     EXPECT_EQ(j.at("std"), kStd);

@@ -64,13 +64,14 @@ void expect_baselines_recomputed(const data::ChunkDataset& dataset, const EvalSu
   auto psnr_copy = psnr(copy, gt), ssim_mean = ssim(mean_colour(gt), gt);
   auto edges_copy = gradient_energy_ratio(copy, gt);
   for (int t = 0; t < 3; ++t) {
-    EXPECT_NEAR(r.views[t].psnr_copy, psnr_copy[t].item<double>(), 1e-9);
-    EXPECT_NEAR(r.views[t].ssim_mean, ssim_mean[t].item<double>(), 1e-9);
-    EXPECT_NEAR(r.views[t].grad_ratio_copy, edges_copy[t].item<double>(), 1e-12);
-    EXPECT_EQ(r.views[t].grad_ratio_mean, 0.0);  // a constant colour has no edges
-    EXPECT_TRUE(r.views[t].grad_ratio > 0 && std::isfinite(r.views[t].grad_ratio)) << r.views[t].grad_ratio;
+    EXPECT_NEAR(r.views[t].copy_nearest.psnr, psnr_copy[t].item<double>(), 1e-9);
+    EXPECT_NEAR(r.views[t].mean_colour.ssim, ssim_mean[t].item<double>(), 1e-9);
+    EXPECT_NEAR(r.views[t].copy_nearest.grad_ratio, edges_copy[t].item<double>(), 1e-12);
+    EXPECT_EQ(r.views[t].mean_colour.grad_ratio, 0.0);  // a constant colour has no edges
+    EXPECT_TRUE(r.views[t].model.grad_ratio > 0 && std::isfinite(r.views[t].model.grad_ratio))
+        << r.views[t].model.grad_ratio;
   }
-  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("grad_ratio"), r.grad_ratio_copy);
+  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("grad_ratio"), r.copy_nearest.grad_ratio);
 }
 
 // metrics.json, the CSVs and the grid the evaluation wrote.
@@ -85,8 +86,8 @@ void expect_result_files(const fs::path& out, const EvalSummary& s, const SceneR
   EXPECT_EQ(j["scenes"], 1);
   EXPECT_EQ(j["views"], 3);
   EXPECT_EQ(j["skipped"]["null_entries"], 1);
-  EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.psnr, 1e-12);
-  EXPECT_NEAR(j["table"]["model"]["grad_ratio"].get<double>(), r.grad_ratio, 1e-12);
+  EXPECT_NEAR(j["table"]["model"]["psnr"].get<double>(), r.model.psnr, 1e-12);
+  EXPECT_NEAR(j["table"]["model"]["grad_ratio"].get<double>(), r.model.grad_ratio, 1e-12);
   EXPECT_TRUE(j["buckets"].contains("large"));
 }
 
@@ -114,12 +115,12 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
   ASSERT_EQ(r.views.size(), 3u);
   EXPECT_EQ(r.views[1].frame, 8);
   for (const auto& v : r.views) {
-    EXPECT_TRUE(std::isfinite(v.psnr) && v.psnr > 0 && v.psnr < 60) << v.psnr;
-    EXPECT_TRUE(v.ssim > -1 && v.ssim <= 1);
+    EXPECT_TRUE(std::isfinite(v.model.psnr) && v.model.psnr > 0 && v.model.psnr < 60) << v.model.psnr;
+    EXPECT_TRUE(v.model.ssim > -1 && v.model.ssim <= 1);
   }
-  EXPECT_NEAR(r.psnr, (r.views[0].psnr + r.views[1].psnr + r.views[2].psnr) / 3, 1e-12);
-  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), r.psnr);
-  EXPECT_DOUBLE_EQ(s.buckets.at("large").at("copy_nearest").at("ssim"), r.ssim_copy);
+  EXPECT_NEAR(r.model.psnr, (r.views[0].model.psnr + r.views[1].model.psnr + r.views[2].model.psnr) / 3, 1e-12);
+  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), r.model.psnr);
+  EXPECT_DOUBLE_EQ(s.buckets.at("large").at("copy_nearest").at("ssim"), r.copy_nearest.ssim);
   EXPECT_EQ(s.bucket_scenes.at("large"), 1);
   EXPECT_EQ(s.buckets.count("small"), 0u);
   for (const auto& v : r.views) EXPECT_FALSE(v.extrapolated);  // targets 4, 8, 11 lie between frames 1 and 13
@@ -176,7 +177,7 @@ TEST(Evaluator, ScoresAFrameOfAnotherSizeResizedAsTheOfficial) {
   auto own = data::preprocess({io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), "frame 4")},
                               s.cameras.slice(0, 4, 5), tiny_prep());
   auto nearest = dataset.load_views(0, {5}, tiny_prep()).images;
-  EXPECT_NEAR(summary.per_scene[0].views[2].psnr_copy, psnr(nearest, own.images)[0].item<double>(), 1e-9);
+  EXPECT_NEAR(summary.per_scene[0].views[2].copy_nearest.psnr, psnr(nearest, own.images)[0].item<double>(), 1e-9);
   test::remove_tree(dir);
 }
 
@@ -191,7 +192,7 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
   opt.num_visualised = 0;
   auto without = evaluate(net, dataset, tiny_prep(), opt);
   ASSERT_EQ(without.scenes, 1);
-  EXPECT_TRUE(std::isnan(without.per_scene[0].views[0].lpips));
+  EXPECT_TRUE(std::isnan(without.per_scene[0].views[0].model.lpips));
   EXPECT_TRUE(std::isnan(without.table.at("model").at("lpips")));
   {
     std::ifstream f(out / "metrics.json");
@@ -219,10 +220,10 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
   auto lp_copy = opt.lpips->forward(copy, gt), lp_mean = opt.lpips->forward(mean_colour(gt), gt);
   double sum = 0;
   for (int t = 0; t < 3; ++t) {
-    EXPECT_NEAR(r.views[t].lpips_copy, lp_copy[t].item<double>(), 1e-6);
-    EXPECT_NEAR(r.views[t].lpips_mean, lp_mean[t].item<double>(), 1e-6);
-    EXPECT_TRUE(r.views[t].lpips >= 0 && std::isfinite(r.views[t].lpips));
-    sum += r.views[t].lpips;
+    EXPECT_NEAR(r.views[t].copy_nearest.lpips, lp_copy[t].item<double>(), 1e-6);
+    EXPECT_NEAR(r.views[t].mean_colour.lpips, lp_mean[t].item<double>(), 1e-6);
+    EXPECT_TRUE(r.views[t].model.lpips >= 0 && std::isfinite(r.views[t].model.lpips));
+    sum += r.views[t].model.lpips;
   }
   EXPECT_NEAR(with.table.at("model").at("lpips"), sum / 3, 1e-12);
   EXPECT_DOUBLE_EQ(with.table.at("model").at("psnr"), without.table.at("model").at("psnr"));
@@ -316,8 +317,8 @@ TEST(Evaluator, SceneResultsRoundTripThroughJsonForShardMerging) {
   r.context = {0, 9};
   r.target = {3, 12};
   r.views[1].extrapolated = true;
-  r.views[0].lpips = 0.125;  // the other LPIPS values stay NaN (unavailable) and must come back as NaN
-  r.views[0].grad_ratio = 0.375, r.views[1].grad_ratio_copy = 0.875;
+  r.views[0].model.lpips = 0.125;  // the other LPIPS values stay NaN (unavailable) and must come back as NaN
+  r.views[0].model.grad_ratio = 0.375, r.views[1].copy_nearest.grad_ratio = 0.875;
   auto back = scene_from_json(nlohmann::json::parse(scene_to_json(r).dump()));
   EXPECT_EQ(back.key, "k");
   EXPECT_EQ(back.context, r.context);
@@ -327,12 +328,12 @@ TEST(Evaluator, SceneResultsRoundTripThroughJsonForShardMerging) {
   EXPECT_DOUBLE_EQ(*back.overlap, 0.4);
   ASSERT_EQ(back.views.size(), 2u);
   EXPECT_TRUE(back.views[1].extrapolated);
-  EXPECT_DOUBLE_EQ(back.views[0].lpips, 0.125);
-  EXPECT_TRUE(std::isnan(back.views[1].lpips));
-  EXPECT_DOUBLE_EQ(back.psnr, r.psnr);
-  EXPECT_DOUBLE_EQ(back.ssim_copy, r.ssim_copy);
-  EXPECT_DOUBLE_EQ(back.views[0].grad_ratio, 0.375);
-  EXPECT_DOUBLE_EQ(back.views[1].grad_ratio_copy, 0.875);
+  EXPECT_DOUBLE_EQ(back.views[0].model.lpips, 0.125);
+  EXPECT_TRUE(std::isnan(back.views[1].model.lpips));
+  EXPECT_DOUBLE_EQ(back.model.psnr, r.model.psnr);
+  EXPECT_DOUBLE_EQ(back.copy_nearest.ssim, r.copy_nearest.ssim);
+  EXPECT_DOUBLE_EQ(back.views[0].model.grad_ratio, 0.375);
+  EXPECT_DOUBLE_EQ(back.views[1].copy_nearest.grad_ratio, 0.875);
 }
 
 TEST(Evaluator, InterpolationAndExtrapolationSpans) {

@@ -17,8 +17,14 @@ inline eval::SceneResult fake_scene(const std::string& key, std::optional<double
   r.key = key;
   r.overlap = overlap;
   r.bucket = overlap ? data::overlap_bucket(*overlap) : "none";
-  for (size_t i = 0; i < psnrs.size(); ++i)
-    r.views.push_back({static_cast<int64_t>(i), psnrs[i], 0.5, psnrs[i] - 5, 0.25, 10, 0.01});
+  for (size_t i = 0; i < psnrs.size(); ++i) {
+    eval::ViewMetrics v;
+    v.frame = static_cast<int64_t>(i);
+    v.model.psnr = psnrs[i], v.model.ssim = 0.5;
+    v.copy_nearest.psnr = psnrs[i] - 5, v.copy_nearest.ssim = 0.25;
+    v.mean_colour.psnr = 10, v.mean_colour.ssim = 0.01;
+    r.views.push_back(v);
+  }
   eval::finalise_scene(r);
   return r;
 }

@@ -82,7 +82,7 @@ TEST(TargetPoseRefinement, FindsAPoseThatRendersTheTargetBack) {
   auto net = tiny_uplvsm();
   auto s = random_scene(1, 2, 2);
   torch::NoGradGuard no_grad;
-  auto latents = net->encode(s.inputs);
+  auto latents = net->encode_scene(s.inputs.images, s.inputs.fxfycxcy);
   auto known = torch::tensor({0.4f, -0.3f, 0.2f, 0.2f, -0.1f, 0.1f, 1.0f, -0.3f, 0.2f, 0.5f, 0.0f, 0.3f, 0.0f, 0.95f})
                    .view({1, 2, 7});
   s.targets.images = net->render_views(latents, known, s.targets.fxfycxcy, 32, 32);
@@ -108,7 +108,8 @@ TEST(TargetPoseRefinement, TheEvaluatorScoresRefinedPosesAndRefusesItWithoutAnEs
   ASSERT_GT(plain.scenes, 0);
   for (size_t i = 0; i < plain.per_scene.size(); ++i)
     for (size_t v = 0; v < plain.per_scene[i].views.size(); ++v)
-      EXPECT_GE(refined.per_scene[i].views[v].psnr, plain.per_scene[i].views[v].psnr - 1e-9) << i << " " << v;
+      EXPECT_GE(refined.per_scene[i].views[v].model.psnr, plain.per_scene[i].views[v].model.psnr - 1e-9)
+          << i << " " << v;
   EXPECT_GT(refined.table.at("model").at("psnr"), plain.table.at("model").at("psnr"));
 
   opt.target_poses = model::TargetPoses::Dataset;

@@ -57,7 +57,7 @@ TEST(Variants, TheFactoryBuildsOneClassPerModel) {
     EXPECT_EQ(p->posed_inputs, posed);
     EXPECT_EQ(net->name(), name);
     EXPECT_EQ(net->default_target_poses(), model::TargetPoses::Dataset);
-    EXPECT_EQ(model::resolve_target_poses(TargetPoseChoice::Auto, *net), model::TargetPoses::Dataset);
+    EXPECT_EQ(model::resolve_target_poses(TargetPoses::Auto, *net), model::TargetPoses::Dataset);
     EXPECT_TRUE(net->has_camera_control());
     EXPECT_NE(test::error_of([&] { model::require_uplvsm(net, "pose pairs"); }).find("pose pairs: only UP-LVSM"),
               std::string::npos);
@@ -109,7 +109,7 @@ TEST(Variants, PosedVariantsRenderEveryTargetAndIgnoreTheWorldFrameAndScale) {
   }
 }
 
-// Cameras the training loader already put in the scene frame of all the sample's views (Views::in_scene_frame) are
+// Cameras the training loader already put in the scene frame of all the sample's views (Views::camera_frame) are
 // taken as they are: normalising again over only these inputs and targets would change the frame (and, with pose
 // noise, normalise the noise away), so a world transform now reaches the render; unflagged views stay invariant.
 TEST(Variants, PosedModelsTakeCamerasAlreadyInTheSceneFrameAsTheyAre) {
@@ -119,7 +119,7 @@ TEST(Variants, PosedModelsTakeCamerasAlreadyInTheSceneFrameAsTheyAre) {
   auto s = random_scene(1, 2, 2);
   auto world = geometry::pose_encoding_to_c2w(torch::tensor({{0.3, -2.0, 1.0, 0.2, -0.4, 0.1, 0.9}}));
   auto flagged = [](model::Views v) {
-    v.in_scene_frame = true;
+    v.camera_frame = model::CameraFrame::Scene;
     return v;
   };
   auto out = net->render(flagged(s.inputs), flagged(s.targets), model::TargetPoses::Dataset);
@@ -156,44 +156,6 @@ TEST(Variants, PtlvsmMarksInputViewZeroAndLvsmEveryInputView) {
         EXPECT_EQ(diff, 0.0) << variant << " view " << v;
     }
   }
-}
-
-// The diagnostic LVSM encoder-decoder (model.encoder_cameras): UP-LVSM's latent bottleneck with every input camera.
-TEST(Variants, EncoderCamerasGiveEveryInputViewItsRealCamera) {
-  torch::manual_seed(6);
-  auto config = small_config("uplvsm");
-  config.encoder_cameras = true;
-  model::UPLVSM net(config);
-  net->eval();
-  torch::NoGradGuard no_grad;
-  EXPECT_EQ(net->name(), "LVSM encoder-decoder");
-  EXPECT_EQ(net->default_target_poses(), model::TargetPoses::Dataset);
-  auto s = random_scene(1, 3, 2);
-  model::ForwardTrace trace;
-  auto out = net->render(s.inputs, s.targets, model::TargetPoses::Dataset, &trace);
-  // The encoder's image tokens (after the latents), per view, against the raw DINOv2 tokens.
-  auto raw = net->tokenize(s.inputs.images);
-  auto marked = [&](const model::ForwardTrace& t) {
-    return t.encoder_input.narrow(1, net->n_light_field_latent.size(0), raw.size(1) * raw.size(2)).view(raw.sizes());
-  };
-  for (int64_t v = 0; v < 3; ++v)
-    EXPECT_GT(test::max_abs_diff(marked(trace).select(1, v), raw.select(1, v)), 1e-4) << "view " << v;
-  // View 0 carries the identity camera, exactly UP-LVSM's canonical marker (which marks view 0 alone).
-  model::ForwardTrace unposed;
-  net->encode_scene(s.inputs.images, s.inputs.fxfycxcy, &unposed);
-  EXPECT_LT(test::max_abs_diff(marked(trace).select(1, 0), marked(unposed).select(1, 0)), 1e-5);
-  EXPECT_EQ(test::max_abs_diff(marked(unposed).select(1, 1), raw.select(1, 1)), 0.0);
-  // Moving input view 2 changes the render (the encoder reads it); the world frame and scale do not.
-  auto moved_view = s.inputs;
-  moved_view.c2w = s.inputs.c2w.clone();
-  moved_view.c2w.index_put_({0, 2, Slice(0, 3), 3}, torch::tensor({0.5, -0.25, 0.75}));
-  EXPECT_GT(test::max_abs_diff(net->render(moved_view, s.targets, model::TargetPoses::Dataset).render, out.render),
-            1e-6);
-  auto world = geometry::pose_encoding_to_c2w(torch::tensor({0.3, -1.0, 2.0, 0.2, 0.1, -0.3, 0.9}).view({1, 1, 7}));
-  auto moved =
-      net->render(transformed(s.inputs, world, 2.5), transformed(s.targets, world, 2.5), model::TargetPoses::Dataset);
-  EXPECT_LT(test::max_abs_diff(out.render, moved.render), 1e-4);
-  EXPECT_THROW(net->render(s.inputs, s.targets, model::TargetPoses::Estimator), c10::Error);
 }
 
 TEST(Variants, KeepImageTokensExtendsTheSceneLatentsWithTheEncodersImageTokens) {

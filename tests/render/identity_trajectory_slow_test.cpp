@@ -37,7 +37,7 @@ TEST(IdentityTrajectory, ReproducesTheFirstInputBetterThanItsMeanColour) {
   train::train(config, opt);
 
   config.model.pose_mapper = true;
-  config.training.target_poses = TargetPoseChoice::Mapper;
+  config.training.target_poses = TargetPoses::Mapper;
   config.training.train_steps = 100;
   config.training.lr = 5e-4;
   config.training.warmup = 0;

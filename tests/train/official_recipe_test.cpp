@@ -88,7 +88,7 @@ TEST(OfficialRecipe, PaperConfigsHoldTheOfficialYamlsValues) {
 TEST(OfficialRecipe, MapperStageContinuesTheX224Recipe) {
   const auto c = shipped("paper_x224_mapper"), x224 = shipped("paper_x224");
   EXPECT_TRUE(c.model.pose_mapper);
-  EXPECT_EQ(c.training.target_poses, TargetPoseChoice::Mapper);
+  EXPECT_EQ(c.training.target_poses, TargetPoses::Mapper);
   EXPECT_DOUBLE_EQ(c.training.lr, 1e-4);
   EXPECT_EQ(c.training.train_steps, 8000);
   EXPECT_EQ(c.training.batch_size, x224.training.batch_size);

@@ -213,7 +213,7 @@ TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
   train::train(config, test::micro_run_options(base));
 
   config.model.pose_mapper = true;
-  config.training.target_poses = TargetPoseChoice::Mapper;
+  config.training.target_poses = TargetPoses::Mapper;
   config.training.train_steps = 3;
   auto run = test::temp_dir("train_mapper").string();
   auto opt = test::micro_run_options(run);

@@ -105,8 +105,8 @@ TEST(TrainerWiring, MicroBatchTellsTheCamerasInTheSceneFrame) {
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   const auto batch = data::make_training_batch(dataset, train::loader_options(config, dataset, nullptr), 0);
   const auto micro = train::micro_batch(batch, 2, torch::kCPU);
-  EXPECT_TRUE(micro.inputs.in_scene_frame);
-  EXPECT_TRUE(micro.targets.in_scene_frame);
+  EXPECT_EQ(micro.inputs.camera_frame, model::CameraFrame::Scene);
+  EXPECT_EQ(micro.targets.camera_frame, model::CameraFrame::Scene);
   EXPECT_TRUE(torch::equal(micro.inputs.c2w, batch.input_c2w(2)));
   EXPECT_TRUE(torch::equal(micro.targets.c2w, batch.target_c2w()));
   EXPECT_TRUE(torch::equal(micro.targets.images, batch.target_images()));

@@ -4,17 +4,13 @@
 # model, and the architecture's own ceiling, one PHASE per call:
 #   PHASE=ceiling: builds uplvsm against that machine's CUDA LibTorch 2.x (tools/device/cuda_setup.sh), renders the
 #     demo dataset into $B/ds96 (kept for the next call), trains the posed LVSM of the shipped model's size on the
-#     shipped model's budget (configs/demo_lvsm_same_budget_gpu.json: 5375 x 32 = 172000 scenes of 6 targets) while
+#     shipped model's budget (configs/demo_ceiling_gpu.json: 5375 x 32 = 172000 scenes of 6 targets) while
 #     the unit tests build and run at low priority; leaves ceiling.safetensors, the run's newest checkpoint split
 #     into 15-MB parts when it could not finish (ceiling_run.tar.part-*, for `--resume auto` elsewhere) and logs.
 #   PHASE=longer (the next call, on the warm machine): the shipped model's fourth stage from INIT, the third stage's
 #     weights (`git show 5a58744:models/demo.safetensors > .gpuinit/third_stage.safetensors`, carried), with
-#     configs/demo_gradient_difference_long_gpu.json; leaves longer.safetensors and logs.
-#   PHASE=encdec: UP-LVSM's encoder-decoder told every camera on the ceiling's budget
-#     (the ceiling's config with the shipped UP-LVSM's model and model.encoder_cameras, ENCDEC below; SETS adds
-#     --set's, e.g. "--set model.transformer.n_latent_vectors=1"): the architecture's own ceiling at the demo size, the split of the
-#     decoder's 1.84 dB that docs/demo.md ("Where the gap is, at the demo size") measured on a short CPU schedule only;
-#     leaves encdec.safetensors and logs.
+#     configs/demo_model_stage4_gpu.json; leaves longer.safetensors and logs.
+#   (PHASE=encdec, UP-LVSM's encoder-decoder told every camera, went with model.encoder_cameras: commit 8ca59b4.)
 # On 2026-11-28 (an H200) the ceiling reached step 5030 of 5375 in a 570-s call (the CLI built in 96 s; the tests beside
 # it); `uplvsm train ... --resume auto` on the warm machine ran the rest in 27 s, and the fourth stage's command was
 # run by hand there (170 s), as PHASE=longer now runs it.
@@ -45,7 +41,7 @@ if [ "$PHASE" = ceiling ]; then
   start_test_build
   [ -f $DS/test/index.json ] || render_demo_dataset $DS || exit 1
   log "the same-budget ceiling"
-  train ceiling --config configs/demo_lvsm_same_budget_gpu.json --run /tmp/run_ceiling &
+  train ceiling --config configs/demo_ceiling_gpu.json --run /tmp/run_ceiling &
   TRAIN_PID=$!
   run_unit_tests_until "$TRAIN_END"
   wait $TRAIN_PID
@@ -55,22 +51,12 @@ if [ "$PHASE" = ceiling ]; then
     tar -C /tmp -cf - run_ceiling/config.json run_ceiling/metrics.jsonl run_ceiling/checkpoints |
       split -b 15M - "$OUT/ceiling_run.tar.part-"
   fi
-elif [ "$PHASE" = encdec ]; then
-  [ -f $DS/test/index.json ] || render_demo_dataset $DS || exit 1
-  log "the encoder-decoder told every camera, on the ceiling's budget ${SETS:-}"
-  ENCDEC="--set model.variant=uplvsm --set model.encoder_cameras=true --set model.keep_image_tokens=true \
-    --set model.transformer.encoder_n_layer=3 --set model.transformer.estimator_n_layer=1 \
-    --set model.transformer.decoder_n_layer=3 --set model.transformer.n_latent_vectors=256 \
-    --set training.target_poses=dataset"
-  # shellcheck disable=SC2086  # ENCDEC and SETS are lists of words
-  train encdec --config configs/demo_lvsm_same_budget_gpu.json --run /tmp/run_encdec $ENCDEC ${SETS:-}
-  keep_run encdec
 else
   [ -f $DS/test/index.json ] || render_demo_dataset $DS || exit 1
   INIT=${INIT:-.gpuinit/third_stage.safetensors}
   [ -f "$INIT" ] || { log "INIT $INIT is missing: carry it"; exit 1; }
   log "the shipped model's fourth stage"
-  train longer --config configs/demo_gradient_difference_long_gpu.json --init "$INIT" --run /tmp/run_longer
+  train longer --config configs/demo_model_stage4_gpu.json --init "$INIT" --run /tmp/run_longer
   keep_run longer
 fi
 ls -la "$OUT"

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The pose-noise curve at the demo size, for a lent GPU (docs/research/thesis.md): the ceiling's LVSM
-# (configs/demo_lvsm_same_budget_gpu.json: 96x96, d 128, the shipped model's budget of 5375 x 32) trained at every
+# (configs/demo_ceiling_gpu.json: 96x96, d 128, the shipped model's budget of 5375 x 32) trained at every
 # noise level, all levels at once as separate processes on the one GPU (the model is small), scored on clean test
 # cameras. UP-LVSM never reads training cameras: the shipped model (models/demo.safetensors, the same budget) stands
 # at every level and is scored on the same test scenes.
@@ -21,7 +21,7 @@ DS=$B/ds96
 [ -f $DS/test/index.json ] || render_demo_dataset $DS || exit 1
 study() {  # ARGS...: the pose-noise study of the ceiling's LVSM on the demo dataset, stopped at the budget
   timeout -s TERM -k 15 $((BUDGET - 40 - $(elapsed))) ./$B/uplvsm study pose-noise --device cuda \
-    --config configs/demo_lvsm_same_budget_gpu.json --data $DS --seeds "$SEED" --out $STUDY "$@"
+    --config configs/demo_ceiling_gpu.json --data $DS --seeds "$SEED" --out $STUDY "$@"
 }
 
 log "pose noise at the demo size: levels $LEVELS, seed $SEED"

@@ -26,7 +26,7 @@ struct EvalArgs {
   SceneSource scenes;
   std::string out, lpips_net = "vgg", lpips_backbone, lpips_lin;
   Amp amp = Amp::None;
-  TargetPoseChoice target_poses = TargetPoseChoice::Auto;
+  TargetPoses target_poses = TargetPoses::Auto;
   int64_t max_scenes = 0, batch = 4, visualise = 8;
   eval::PoseRefinement refinement;
   double pose_noise_std = 0;
@@ -105,8 +105,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
   // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
   // auto with --mapper: the mapper given for it.
   auto choice = a.target_poses;
-  if (choice == TargetPoseChoice::Auto)
-    choice = a.model.mapper.empty() ? config.training.target_poses : TargetPoseChoice::Mapper;
+  if (choice == TargetPoses::Auto) choice = a.model.mapper.empty() ? config.training.target_poses : TargetPoses::Mapper;
   opt.target_poses = model::resolve_target_poses(choice, *net);
   if (comm) {
     opt.shard_rank = comm->rank();
@@ -123,7 +122,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
                {"split", a.scenes.split},
                {"config", config.name},
                {"variant", to_string(config.model.variant)},
-               {"target_poses", model::to_string(opt.target_poses)}};
+               {"target_poses", uplvsm::to_string(opt.target_poses)}};
   if (a.refinement.steps > 0) opt.extra["pose_refinement"] = {{"steps", a.refinement.steps}, {"lr", a.refinement.lr}};
   return opt;
 }
@@ -139,7 +138,7 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
   };
   std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes, summary.seconds,
                            a.out)
-            << line(to_string(config.model.variant) + " (" + model::to_string(opt.target_poses) +
+            << line(to_string(config.model.variant) + " (" + uplvsm::to_string(opt.target_poses) +
                         (a.refinement.steps > 0 ? ", refined" : "") + ")",
                     "model")
             << line("copy nearest", "copy_nearest") << line("mean colour", "mean_colour");

@@ -42,7 +42,8 @@ std::string mp4_output_description() {
 void add_info_command(CLI::App& app) {
   auto* cmd = app.add_subcommand("info",
                                  "Print the LibTorch version, BLAS in use, threads, devices; with --config or "
-                                 "--checkpoint also the model's parameter counts.");
+                                 "--checkpoint also the model's parameter counts, with --config the config in full "
+                                 "(its 'extends' resolved, defaults filled in).");
   auto common = std::make_shared<CommonOptions>();
   auto config = std::make_shared<std::string>();
   auto checkpoint = std::make_shared<std::string>();
@@ -55,7 +56,12 @@ void add_info_command(CLI::App& app) {
     auto device = parse_device(common->device);
     std::cout << fmt::format("device       {}\n", device.str());
     std::cout << fmt::format("MP4 output   {}\n", mp4_output_description());
-    if (!config->empty()) print_model_summary(load_config(*config));
+    if (!config->empty()) {
+      const auto c = load_config(*config);
+      print_model_summary(c);
+      // Every key the run would use: the "extends" chain resolved and the defaults filled in.
+      std::cout << "resolved config:\n" << config_to_json(c).dump(2) << "\n";
+    }
     if (!checkpoint->empty()) {
       auto ckpt = model::read_checkpoint(*checkpoint);
       std::cout << fmt::format("checkpoint   {} (state {})\n", ckpt.path, ckpt.state.dump());

@@ -31,7 +31,7 @@ struct PoseArgs {
   ModelSource model;
   std::string data, split = "test", train_split = "train", out;
   int64_t max_scenes = 0, gap = 12, iterations = 3000;
-  TargetPoseChoice target_poses = TargetPoseChoice::Auto;
+  TargetPoses target_poses = TargetPoses::Auto;
 };
 
 void add_pose_options(CLI::App* cmd, PoseArgs& a) {
@@ -180,7 +180,7 @@ void add_pose_sensitivity(CLI::App& study) {
     summary["checkpoint"] = a->model.checkpoint;
     summary["split"] = a->split;
     summary["gap"] = a->gap;
-    summary["target_poses"] = model::to_string(opt.source);
+    summary["target_poses"] = uplvsm::to_string(opt.source);
     const auto text = summary.dump(2) + "\n";
     io::write_file_atomic((fs::path(a->out) / "sensitivity.json").string(), text.data(), text.size());
     print_sensitivity(summary, a->out);

@@ -319,7 +319,7 @@ void add_scaling(CLI::App& study) {
 // told its targets' cameras (the dataset-pose ablation or the mapper).
 bool reads_training_cameras(const Config& c) {
   return c.model.variant != Variant::UPLVSM ||
-         (c.training.target_poses != TargetPoseChoice::Auto && c.training.target_poses != TargetPoseChoice::Estimator);
+         (c.training.target_poses != TargetPoses::Auto && c.training.target_poses != TargetPoses::Estimator);
 }
 
 // The noise levels as standard deviations (the official noise_scale), from --noise-std and --noise-variance (its

@@ -128,7 +128,7 @@ Config train_config(const TrainArgs& a) {
     if (a.init.empty() && a.resume == "none")
       throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");
     config.model.pose_mapper = true;
-    config.training.target_poses = TargetPoseChoice::Mapper;
+    config.training.target_poses = TargetPoses::Mapper;
     validate_config(config, a.config + " (--stage mapper)");
   }
   return config;

@@ -36,7 +36,7 @@ model::NovelViewModel load_model_from_source(const ModelSource& src, torch::Devi
 // --amp (none: fp32, bf16: autocast) and --target-poses (auto, estimator, mapper, dataset), parsed into their enums
 // here, once; `help` says what the choice applies to in this command.
 CLI::Option* add_amp_option(CLI::App* cmd, Amp& amp, const std::string& help);
-CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help);
+CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoses& choice, const std::string& help);
 // --vgg19-input (auto, matconvnet, torchvision): the input the --vgg19 weights expect (train/perceptual_loss.h).
 CLI::Option* add_vgg19_input_option(CLI::App* cmd, train::VggInput& input);
 

@@ -79,14 +79,13 @@ CLI::Option* add_vgg19_input_option(CLI::App* cmd, train::VggInput& input) {
       ->default_str(train::to_string(input));
 }
 
-CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoseChoice& choice, const std::string& help) {
+CLI::Option* add_target_poses_option(CLI::App* cmd, TargetPoses& choice, const std::string& help) {
   std::vector<std::string> names;
-  for (auto c :
-       {TargetPoseChoice::Auto, TargetPoseChoice::Estimator, TargetPoseChoice::Mapper, TargetPoseChoice::Dataset})
+  for (auto c : {TargetPoses::Auto, TargetPoses::Estimator, TargetPoses::Mapper, TargetPoses::Dataset})
     names.push_back(to_string(c));
   return cmd
       ->add_option_function<std::string>(
-          "--target-poses", [&choice](const std::string& name) { choice = parse_target_pose_choice(name); }, help)
+          "--target-poses", [&choice](const std::string& name) { choice = parse_target_poses(name); }, help)
       ->check(CLI::IsMember(names))
       ->default_str(to_string(choice));
 }

@@ -1,10 +1,13 @@
 #include "uplvsm/core/config.h"
 
+#include <algorithm>
 #include <array>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <stdexcept>
 #include <type_traits>
+#include <vector>
 
 #include <fmt/format.h>
 
@@ -34,7 +37,7 @@ E parse_choice(const std::string& name, const std::string& field, const std::arr
 // The JSON form of a field: enums by name, everything else as it is.
 json json_value(Variant v) { return to_string(v); }
 json json_value(Amp a) { return to_string(a); }
-json json_value(TargetPoseChoice t) { return to_string(t); }
+json json_value(TargetPoses t) { return to_string(t); }
 template <typename T>
 json json_value(const T& v) {
   return v;
@@ -59,8 +62,8 @@ class Reader {
         out = parse_variant(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
       else if constexpr (std::is_same_v<T, Amp>)
         out = parse_amp(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
-      else if constexpr (std::is_same_v<T, TargetPoseChoice>)
-        out = parse_target_pose_choice(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
+      else if constexpr (std::is_same_v<T, TargetPoses>)
+        out = parse_target_poses(j_.at(key).get<std::string>(), fmt::format("{}.{}", path_, key));
       else
         out = j_.at(key).get<T>();
     } catch (const json::exception& e) {
@@ -120,7 +123,6 @@ template <typename C, typename F>
 void model_fields(C& c, F&& f) {
   f("variant", c.variant);
   f("pose_mapper", c.pose_mapper);
-  f("encoder_cameras", c.encoder_cameras);
   f("keep_image_tokens", c.keep_image_tokens);
   f("encoder_latent_cameras", c.encoder_latent_cameras);
   f("image_size", c.image_size);
@@ -215,14 +217,14 @@ json write_section(const C& c, Fields fields) {
 
 std::string to_string(Variant v) { return kVariantNames.at(static_cast<size_t>(v)); }
 std::string to_string(Amp a) { return kAmpNames.at(static_cast<size_t>(a)); }
-std::string to_string(TargetPoseChoice t) { return kTargetPoseNames.at(static_cast<size_t>(t)); }
+std::string to_string(TargetPoses t) { return kTargetPoseNames.at(static_cast<size_t>(t)); }
 
 Variant parse_variant(const std::string& name, const std::string& field) {
   return parse_choice<Variant>(name, field, kVariantNames);
 }
 Amp parse_amp(const std::string& name, const std::string& field) { return parse_choice<Amp>(name, field, kAmpNames); }
-TargetPoseChoice parse_target_pose_choice(const std::string& name, const std::string& field) {
-  return parse_choice<TargetPoseChoice>(name, field, kTargetPoseNames);
+TargetPoses parse_target_poses(const std::string& name, const std::string& field) {
+  return parse_choice<TargetPoses>(name, field, kTargetPoseNames);
 }
 
 Config config_from_json(const json& j, const std::string& source) {
@@ -274,7 +276,9 @@ Config apply_config_overrides(const Config& c, const std::vector<std::string>& a
   return config_from_json(j, source + " (with --set)");
 }
 
-Config load_config(const std::string& path) {
+namespace {
+
+json read_config_object(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw std::runtime_error(fmt::format("config {}: cannot open file", path));
   json j;
@@ -283,6 +287,53 @@ Config load_config(const std::string& path) {
   } catch (const json::exception& e) {
     throw std::runtime_error(fmt::format("config {}: invalid JSON ({})", path, e.what()));
   }
+  if (!j.is_object()) throw std::runtime_error(fmt::format("config {}: expected a JSON object", path));
+  return j;
+}
+
+// `over` written onto `base`: objects merged key by key, any other value replaced.
+void merge_into(json& base, const json& over) {
+  for (const auto& [key, value] : over.items())
+    if (value.is_object() && base.contains(key) && base[key].is_object())
+      merge_into(base[key], value);
+    else
+      base[key] = value;
+}
+
+constexpr size_t kMaxExtendsDepth = 8;
+constexpr uintmax_t kMaxConfigBytes = 1 << 20;
+
+// The file's JSON with its "extends" chain resolved; `chain` holds the files being read (a cycle is an error).
+json resolved_json(const std::string& path, std::vector<std::string>& chain) {
+  json j = read_config_object(path);
+  if (!j.contains("extends")) return j;
+  const auto& extends = j["extends"];
+  if (!extends.is_string() || extends.get<std::string>().empty())
+    throw std::runtime_error(fmt::format("config {}: 'extends' must be a config file name (relative to {})", path,
+                                         std::filesystem::path(path).parent_path().string()));
+  const auto base_path = (std::filesystem::path(path).parent_path() / extends.get<std::string>()).string();
+  const auto canonical = std::filesystem::weakly_canonical(base_path).string();
+  if (std::find(chain.begin(), chain.end(), canonical) != chain.end() || chain.size() >= kMaxExtendsDepth)
+    throw std::runtime_error(fmt::format("config {}: 'extends' {} makes a cycle or a chain over {} files", path,
+                                         base_path, kMaxExtendsDepth));
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(base_path, ec) || std::filesystem::file_size(base_path, ec) > kMaxConfigBytes)
+    throw std::runtime_error(
+        fmt::format("config {}: 'extends' {} is not a config file (a regular file under 1 MB)", path, base_path));
+  chain.push_back(canonical);
+  json merged = resolved_json(base_path, chain);
+  merged.erase("name");  // a name says which file this is: never inherited
+  j.erase("extends");
+  merge_into(merged, j);
+  return merged;
+}
+
+}  // namespace
+
+Config load_config(const std::string& path) {
+  std::vector<std::string> chain{std::filesystem::weakly_canonical(path).string()};
+  json j = resolved_json(path, chain);
+  if (!j.contains("name")) j["name"] = std::filesystem::path(path).stem().string();
   return config_from_json(j, path);
 }
 

@@ -12,17 +12,21 @@
 namespace uplvsm {
 
 // The string-valued choices, parsed once when a config is read (JSON keeps their names).
-enum class Variant { UPLVSM, PTLVSM, LVSM };                       // model.variant: "uplvsm", "ptlvsm", "lvsm"
-enum class Amp { None, Bf16 };                                     // training.amp: "none", "bf16"
-enum class TargetPoseChoice { Auto, Estimator, Mapper, Dataset };  // training.target_poses
+enum class Variant { UPLVSM, PTLVSM, LVSM };  // model.variant: "uplvsm", "ptlvsm", "lvsm"
+enum class Amp { None, Bf16 };                // training.amp: "none", "bf16"
+// Where a target view's camera comes from (training.target_poses, --target-poses, a model's render): the model's
+// own (auto: the estimator for uplvsm, dataset cameras for the posed variants); the Latent Plücker Learner reading the
+// target image (the paper's protocol); dataset cameras through the pose mapper (camera control); dataset cameras
+// directly (the posed variants, and for UP-LVSM the "SfM target poses" ablation).
+enum class TargetPoses { Auto, Estimator, Mapper, Dataset };  // "auto", "estimator", "mapper", "dataset"
 
 std::string to_string(Variant v);
 std::string to_string(Amp a);
-std::string to_string(TargetPoseChoice t);
+std::string to_string(TargetPoses t);
 // Each throws naming `field`, the accepted names and the value given.
 Variant parse_variant(const std::string& name, const std::string& field = "model.variant");
 Amp parse_amp(const std::string& name, const std::string& field = "amp");
-TargetPoseChoice parse_target_pose_choice(const std::string& name, const std::string& field = "target poses");
+TargetPoses parse_target_poses(const std::string& name, const std::string& field = "target poses");
 
 struct TransformerConfig {
   int64_t d = 768;
@@ -61,10 +65,6 @@ struct Dinov2Config {
 struct ModelConfig {
   Variant variant = Variant::UPLVSM;  // ptlvsm: posed targets; lvsm: posed inputs and targets
   bool pose_mapper = false;           // camera control: the linear pose mapper (model/pose_mapper.h), uplvsm only
-  // Diagnostic, not unposed: the uplvsm encoder reads every input view's real camera (its Plücker ray tokens, in
-  // camera-control units) instead of the identity marker on view 0 - LVSM's encoder-decoder, the same scene-latent
-  // bottleneck with known cameras. Needs training.target_poses 'dataset'.
-  bool encoder_cameras = false;
   // uplvsm: the encoder's outputs at the input image tokens join the scene latents as the scene representation the
   // estimator and the decoder attend to (official: discarded, only the latents are kept). A lever against the latent
   // bottleneck at small scale (docs/demo.md); the weights are the same, so any checkpoint loads either way.
@@ -119,7 +119,7 @@ struct TrainingConfig {
   bool tf32 = false;
   // Where targets' cameras come from (model::TargetPoses): "auto" (estimator for uplvsm, dataset for the posed
   // variants), "estimator", "mapper" (camera-control fine-tuning) or "dataset" (the SfM-target-pose ablation).
-  TargetPoseChoice target_poses = TargetPoseChoice::Auto;
+  TargetPoses target_poses = TargetPoses::Auto;
   // Nested training subsets (the scalability study): train on the first N scenes of the train split; 0: all.
   int64_t max_train_scenes = 0;
   // Ours: an epoch visits the chunks this many at a time, shuffling their scenes together, so the chunk cache
@@ -167,6 +167,9 @@ struct Config {
   EvalConfig eval;
 };
 
+// Reads a config file. A file may name another with "extends" (relative to its own folder): the base's keys, then
+// this file's written over them (sections merged key by key), so a variant holds only what differs; chains resolve
+// to 8 files, a cycle is an error, and "name" is never inherited (absent: the file's stem).
 Config load_config(const std::string& path);
 // Command-line overrides "section.field=value" (e.g. training.lr=3e-4, model.transformer.n_latent_vectors=64),
 // applied in order, then validated like a file. Throws naming the assignment for an unknown field.

@@ -44,17 +44,13 @@ void validate_model(const ModelConfig& m, const std::string& s) {
 // Where the target cameras come from, against what the model can do with them.
 void validate_target_poses(const ModelConfig& m, const TrainingConfig& tr, const std::string& s) {
   const auto tp = tr.target_poses;
-  require(m.variant == Variant::UPLVSM || tp == TargetPoseChoice::Auto || tp == TargetPoseChoice::Dataset, s,
+  require(m.variant == Variant::UPLVSM || tp == TargetPoses::Auto || tp == TargetPoses::Dataset, s,
           "training.target_poses: the " + to_string(m.variant) +
               " variant renders from dataset cameras ('auto' or 'dataset')");
-  require(tp != TargetPoseChoice::Mapper || m.pose_mapper, s,
+  require(tp != TargetPoses::Mapper || m.pose_mapper, s,
           "training.target_poses 'mapper' needs model.pose_mapper: true");
-  require(!m.encoder_cameras || (m.variant == Variant::UPLVSM && tp == TargetPoseChoice::Dataset), s,
-          "model.encoder_cameras (the encoder reads real input cameras) needs the uplvsm variant and "
-          "training.target_poses 'dataset'");
-  require(!m.encoder_latent_cameras || (m.variant == Variant::UPLVSM && !m.encoder_cameras), s,
-          "model.encoder_latent_cameras: only the uplvsm variant without model.encoder_cameras has latent cameras "
-          "to give its encoder");
+  require(!m.encoder_latent_cameras || m.variant == Variant::UPLVSM, s,
+          "model.encoder_latent_cameras: only the uplvsm variant has latent cameras to give its encoder");
 }
 
 void validate_training(const Config& c, const std::string& s) {

@@ -12,6 +12,7 @@ namespace uplvsm {
 namespace {
 
 constexpr const char* kIssue62 = "d3badc2";
+constexpr const char* kIssue70 = "8ca59b4";
 
 // Section, key, the default it had (the lever off), the last commit with its code.
 const std::vector<RetiredKey>& retired_keys() {
@@ -44,6 +45,10 @@ const std::vector<RetiredKey>& retired_keys() {
        "replaced by training.pose_noise_std, the official noise_scale: a standard deviation, drawn after the "
        "scene normalisation and apart for inputs and targets (the old noise was sd sqrt(value) on all views "
        "before it)"},
+      // It made UP-LVSM two models in one class (issue 70).
+      {"model", "encoder_cameras", false, kIssue70,
+       "a diagnostic (LVSM's encoder-decoder told every input camera) kept until it had measured the architecture's "
+       "share of UP-LVSM's gap (docs/research/demo-history.md)"},
   };
   return keys;
 }

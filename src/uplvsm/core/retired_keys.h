@@ -1,5 +1,6 @@
 // Config keys that were removed (issue 62: experiments that measured no gain, see docs/research/levers.md; and
-// training.pose_noise_variance, replaced by the official knob training.pose_noise_std). Files
+// training.pose_noise_variance, replaced by the official knob training.pose_noise_std; issue 70: the
+// model.encoder_cameras diagnostic). Files
 // written before keep them: shipped models, `make demo`'s checkpoints and users' runs embed a config JSON with every
 // key of their day. A retired key at the value it had by default (the lever off) reads as if it were absent; at any
 // other value the file asked for code that is gone, and reading it fails naming the key and the commit that had it.

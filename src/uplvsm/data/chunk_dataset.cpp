@@ -107,12 +107,6 @@ RawScene parse_scene(const io::TorchFile& file, const PyObject& item, const std:
   return s;
 }
 
-torch::Tensor as_tensor(const std::vector<uint8_t>& bytes) {
-  auto t = torch::empty({static_cast<int64_t>(bytes.size())}, torch::kUInt8);
-  std::copy(bytes.begin(), bytes.end(), t.data_ptr<uint8_t>());
-  return t;
-}
-
 // A tensor that owns exactly its bytes (a view would make torch.save write the whole underlying storage).
 torch::Tensor compact(const torch::Tensor& t) {
   auto c = t.contiguous();
@@ -337,32 +331,23 @@ std::shared_ptr<const ChunkDataset::LoadedChunk> ChunkDataset::load_chunk(const 
 std::pair<ChunkDataset::ChunkPtr, int64_t> ChunkDataset::read_loaded_chunk(const std::string& chunk) const {
   ++chunk_reads_;
   auto loaded = std::make_shared<LoadedChunk>();
-  int64_t bytes = 0;
   if (layout_ == Layout::Lvsm) {
-    auto meta = std::make_shared<LvsmSceneMetadata>(read_lvsm_metadata(chunk));
-    RawScene s;
-    s.key = fs::path(chunk).stem().string();
-    if (meta->key != s.key)
-      throw std::runtime_error(
-          fmt::format("LVSM metadata {}: scene_name '{}' differs from the file name", chunk, meta->key));
-    bytes = 256 * meta->size();  // paths and cameras: a rough size, small beside a chunk's images
-    loaded->lvsm = meta;
-    loaded->scenes.push_back(std::move(s));
+    loaded->scenes.push_back(lvsm_scene(chunk));
   } else {
-    loaded->scenes = read_chunk((fs::path(dir_) / chunk).string());
+    for (auto& scene : read_chunk((fs::path(dir_) / chunk).string())) loaded->scenes.push_back(chunk_scene(scene));
   }
+  int64_t bytes = 0;
   for (size_t j = 0; j < loaded->scenes.size(); ++j) {
-    const auto& scene = loaded->scenes[j];
-    loaded->by_key[scene.key] = j;
-    for (const auto& image : scene.images) bytes += image.numel();
-    int64_t idx = find(scene.key);
-    const auto frames = loaded->lvsm ? loaded->lvsm->size() : static_cast<int64_t>(scene.images.size());
-    if (idx >= 0) num_frames_[idx].store(frames);
+    const auto& scene = *loaded->scenes[j];
+    loaded->by_key[scene.key()] = j;
+    bytes += scene.bytes();
+    const int64_t idx = find(scene.key());
+    if (idx >= 0) num_frames_[idx].store(scene.num_frames());
   }
   return {std::move(loaded), bytes};
 }
 
-const RawScene& ChunkDataset::scene_ref(int64_t i, ChunkPtr& holder) const {
+const StoredScene& ChunkDataset::scene_ref(int64_t i, ChunkPtr& holder) const {
   check_index(i);
   const Entry& e = entries_[i];
   holder = load_chunk(e.chunk);
@@ -372,7 +357,7 @@ const RawScene& ChunkDataset::scene_ref(int64_t i, ChunkPtr& holder) const {
         fmt::format("ChunkDataset: {}/index.json says scene {} is in {}, but that chunk has "
                     "no such key",
                     dir_, e.key, e.chunk));
-  return holder->scenes[it->second];
+  return *holder->scenes[it->second];
 }
 
 int64_t ChunkDataset::num_frames(int64_t i) const {
@@ -380,50 +365,46 @@ int64_t ChunkDataset::num_frames(int64_t i) const {
   int64_t n = num_frames_[i].load();
   if (n >= 0) return n;
   ChunkPtr holder;
-  const auto& s = scene_ref(i, holder);
-  return holder->lvsm ? holder->lvsm->size() : static_cast<int64_t>(s.images.size());
+  return scene_ref(i, holder).num_frames();
 }
 
 RawScene ChunkDataset::scene(int64_t i) const {
-  if (layout_ == Layout::Lvsm) return read_lvsm_scene(chunk_path(i));  // every frame's bytes, as a chunk holds them
   ChunkPtr holder;
-  return scene_ref(i, holder);  // a copy sharing the tensors' storage (read-only use expected)
+  return scene_ref(i, holder).raw();
 }
 
 SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt,
-                                    int64_t* resized) const {
+                                    FrameSizePolicy other_sizes) const {
   ChunkPtr holder;
-  const RawScene& s = scene_ref(i, holder);
-  const LvsmSceneMetadata* lvsm = holder->lvsm.get();
-  const int64_t n = lvsm ? lvsm->size() : static_cast<int64_t>(s.images.size());
-  const std::string where = fmt::format("{}: scene {}", chunk_path(i), s.key);
+  const StoredScene& s = scene_ref(i, holder);
+  const int64_t n = s.num_frames();
+  const std::string where = fmt::format("{}: scene {}", chunk_path(i), s.key());
   if (frames.empty()) throw std::runtime_error(fmt::format("{}: no frames requested", where));
-  // LVSM frames are files, read only when asked for; chunk frames are already in memory.
   for (int64_t f : frames)
     if (f < 0 || f >= n)
       throw std::runtime_error(fmt::format("{}: frame {} out of range (scene has {} frames)", where, f, n));
-  auto bytes_of = [&](int64_t f) { return lvsm ? as_tensor(io::read_file(lvsm->image_paths[f])) : s.images[f]; };
-  const auto first = bytes_of(0);
+  const bool resize = other_sizes == FrameSizePolicy::Resize;
+  const auto first = s.frame_bytes(0);
   auto [h0, w0] = io::image_size(first.data_ptr<uint8_t>(), first.numel(), where + " frame 0");
   std::vector<torch::Tensor> decoded, cameras;
   decoded.reserve(frames.size());
   std::optional<std::pair<int, int>> stacked;  // the output size of the first requested frame
-  int64_t other_sizes = 0;
+  int64_t resized = 0;
   for (int64_t f : frames) {
-    const auto bytes = f == 0 ? first : bytes_of(f);
+    const auto bytes = f == 0 ? first : s.frame_bytes(f);
     std::string what = fmt::format("{} frame {}", where, f);
     auto img = io::decode_image(bytes.data_ptr<uint8_t>(), bytes.numel(), what);
     int h = static_cast<int>(img.size(0)), w = static_cast<int>(img.size(1));
     const auto out = preprocessed_size(h, w, opt);
     if (!stacked) stacked = out;
     const bool other_size = h != h0 || w != w0;
-    if ((other_size && !resized) || out != *stacked)
+    if ((other_size && !resize) || out != *stacked)
       throw BadFrameError(
           fmt::format("{}: frame is {}x{} but frame 0 is {}x{} ({})", what, h, w, h0, w0,
-                      resized ? "another output size without a square crop" : "pixelSplat skips such frames"),
-          s.key, f, h0, w0, h, w);
-    other_sizes += other_size ? 1 : 0;
-    auto row = lvsm ? lvsm_camera_row(*lvsm, f, h, w) : s.cameras[f];
+                      resize ? "another output size without a square crop" : "pixelSplat skips such frames"),
+          s.key(), f, h0, w0, h, w);
+    resized += other_size ? 1 : 0;
+    auto row = s.camera_row(f, h, w);
     if (!torch::isfinite(row).all().item<bool>())
       throw std::runtime_error(fmt::format("{}: field 'cameras' has a NaN/Inf value", what));
     decoded.push_back(img);
@@ -431,7 +412,7 @@ SceneViews ChunkDataset::load_views(int64_t i, const std::vector<int64_t>& frame
   }
   SceneViews views = preprocess(decoded, torch::stack(cameras), opt, where);
   views.frames = frames;
-  if (resized) *resized += other_sizes;
+  views.resized_frames = resized;
   return views;
 }
 

@@ -20,6 +20,7 @@
 #include "uplvsm/data/lvsm_layout.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/scene.h"
+#include "uplvsm/data/stored_scene.h"
 
 namespace uplvsm::data {
 
@@ -60,6 +61,12 @@ void write_chunk_index(const std::string& split_dir, const std::map<std::string,
 // JSON array of keys; empty when the file is absent.
 std::vector<std::string> read_unposed_keys(const std::string& split_dir);
 
+// What load_views does with a requested frame of another size than frame 0 of its scene.
+enum class FrameSizePolicy {
+  Skip,    // pixelSplat: BadFrameError (the caller counts the skip and picks other views or another scene)
+  Resize,  // the official dataset: every frame resized from its own size (preprocess), counted in resized_frames
+};
+
 class ChunkDataset {
  public:
   enum class Layout { Chunks, Lvsm };
@@ -95,30 +102,28 @@ class ChunkDataset {
   const std::string& split() const { return split_; }
 
   // Decodes the requested frames (any order, repeats allowed) and preprocesses them; SceneViews.frames = frames.
-  // Throws BadFrameError for a frame whose size differs from frame 0, std::runtime_error for a frame index out
-  // of range, an undecodable JPEG or a NaN/Inf camera (naming the scene key and frame).
-  // With `resized` given, a frame of another size than frame 0 is kept, as the official dataset keeps it: every
-  // frame is resized from its own size (preprocess), so it comes out as the others do; such frames are counted in
-  // *resized. BadFrameError then only for a frame whose output size would differ from the first requested frame's
-  // (another aspect ratio without a square crop: the frames could not be stacked).
+  // Throws std::runtime_error for a frame index out of range, an undecodable image or a NaN/Inf camera (naming the
+  // scene key and frame), and BadFrameError for a frame of another size than frame 0 under FrameSizePolicy::Skip;
+  // under Resize only for one whose output size differs from the first requested frame's (another aspect ratio
+  // without a square crop: the frames could not be stacked), the others counted in SceneViews.resized_frames.
   SceneViews load_views(int64_t i, const std::vector<int64_t>& frames, const PreprocessOptions& opt,
-                        int64_t* resized = nullptr) const;
+                        FrameSizePolicy other_sizes = FrameSizePolicy::Skip) const;
 
  private:
   struct Entry {
     std::string key;
     std::string chunk;  // file name inside the split folder
   };
+  // One cache entry: a chunk file's scenes, or one LVSM scene (its metadata file).
   struct LoadedChunk {
-    std::vector<RawScene> scenes;  // chunks: every scene of the file; LVSM: one scene, images left empty
+    std::vector<std::unique_ptr<const StoredScene>> scenes;
     std::unordered_map<std::string, size_t> by_key;
-    std::shared_ptr<const LvsmSceneMetadata> lvsm;  // LVSM layout only
   };
   using ChunkPtr = std::shared_ptr<const LoadedChunk>;
 
   std::shared_ptr<const LoadedChunk> load_chunk(const std::string& chunk) const;
   std::pair<ChunkPtr, int64_t> read_loaded_chunk(const std::string& chunk) const;  // the chunk and its bytes
-  const RawScene& scene_ref(int64_t i, ChunkPtr& holder) const;
+  const StoredScene& scene_ref(int64_t i, ChunkPtr& holder) const;
   void check_index(int64_t i) const;
   void rebuild_lookup();
 

@@ -130,12 +130,12 @@ TrainingBatch make_training_batch(const ChunkDataset& dataset, const LoaderOptio
       try {
         const int64_t frames = dataset.num_frames(scene);
         auto chosen = sample_views(frames, opt, step, rng);
-        int64_t resized = 0;  // frames of another size: resized from their own size, as the official dataset does
-        auto views = dataset.load_views(scene, chosen, opt.preprocess, &resized);
-        if (resized > 0)
+        // Frames of another size are resized from their own size, as the official dataset does.
+        auto views = dataset.load_views(scene, chosen, opt.preprocess, data::FrameSizePolicy::Resize);
+        if (views.resized_frames > 0)
           spdlog::info("training data: scene {}: {} frame(s) of another size than frame 0, resized", dataset.key(scene),
-                       resized);
-        batch.resized_frames += resized;
+                       views.resized_frames);
+        batch.resized_frames += views.resized_frames;
         images.push_back(views.images);
         intrinsics.push_back(views.fxfycxcy);
         c2ws.push_back(in_scene_frame(views.c2w));

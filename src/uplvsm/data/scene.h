@@ -24,6 +24,7 @@ struct SceneViews {
   torch::Tensor fxfycxcy;       // float32 [V,4], pixels of the HxW output
   torch::Tensor c2w;            // float32 [V,4,4], camera-to-world (OpenCV axes: x right, y down, z forward)
   std::vector<int64_t> frames;  // frame index of each view in its scene
+  int64_t resized_frames = 0;   // of another size than the scene's frame 0, resized (FrameSizePolicy::Resize)
 };
 
 }  // namespace uplvsm::data

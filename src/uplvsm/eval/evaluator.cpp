@@ -29,10 +29,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-const char* const kTableRows[] = {"model", "copy_nearest", "mean_colour"};
-const char* const kTableMetrics[] = {"psnr", "ssim", "lpips", "grad_ratio"};
-constexpr size_t kNumMetrics = std::size(kTableMetrics);
-
 struct Job {
   data::EvalEntry entry;
   int64_t dataset_index = -1;
@@ -77,7 +73,7 @@ std::vector<Job> plan_jobs(const data::ChunkDataset& dataset, const EvalOptions&
           fmt::format("eval: scene {} has no ground-truth cameras (imported without poses, listed "
                       "in {}/{}/unposed.json); target poses from '{}' need them — evaluate it "
                       "with the estimator protocol",
-                      e.key, dataset.root(), dataset.split(), model::to_string(opt.target_poses)));
+                      e.key, dataset.root(), dataset.split(), uplvsm::to_string(opt.target_poses)));
     const size_t pos = jobs.size();
     jobs.push_back({std::move(e), i, pos, static_cast<int64_t>(pos) < opt.num_visualised});
   }
@@ -114,8 +110,8 @@ LoadedBatch load_batch(const data::ChunkDataset& dataset, const std::vector<cons
     try {
       // A frame of another size than frame 0 is resized from its own size, as the official dataset does (each
       // frame on its own), and the scene scored; only frames that cannot be stacked drop the scene.
-      int64_t resized = 0;
-      out.scenes.push_back({job, dataset.load_views(job->dataset_index, frames, prep, &resized)});
+      out.scenes.push_back({job, dataset.load_views(job->dataset_index, frames, prep, data::FrameSizePolicy::Resize)});
+      const int64_t resized = out.scenes.back().views.resized_frames;
       if (resized > 0)
         spdlog::info("eval: scene {}: {} frame(s) of another size than frame 0, resized as the official dataset does",
                      job->entry.key, resized);
@@ -140,9 +136,9 @@ SceneResult scene_result(const Job& job, torch::TensorAccessor<double, 2> m) {
     ViewMetrics v;
     v.frame = r.target[t];
     v.extrapolated = !r.context.empty() && (v.frame < *lo || v.frame > *hi);
-    MetricValues x;
-    for (size_t i = 0; i < x.size(); ++i) x[i] = m[static_cast<int64_t>(i)][static_cast<int64_t>(t)];
-    set_metric_values(v, x);
+    int64_t row = 0;  // the rows of `m` follow kPredictors x kScoreFields
+    for (const auto& p : kPredictors)
+      for (const auto& [name, field] : kScoreFields) v.*p.field.*field = m[row++][static_cast<int64_t>(t)];
     r.views.push_back(v);
   }
   finalise_scene(r);
@@ -182,7 +178,7 @@ void tell_noisy_cameras(const std::vector<const Loaded*>& scenes, const EvalOpti
   }
   inputs.c2w = torch::stack(in).to(opt.device);
   targets.c2w = torch::stack(tg).to(opt.device);
-  inputs.in_scene_frame = targets.in_scene_frame = true;
+  inputs.camera_frame = targets.camera_frame = model::CameraFrame::Scene;
 }
 
 // One forward for scenes of equal view counts and image size; scores the model and the baselines per target.
@@ -223,18 +219,18 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
     return opt.lpips ? lpips_of(opt.lpips, x, gt, opt.lpips_chunk).to(torch::kFloat64)
                      : torch::full({x.size(0), x.size(1)}, kUnavailable, x.options().dtype(torch::kFloat64));
   };
-  std::vector<torch::Tensor> rows;
+  std::vector<torch::Tensor> rows;  // kPredictors' order x kScoreFields' order
   for (const auto* x : {&pred, &copy, &mean})
     for (auto&& m : {psnr(*x, gt), ssim(*x, gt), lp(*x), gradient_energy_ratio(*x, gt)})
       rows.push_back(m.to(torch::kCPU));
-  auto metrics = torch::stack(rows, 1).to(torch::kFloat64).contiguous();  // [b, 12, vt], rows as MetricValues
+  auto metrics = torch::stack(rows, 1).to(torch::kFloat64).contiguous();  // [b, 12, vt]
   auto acc = metrics.accessor<double, 3>();
   for (size_t b = 0; b < scenes.size(); ++b) {
     const Job& job = *scenes[b]->job;
     auto r = scene_result(job, acc[static_cast<int64_t>(b)]);
-    state.psnr_sum += r.psnr;
-    state.ssim_sum += r.ssim;
-    state.lpips_sum += r.lpips;
+    state.psnr_sum += r.model.psnr;
+    state.ssim_sum += r.model.ssim;
+    state.lpips_sum += r.model.lpips;
     const auto i = static_cast<int64_t>(b);
     if (job.visualise && !opt.out_dir.empty()) write_grid(opt.out_dir, r, in_img[i], pred[i], gt[i], copy[i], state);
     state.results[job.position] = std::move(r);
@@ -250,16 +246,10 @@ void run_loaded(model::NovelViewModel& net, const std::vector<Loaded>& loaded, c
 }
 
 std::map<std::string, std::map<std::string, double>> mean_table(const std::vector<const SceneResult*>& scenes) {
-  MetricValues sums{};
-  for (const auto* s : scenes) {
-    const auto v = metric_values(*s);
-    for (size_t i = 0; i < sums.size(); ++i) sums[i] += v[i];
-  }
-  const double n = static_cast<double>(scenes.size());
+  const PredictorScores mean = mean_scores(scenes);
   std::map<std::string, std::map<std::string, double>> table;
-  for (size_t row = 0; row < std::size(kTableRows); ++row)
-    for (size_t col = 0; col < kNumMetrics; ++col)
-      table[kTableRows[row]][kTableMetrics[col]] = sums[kNumMetrics * row + col] / n;
+  for (const auto& p : kPredictors)
+    for (const auto& [name, field] : kScoreFields) table[p.name][name] = mean.*p.field.*field;
   return table;
 }
 
@@ -267,13 +257,7 @@ std::map<std::string, std::map<std::string, double>> mean_table(const std::vecto
 
 void finalise_scene(SceneResult& r) {
   if (r.views.empty()) throw std::runtime_error("eval: scene " + r.key + " has no target views");
-  MetricValues sums{};
-  for (const auto& v : r.views) {
-    const auto x = metric_values(v);
-    for (size_t i = 0; i < sums.size(); ++i) sums[i] += x[i];
-  }
-  for (auto& x : sums) x /= static_cast<double>(r.views.size());
-  set_metric_values(r, sums);
+  static_cast<PredictorScores&>(r) = mean_scores(r.views);
 }
 
 EvalSummary summarise(std::vector<SceneResult> scenes) {
@@ -372,7 +356,7 @@ static void check_options(model::NovelViewModel& net, const EvalOptions& opt) {
   TORCH_CHECK(
       opt.pose_refinement.steps == 0 || (model::as_uplvsm(*net) && opt.target_poses == model::TargetPoses::Estimator),
       "eval: pose refinement refines the latent poses UP-LVSM's estimator reads from the targets; this is ",
-      net->name(), " with target poses '", model::to_string(opt.target_poses), "'");
+      net->name(), " with target poses '", uplvsm::to_string(opt.target_poses), "'");
   check_pose_noise_std(opt.pose_noise_std);
   TORCH_CHECK(opt.shard_count >= 1 && opt.shard_rank >= 0 && opt.shard_rank < opt.shard_count, "eval: shard ",
               opt.shard_rank, " of ", opt.shard_count, " is not a valid shard");

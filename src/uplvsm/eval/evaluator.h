@@ -58,40 +58,61 @@ struct EvalOptions {
   std::function<std::vector<std::string>(const std::string&)> gather;
 };
 
-struct ViewMetrics {
+// One predictor's scores on a view, or their means over a scene's targets.
+struct Scores {
+  double psnr = 0, ssim = 0;
+  double lpips = kUnavailable;
+  double grad_ratio = 0;  // gradient_energy_ratio (eval/metrics.h)
+};
+// The scores' names as metrics.json's table and the CSV columns spell them, with their fields.
+inline constexpr std::array<std::pair<const char*, double Scores::*>, 4> kScoreFields{
+    {{"psnr", &Scores::psnr}, {"ssim", &Scores::ssim}, {"lpips", &Scores::lpips}, {"grad_ratio", &Scores::grad_ratio}}};
+
+// The model and the two trivial baselines (eval/baselines.h), each scored alike.
+struct PredictorScores {
+  Scores model, copy_nearest, mean_colour;
+};
+// The predictors' names (metrics.json's table rows), their column suffixes in the CSV files and JSON views, and
+// their fields.
+struct PredictorField {
+  const char* name;
+  const char* suffix;
+  Scores PredictorScores::*field;
+};
+inline constexpr std::array<PredictorField, 3> kPredictors{{{"model", "", &PredictorScores::model},
+                                                            {"copy_nearest", "_copy", &PredictorScores::copy_nearest},
+                                                            {"mean_colour", "_mean", &PredictorScores::mean_colour}}};
+
+struct ViewMetrics : PredictorScores {
   int64_t frame = 0;
-  double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
-  double lpips = kUnavailable, lpips_copy = kUnavailable, lpips_mean = kUnavailable;
-  double grad_ratio = 0, grad_ratio_copy = 0, grad_ratio_mean = 0;  // gradient_energy_ratio (eval/metrics.h)
   bool extrapolated = false;  // the frame lies outside [min(context), max(context)] (else interpolation)
 };
 
-struct SceneResult {
+struct SceneResult : PredictorScores {  // the predictors' means over the targets
   std::string key;
   std::vector<int64_t> context, target;
   std::optional<double> overlap;
   std::string bucket = "none";  // data::overlap_bucket(overlap): small/medium/large/ignore; "none" without overlap
   std::vector<ViewMetrics> views;
-  // Means over the targets.
-  double psnr = 0, ssim = 0, psnr_copy = 0, ssim_copy = 0, psnr_mean = 0, ssim_mean = 0;
-  double lpips = kUnavailable, lpips_copy = kUnavailable, lpips_mean = kUnavailable;
-  double grad_ratio = 0, grad_ratio_copy = 0, grad_ratio_mean = 0;
 };
 
-// A view's or scene's twelve numbers in one order: model, copy-nearest, mean-colour x PSNR, SSIM, LPIPS, gradient-
-// energy ratio. ViewMetrics and SceneResult name the same fields; averaging and the CSV columns walk them as one array.
-using MetricValues = std::array<double, 12>;
-template <class M>
-MetricValues metric_values(const M& m) {
-  return {m.psnr,      m.ssim,      m.lpips,      m.grad_ratio,       //
-          m.psnr_copy, m.ssim_copy, m.lpips_copy, m.grad_ratio_copy,  //
-          m.psnr_mean, m.ssim_mean, m.lpips_mean, m.grad_ratio_mean};
-}
-template <class M>
-void set_metric_values(M& m, const MetricValues& v) {
-  m.psnr = v[0], m.ssim = v[1], m.lpips = v[2], m.grad_ratio = v[3];
-  m.psnr_copy = v[4], m.ssim_copy = v[5], m.lpips_copy = v[6], m.grad_ratio_copy = v[7];
-  m.psnr_mean = v[8], m.ssim_mean = v[9], m.lpips_mean = v[10], m.grad_ratio_mean = v[11];
+namespace detail {
+inline const PredictorScores& scores_of(const PredictorScores& x) { return x; }
+inline const PredictorScores& scores_of(const PredictorScores* x) { return *x; }
+}  // namespace detail
+
+// The mean of each predictor's scores over `items` (views or scenes, or pointers to them); NaN without items.
+template <class Items>
+PredictorScores mean_scores(const Items& items) {
+  PredictorScores mean;
+  const double n = static_cast<double>(std::size(items));
+  for (const auto& p : kPredictors)
+    for (const auto& [name, field] : kScoreFields) {
+      double sum = 0;
+      for (const auto& item : items) sum += (detail::scores_of(item).*p.field).*field;
+      mean.*p.field.*field = sum / n;
+    }
+  return mean;
 }
 
 struct EvalSummary {

@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <utility>
 
 #include "uplvsm/io/atomic_file.h"
 
@@ -15,15 +16,20 @@ namespace fs = std::filesystem;
 // A CSV number; unavailable values (LPIPS without weights) are empty fields.
 std::string csv_number(double v) { return std::isnan(v) ? "" : fmt::format("{:.6f}", v); }
 
-std::string csv_values(const MetricValues& v) {
-  std::string out;
-  for (size_t i = 0; i < v.size(); ++i) out += (i ? "," : "") + csv_number(v[i]);
+// The predictors' scores as CSV fields, and their column names: psnr,ssim,lpips,grad_ratio,psnr_copy,...
+std::string csv_values(const PredictorScores& s) {
+  std::string out, separator;  // an unavailable first value is an empty field too
+  for (const auto& p : kPredictors)
+    for (const auto& [name, field] : kScoreFields) out += std::exchange(separator, ",") + csv_number(s.*p.field.*field);
   return out;
 }
 
-const char* const kValueColumns =
-    "psnr,ssim,lpips,grad_ratio,psnr_copy,ssim_copy,lpips_copy,grad_ratio_copy,psnr_mean,ssim_mean,lpips_mean,"
-    "grad_ratio_mean";
+std::string value_columns() {
+  std::string out;
+  for (const auto& p : kPredictors)
+    for (const auto& [name, field] : kScoreFields) out += (out.empty() ? "" : ",") + std::string(name) + p.suffix;
+  return out;
+}
 
 std::string csv_field(const std::string& s) {
   if (s.find_first_of(",\"\n") == std::string::npos) return s;
@@ -37,21 +43,19 @@ void write_text(const std::string& path, const std::string& text) {
 }
 
 std::string per_scene_csv(const EvalSummary& s) {
-  std::string out = "key,bucket,overlap,num_targets," + std::string(kValueColumns) + "\n";
+  std::string out = "key,bucket,overlap,num_targets," + value_columns() + "\n";
   for (const auto& r : s.per_scene) {
     const std::string overlap = r.overlap ? fmt::format("{:.6g}", *r.overlap) : "";
-    out += fmt::format("{},{},{},{},{}\n", csv_field(r.key), r.bucket, overlap, r.views.size(),
-                       csv_values(metric_values(r)));
+    out += fmt::format("{},{},{},{},{}\n", csv_field(r.key), r.bucket, overlap, r.views.size(), csv_values(r));
   }
   return out;
 }
 
 std::string per_view_csv(const EvalSummary& s) {
-  std::string out = "key,frame,extrapolated," + std::string(kValueColumns) + "\n";
+  std::string out = "key,frame,extrapolated," + value_columns() + "\n";
   for (const auto& r : s.per_scene)
     for (const auto& v : r.views)
-      out +=
-          fmt::format("{},{},{},{}\n", csv_field(r.key), v.frame, v.extrapolated ? 1 : 0, csv_values(metric_values(v)));
+      out += fmt::format("{},{},{},{}\n", csv_field(r.key), v.frame, v.extrapolated ? 1 : 0, csv_values(v));
   return out;
 }
 

@@ -46,7 +46,7 @@ torch::Tensor scene_grid(const SceneResult& scene, const torch::Tensor& inputs, 
     rows.push_back(std::move(row));
     if (t < static_cast<int64_t>(scene.views.size())) {
       const auto& v = scene.views[static_cast<size_t>(t)];
-      row_labels.push_back(fmt::format("frame {}\n{:.2f} dB\nSSIM {:.3f}", v.frame, v.psnr, v.ssim));
+      row_labels.push_back(fmt::format("frame {}\n{:.2f} dB\nSSIM {:.3f}", v.frame, v.model.psnr, v.model.ssim));
     } else {
       row_labels.push_back(fmt::format("target {}", t));
     }

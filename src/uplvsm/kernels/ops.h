@@ -62,6 +62,14 @@ struct PreNormBlock {
   std::function<torch::Tensor(const torch::Tensor& normed, int64_t row_start, int64_t row_count)> attention;
   std::function<torch::Tensor(const torch::Tensor& normed)> mlp;
 };
+// A block's two norms (any layer-norm module with weight, bias and eps), its branches left to the caller.
+template <class Norm>
+PreNormBlock pre_norm_block(const Norm& norm1, const Norm& norm2) {
+  PreNormBlock b;
+  b.norm1_weight = norm1.weight, b.norm1_bias = norm1.bias, b.norm1_eps = norm1.eps;
+  b.norm2_weight = norm2.weight, b.norm2_bias = norm2.bias, b.norm2_eps = norm2.eps;
+  return b;
+}
 torch::Tensor run_pre_norm_stack(const std::vector<PreNormBlock>& blocks, torch::Tensor x, int64_t row_start = 0,
                                  int64_t row_count = -1);
 

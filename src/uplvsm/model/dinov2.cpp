@@ -114,9 +114,7 @@ namespace {
 
 // A block as the kernels' stack runner takes it (kernels/ops.h): its norms and its two branches, LayerScale included.
 kernels::PreNormBlock dino_pre_norm_block(const std::shared_ptr<DinoBlockImpl>& block) {
-  kernels::PreNormBlock b;
-  b.norm1_weight = block->norm1->weight, b.norm1_bias = block->norm1->bias, b.norm1_eps = block->norm1->eps;
-  b.norm2_weight = block->norm2->weight, b.norm2_bias = block->norm2->bias, b.norm2_eps = block->norm2->eps;
+  auto b = kernels::pre_norm_block(*block->norm1, *block->norm2);
   b.attention = [attn = block->attn.ptr(), ls1 = block->ls1.ptr()](const torch::Tensor& normed, int64_t, int64_t) {
     return ls1->forward(attn->forward(normed));
   };

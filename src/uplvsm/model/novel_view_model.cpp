@@ -4,23 +4,8 @@
 
 namespace uplvsm::model {
 
-std::string to_string(TargetPoses source) {
-  switch (source) {
-    case TargetPoses::Estimator: return "estimator";
-    case TargetPoses::Mapper: return "mapper";
-    case TargetPoses::Dataset: return "dataset";
-  }
-  return "?";
-}
-
-TargetPoses resolve_target_poses(TargetPoseChoice choice, const NovelViewModelImpl& model) {
-  switch (choice) {
-    case TargetPoseChoice::Auto: return model.default_target_poses();
-    case TargetPoseChoice::Estimator: return TargetPoses::Estimator;
-    case TargetPoseChoice::Mapper: return TargetPoses::Mapper;
-    case TargetPoseChoice::Dataset: return TargetPoses::Dataset;
-  }
-  throw std::invalid_argument("unknown target-pose choice");
+TargetPoses resolve_target_poses(TargetPoses choice, const NovelViewModelImpl& model) {
+  return choice == TargetPoses::Auto ? model.default_target_poses() : choice;
 }
 
 void keep(ForwardTrace* trace, std::initializer_list<std::pair<torch::Tensor ForwardTrace::*, torch::Tensor>> fields) {
@@ -34,7 +19,7 @@ Views batch_of_one(const data::SceneViews& views, torch::Device device) {
 }
 
 const torch::Tensor& require_c2w(const Views& views, const char* which, TargetPoses source) {
-  TORCH_CHECK(views.c2w.defined(), "target poses '", to_string(source), "' need the ", which,
+  TORCH_CHECK(views.c2w.defined(), "target poses '", uplvsm::to_string(source), "' need the ", which,
               " views' cameras (c2w), which were not given");
   TORCH_CHECK(views.c2w.dim() == 4 && views.c2w.size(1) == views.images.size(1) && views.c2w.size(2) == 4 &&
                   views.c2w.size(3) == 4,

@@ -37,26 +37,24 @@ struct ForwardTrace {
 // Keeps intermediates when a trace is wanted: keep(trace, {{&ForwardTrace::encoder_output, z}, ...}); no-op for null.
 void keep(ForwardTrace* trace, std::initializer_list<std::pair<torch::Tensor ForwardTrace::*, torch::Tensor>> fields);
 
+// The frame a batch's c2w are in: the dataset's world frame, or already the official scene frame (the training
+// loader's, over all the sample's views, before its pose noise), which the posed models take as it is instead of
+// normalising over these inputs and targets.
+enum class CameraFrame { World, Scene };
+
 // A batch of view sets (data::SceneViews is one scene's, unbatched). c2w is needed only where a camera comes from
 // the dataset; unposed photos leave it undefined.
 struct Views {
   torch::Tensor images;    // [b, v, 3, H, W] in [0, 1]
   torch::Tensor fxfycxcy;  // [b, v, 4] pixels
   torch::Tensor c2w;       // [b, v, 4, 4] or undefined
-  // c2w already in the official scene frame (the training loader's, over all the sample's views, before its pose
-  // noise): the posed models take them as they are instead of normalising over these inputs and targets.
-  bool in_scene_frame = false;
+  CameraFrame camera_frame = CameraFrame::World;
 };
 // One scene's views as a batch of one on `device` (c2w stays undefined where the scene has none).
 Views batch_of_one(const data::SceneViews& views, torch::Device device);
 
-// Where the target views' cameras come from.
-enum class TargetPoses {
-  Estimator,  // UP-LVSM: the Latent Plücker Learner reads the target image (the paper's protocol)
-  Mapper,     // camera control: dataset cameras (camera_control_poses) through the linear pose mapper
-  Dataset,    // dataset cameras directly: PT-LVSM and LVSM, and for UP-LVSM the "SfM target poses" ablation
-};
-std::string to_string(TargetPoses source);
+// Where the target views' cameras come from: one enum from the config to the render (core/config.h).
+using uplvsm::TargetPoses;
 
 struct Rendered {
   torch::Tensor render;         // [b, v_t, 3, H, W] in [0, 1]
@@ -114,7 +112,7 @@ TORCH_MODULE(NovelViewModel);
 // The c2w of `which` ("input", "target") views, checked against their images; the error says `source` needs them.
 const torch::Tensor& require_c2w(const Views& views, const char* which, TargetPoses source);
 
-// The configured choice for this model: Auto is the model's own (default_target_poses).
-TargetPoses resolve_target_poses(TargetPoseChoice choice, const NovelViewModelImpl& model);
+// The source this model renders from: Auto is the model's own (default_target_poses), any other as it is.
+TargetPoses resolve_target_poses(TargetPoses choice, const NovelViewModelImpl& model);
 
 }  // namespace uplvsm::model

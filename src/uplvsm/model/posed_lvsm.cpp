@@ -48,7 +48,7 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
   const int64_t vt = targets.fxfycxcy.size(1);
   auto in_c2w = require_c2w(inputs, "input", TargetPoses::Dataset);
   auto tg_c2w = require_c2w(targets, "target", TargetPoses::Dataset);
-  if (!(inputs.in_scene_frame && targets.in_scene_frame))
+  if (!(inputs.camera_frame == CameraFrame::Scene && targets.camera_frame == CameraFrame::Scene))
     std::tie(in_c2w, tg_c2w) = scene_normalized(in_c2w, tg_c2w, normalize_with_targets);
   auto tokens = tokenize(images);  // [b, vi, n, d]
   const int64_t n = tokens.size(2), d = tokens.size(3);
@@ -68,8 +68,8 @@ torch::Tensor PosedLVSMImpl::render_posed(const Views& inputs, const Views& targ
 }
 
 Rendered PosedLVSMImpl::render(const Views& inputs, const Views& targets, TargetPoses source, ForwardTrace* trace) {
-  TORCH_CHECK(source == TargetPoses::Dataset, name(), " renders from dataset cameras only; target poses '",
-              to_string(source), "' do not apply");
+  TORCH_CHECK(resolve_target_poses(source, *this) == TargetPoses::Dataset, name(),
+              " renders from dataset cameras only; target poses '", uplvsm::to_string(source), "' do not apply");
   return {render_posed(inputs, targets, trace), {}, {}};
 }
 

@@ -4,7 +4,7 @@
 //   Q   = target_pose_tokenizer(Plücker(target camera))                                     per target
 //   img = sigmoid(head(Blocks(LN([T ; Q]))[last n]))
 // PT-LVSM poses input view 0 only, LVSM every input view: the one difference between the two. Cameras are the
-// official scene-normalised ones: as the training loader gives them (Views::in_scene_frame), else normalised here
+// official scene-normalised ones: as the training loader gives them (Views::camera_frame), else normalised here
 // over inputs and targets (geometry::official_scene_normalize; evaluation's context + target views, as officially).
 #pragma once
 #include <torch/torch.h>
@@ -25,9 +25,9 @@ PosedInputs posed_inputs(Variant variant);
 struct PosedLVSMImpl : NovelViewModelImpl {
   PosedLVSMImpl(const ModelConfig& config, PosedInputs posed_inputs);
 
-  // Renders the targets from posed inputs (both need c2w). Unless both views are in_scene_frame, the official scene
-  // normalisation runs over inputs and targets; a camera path passes normalize_with_targets = false so every frame
-  // shares the inputs' frame.
+  // Renders the targets from posed inputs (both need c2w). Unless both views are in CameraFrame::Scene, the official
+  // scene normalisation runs over inputs and targets; a camera path passes normalize_with_targets = false so every
+  // frame shares the inputs' frame.
   torch::Tensor render_posed(const Views& inputs, const Views& targets, ForwardTrace* trace = nullptr,
                              bool normalize_with_targets = true);
 

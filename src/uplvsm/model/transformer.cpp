@@ -125,9 +125,7 @@ namespace {
 
 // A block as the kernels' stack runner takes it: its norms' weights and its two branches.
 kernels::PreNormBlock pre_norm_block(const std::shared_ptr<TransformerBlockImpl>& block) {
-  kernels::PreNormBlock b;
-  b.norm1_weight = block->norm1->weight, b.norm1_bias = block->norm1->bias, b.norm1_eps = block->norm1->eps;
-  b.norm2_weight = block->norm2->weight, b.norm2_bias = block->norm2->bias, b.norm2_eps = block->norm2->eps;
+  auto b = kernels::pre_norm_block(*block->norm1, *block->norm2);
   b.attention = [attn = block->attn.ptr()](const torch::Tensor& normed, int64_t start, int64_t count) {
     return attn->forward(normed, count < 0 ? OutputRows{} : OutputRows{start, count});
   };

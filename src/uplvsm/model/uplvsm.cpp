@@ -48,7 +48,8 @@ torch::Tensor UPLVSMImpl::encode_scene(const torch::Tensor& images, const torch:
   // model.encoder_latent_cameras: a second pass (the one a trace keeps) in which every input view carries its latent
   // camera, view 0 the identity (the marker) and the others what the estimator reads from them in the first scene.
   // In fp32 like the identity and the intrinsics (autocast may hand the heads' output back in bf16).
-  auto poses = estimate_poses_from_tokens(tokens.narrow(1, 1, v - 1), scene).to(torch::kFloat32);  // [b, v - 1, 7]
+  auto poses =
+      estimate_poses_from_tokens(tokens.narrow(1, 1, v - 1), scene, nullptr).to(torch::kFloat32);  // [b, v - 1, 7]
   auto c2w = torch::cat({geometry::identity_c2w({b, 1}, poses.options()), geometry::pose_encoding_to_c2w(poses)}, 1);
   return encode_tokens(tokens, geometry::plucker_rays(c2w, fxfycxcy, H, W), trace);
 }
@@ -84,9 +85,6 @@ torch::Tensor UPLVSMImpl::estimate_poses(const torch::Tensor& target_images, con
 
 torch::Tensor UPLVSMImpl::estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
                                                      ForwardTrace* trace) {
-  TORCH_CHECK(!config.encoder_cameras,
-              "estimate_poses: this LVSM encoder-decoder (model.encoder_cameras) renders from "
-              "dataset cameras; its pose estimator is never trained");
   const int64_t b = tokens.size(0), v = tokens.size(1);
   auto pooled = estimator->pooled(tokens.flatten(0, 1), repeat_per_view(scene_latents, v));  // [b v, d]
   keep(trace,
@@ -124,6 +122,7 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
                                               const torch::Tensor& scene_latents, TargetPoses source,
                                               ForwardTrace* trace) {
   switch (source) {
+    case TargetPoses::Auto: return target_latent_poses(inputs, targets, scene_latents, default_target_poses(), trace);
     case TargetPoses::Estimator: return estimate_poses(targets.images, scene_latents, trace);
     case TargetPoses::Dataset:
       return geometry::camera_control_poses(require_c2w(inputs, "input", source),
@@ -136,26 +135,8 @@ torch::Tensor UPLVSMImpl::target_latent_poses(const Views& inputs, const Views& 
   TORCH_CHECK(false, "unknown target pose source");
 }
 
-namespace {
-// model.encoder_cameras: every input view's real camera in camera-control units (view 0 the identity, as the marker).
-torch::Tensor input_camera_rays(const Views& inputs) {
-  const auto& c2w = require_c2w(inputs, "input", TargetPoses::Dataset);
-  auto poses = geometry::camera_control_poses(c2w, c2w).to(inputs.fxfycxcy.device());
-  return geometry::plucker_rays(geometry::pose_encoding_to_c2w(poses), inputs.fxfycxcy, inputs.images.size(3),
-                                inputs.images.size(4));
-}
-}  // namespace
-
-torch::Tensor UPLVSMImpl::encode(const Views& inputs, ForwardTrace* trace) {
-  return config.encoder_cameras ? encode_scene_with_rays(inputs.images, input_camera_rays(inputs), trace)
-                                : encode_scene(inputs.images, inputs.fxfycxcy, trace);
-}
-
 Rendered UPLVSMImpl::render(const Views& inputs, const Views& targets, TargetPoses source, ForwardTrace* trace) {
-  TORCH_CHECK(!config.encoder_cameras || source == TargetPoses::Dataset,
-              "model.encoder_cameras: this LVSM encoder-decoder renders from dataset cameras only; target poses '",
-              to_string(source), "' do not apply");
-  auto latents = encode(inputs, trace);
+  auto latents = encode_scene(inputs.images, inputs.fxfycxcy, trace);
   auto poses = target_latent_poses(inputs, targets, latents, source, trace).to(latents.device());
   auto render = render_views(latents, poses, targets.fxfycxcy, targets.images.size(3), targets.images.size(4), trace);
   return {render, poses, latents};

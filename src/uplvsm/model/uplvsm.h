@@ -28,21 +28,13 @@ struct UPLVSMImpl : NovelViewModelImpl {
   // model.encoder_latent_cameras, the encoder's second pass, whose views 1.. carry their latent cameras.
   torch::Tensor encode_scene(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                              ForwardTrace* trace = nullptr);
-  // The same from input views whose first k views carry camera rays [b, k, 6, H, W]: encode_scene passes the
-  // identity camera's rays for view 0 (the canonical marker); model.encoder_cameras passes every view's real camera.
+  // The same from input views whose first k views carry camera rays [b, k, 6, H, W] (encode_scene passes the
+  // identity camera's rays for view 0, the canonical marker; encoder_latent_cameras every view's latent camera).
   torch::Tensor encode_scene_with_rays(const torch::Tensor& input_images, const torch::Tensor& rays,
                                        ForwardTrace* trace = nullptr);
-  // The same from the input views' DINOv2 tokens [b, v, n, d].
-  torch::Tensor encode_tokens(const torch::Tensor& tokens, const torch::Tensor& rays, ForwardTrace* trace = nullptr);
-  // The scene latents of `inputs` as render() makes them: encode_scene, or with model.encoder_cameras every input
-  // view's real camera (its c2w is then required).
-  torch::Tensor encode(const Views& inputs, ForwardTrace* trace = nullptr);
   // Latent poses [b, v_t, 7] of target images given the scene latents (the Latent Plücker Learner).
   torch::Tensor estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                ForwardTrace* trace = nullptr);
-  // The same from the targets' DINOv2 tokens [b, v_t, n, d].
-  torch::Tensor estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
-                                           ForwardTrace* trace = nullptr);
   // The scene latents of unposed inputs and the latent poses [b, v_in, 7] the estimator reads from those same
   // inputs: what rendering between (or around) the inputs starts from (render/renderer, serve/viewer_model).
   struct EncodedInputs {
@@ -53,18 +45,10 @@ struct UPLVSMImpl : NovelViewModelImpl {
   torch::Tensor render_views(const torch::Tensor& scene_latents, const torch::Tensor& pose_enc,
                              const torch::Tensor& target_fxfycxcy, int64_t height, int64_t width,
                              ForwardTrace* trace = nullptr);
-  // The same from the targets' Plücker rays [b, v_t, 6, H, W].
-  torch::Tensor render_rays(const torch::Tensor& scene_latents, const torch::Tensor& rays,
-                            ForwardTrace* trace = nullptr);
   // Latent poses [b, v_t, 7] of the targets from `source` (Estimator: needs the target images; Mapper, Dataset:
   // needs c2w of inputs and targets).
   torch::Tensor target_latent_poses(const Views& inputs, const Views& targets, const torch::Tensor& scene_latents,
                                     TargetPoses source, ForwardTrace* trace = nullptr);
-
-  // Latent poses [b, n, 7] of real cameras [b, n, 7] (camera-control units) through the pose mapper; an MLP mapper
-  // also reads the estimator's latent poses of the input views from `input_images` [b, vi, 3, H, W].
-  torch::Tensor map_real_poses(const torch::Tensor& real_poses, const torch::Tensor& scene_latents,
-                               const torch::Tensor& input_images);
   // Gives this model a pose mapper (fitted to it by `uplvsm fit-mapper`), replacing one it has.
   void attach_pose_mapper(PoseMapper mapper);
 
@@ -75,13 +59,11 @@ struct UPLVSMImpl : NovelViewModelImpl {
   Rendered forward(const torch::Tensor& input_images, const torch::Tensor& input_fxfycxcy,
                    const torch::Tensor& target_images, const torch::Tensor& target_fxfycxcy,
                    ForwardTrace* trace = nullptr);
-  TargetPoses default_target_poses() const override {
-    return config.encoder_cameras ? TargetPoses::Dataset : TargetPoses::Estimator;
-  }
+  TargetPoses default_target_poses() const override { return TargetPoses::Estimator; }
   bool has_camera_control() const override { return !pose_mapper.is_empty(); }
   // Encodes the scene once; real cameras go through the pose mapper to latent poses.
   CameraRenderer camera_control(const Views& inputs) override;
-  std::string name() const override { return config.encoder_cameras ? "LVSM encoder-decoder" : "UP-LVSM"; }
+  std::string name() const override { return "UP-LVSM"; }
   void set_grad_checkpoint_every(int64_t k) override;
 
   torch::Tensor n_light_field_latent;  // [L, d] learnable scene-latent queries
@@ -89,6 +71,19 @@ struct UPLVSMImpl : NovelViewModelImpl {
   LayerNorm transformer_input_layernorm_decoder{nullptr};
   LatentPluckerLearner estimator{nullptr};
   PoseMapper pose_mapper{nullptr};  // camera control, an option of UP-LVSM: registered when config.pose_mapper
+
+ private:
+  // The encoder over [latents ; DINOv2 tokens [b, v, n, d] + the rays' tokens].
+  torch::Tensor encode_tokens(const torch::Tensor& tokens, const torch::Tensor& rays, ForwardTrace* trace);
+  // The estimator on the targets' DINOv2 tokens [b, v_t, n, d].
+  torch::Tensor estimate_poses_from_tokens(const torch::Tensor& tokens, const torch::Tensor& scene_latents,
+                                           ForwardTrace* trace);
+  // The decoder from the targets' Plücker rays [b, v_t, 6, H, W].
+  torch::Tensor render_rays(const torch::Tensor& scene_latents, const torch::Tensor& rays, ForwardTrace* trace);
+  // Latent poses [b, n, 7] of real cameras [b, n, 7] (camera-control units) through the pose mapper; an MLP mapper
+  // also reads the estimator's latent poses of the input views from `input_images` [b, vi, 3, H, W].
+  torch::Tensor map_real_poses(const torch::Tensor& real_poses, const torch::Tensor& scene_latents,
+                               const torch::Tensor& input_images);
 };
 TORCH_MODULE(UPLVSM);
 

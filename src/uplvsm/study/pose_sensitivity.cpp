@@ -21,7 +21,7 @@ void measure_scene(model::UPLVSM& net, const data::SceneViews& views, const std:
   model::Views inputs{first_two(images), first_two(k), first_two(c2w)};
   model::Views targets{images, k, c2w};
   const int64_t H = images.size(3), W = images.size(4);
-  auto latents = net->encode(inputs);
+  auto latents = net->encode_scene(inputs.images, inputs.fxfycxcy);
   auto poses = net->target_latent_poses(inputs, targets, latents, opt.source).to(latents.device());
   auto own = net->render_views(latents, poses, k, H, W).to(torch::kFloat32);
   auto at_first =

@@ -65,7 +65,7 @@ TrainingMemory training_memory(const Config& config) {
   };
   // The estimator (and DINOv2 over the targets) runs only where target poses come from it.
   const bool estimator = c.variant == Variant::UPLVSM &&
-                         (tc.target_poses == TargetPoseChoice::Auto || tc.target_poses == TargetPoseChoice::Estimator);
+                         (tc.target_poses == TargetPoses::Auto || tc.target_poses == TargetPoses::Estimator);
   const double dino_tokens =
       b * (vi + (estimator ? vt : 0)) * (1 + static_cast<double>(c.dinov2.num_register_tokens) + n);
   double values = dino_tokens * kept(c.dinov2.depth, c.dinov2.embed_dim);

@@ -74,7 +74,7 @@ std::string views_line(const RunPlan& p) {
                           : "unordered: any distinct frames";
   s += t.pose_noise_std > 0 ? fmt::format("; pose noise N(0, {:g}^2) on the told cameras", t.pose_noise_std)
                             : "; no pose noise";
-  return line("views", s + "; target poses " + to_string(t.target_poses));
+  return line("views", s + "; target poses " + uplvsm::to_string(t.target_poses));
 }
 
 }  // namespace

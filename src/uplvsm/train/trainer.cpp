@@ -78,7 +78,7 @@ StepContext step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer
   ctx.comm = opt.comm.get();
   if (set_cuda_tf32(opt.device, tc.tf32)) spdlog::info("TF32 matmuls and convolutions: {}", tc.tf32 ? "on" : "off");
   spdlog::info("{} ({} variant), target poses from {}", net.name(), to_string(config.model.variant),
-               model::to_string(ctx.target_poses));
+               uplvsm::to_string(ctx.target_poses));
   net.set_grad_checkpoint_every(tc.grad_checkpoint_every);
   if (tc.grad_checkpoint_every > 0)
     spdlog::info("gradient checkpointing: transformer blocks in groups of {}", tc.grad_checkpoint_every);
@@ -88,10 +88,10 @@ StepContext step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer
 MicroBatch micro_batch(const data::TrainingBatch& batch, int64_t input_views, torch::Device device) {
   auto dev = [&](const torch::Tensor& t) { return t.to(device); };
   // The loader's cameras are in the scene frame of all the sample's views (with their pose noise, if any).
-  constexpr bool kInSceneFrame = true;
-  return {{dev(batch.input_images(input_views)), dev(batch.input_fxfycxcy(input_views)),
-           dev(batch.input_c2w(input_views)), kInSceneFrame},
-          {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w()), kInSceneFrame}};
+  return {
+      {dev(batch.input_images(input_views)), dev(batch.input_fxfycxcy(input_views)), dev(batch.input_c2w(input_views)),
+       model::CameraFrame::Scene},
+      {dev(batch.target_images()), dev(batch.target_fxfycxcy()), dev(batch.target_c2w()), model::CameraFrame::Scene}};
 }
 
 namespace {
