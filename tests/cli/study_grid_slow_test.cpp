@@ -93,7 +93,7 @@ TEST(StudyGrid, PoseNoiseMovesLvsmButNotUplvsm) {
   EXPECT_NE(text.find("| Method | noise sd 0 | noise sd 0.1 = var 0.01 |"), std::string::npos) << text;
   std::ifstream csv_file(fs::path(out) / "table.csv");
   const std::string csv((std::istreambuf_iterator<char>(csv_file)), std::istreambuf_iterator<char>());
-  EXPECT_NE(csv.find("uplvsm,noise sd 0.1 = var 0.01,1,6,"), std::string::npos) << csv;
+  EXPECT_NE(csv.find("uplvsm,noise sd 0.1 = var 0.01,0.1,6,"), std::string::npos) << csv;  // x: the level's sd
   for (const auto* file : {"README.md", "psnr.png", "ssim.png"}) EXPECT_TRUE(fs::exists(fs::path(out) / file)) << file;
 }
 
@@ -116,5 +116,17 @@ TEST(StudyGrid, ScalingBudgetGrowsWithTheSubset) {
   const std::string text_csv((std::istreambuf_iterator<char>(curves)), std::istreambuf_iterator<char>());
   EXPECT_NE(text_csv.find("lvsm,4 scenes,777,4,"), std::string::npos) << text_csv;
   EXPECT_NE(text_csv.find("lvsm,4 scenes,777,2,"), std::string::npos) << text_csv;
-  EXPECT_TRUE(fs::exists(fs::path(out) / "curves.png"));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "curves_lvsm.png"));
+  EXPECT_TRUE(fs::exists(fs::path(out) / "levelling.md"));
+  // --report-only with a subset not run yet: the table says so and nothing trains.
+  ASSERT_EQ(run_cli("study scaling --config " + f.lvsm_cfg + " --data " + f.data +
+                        " --subsets 1 2 4 --steps 2 --steps-growth 2 --noise-std 0.05 --set training.eval_every=2 "
+                        "--report-only --out " +
+                        out,
+                    &text),
+            0)
+      << text;
+  EXPECT_NE(text.find("| lvsm | "), std::string::npos) << text;
+  EXPECT_NE(text.find("(not run)"), std::string::npos) << text;
+  EXPECT_FALSE(fs::exists(fs::path(out) / "runs/lvsm__2"));
 }

@@ -138,4 +138,32 @@ TEST(Plot, SeriesBeyondTheColoursAreDashedThenDotted) {
 }
 
 }  // namespace
+// A figure for a paper: a marker at every measured point, the seeds' spread as error bars (which the y axis makes room
+// for), and x ticks only at the measured settings with their labels.
+TEST(Plot, MarkersErrorBarsAndTicksAtTheData) {
+  auto blue = [](const torch::Tensor& img) {
+    return ((img.select(2, 0) == 31) & (img.select(2, 1) == 119) & (img.select(2, 2) == 180)).sum().item<int64_t>();
+  };
+  PlotOptions opt;
+  opt.log_x = true;
+  Series plain{"psnr", {125, 500, 2000, 8000}, {20, 21, 21.5, 21.7}};
+  Series marked = plain;
+  marked.markers = true;
+  EXPECT_GT(blue(plot_lines({marked}, opt)), blue(plot_lines({plain}, opt)) + 4 * 30);  // four markers
+  Series bars = plain;
+  bars.y_err = {0.5, 0.5, 0.5, 0.5};
+  EXPECT_GT(blue(plot_lines({bars}, opt)), blue(plot_lines({plain}, opt)) + 4 * 20);  // four bars with caps
+  // Ticks only where the data is: the grid has one vertical line per tick, so only the four settings' columns (and
+  // the frame) carry grid pixels in a row just above the bottom of the frame.
+  opt.x_ticks = {125, 500, 2000, 8000};
+  opt.x_tick_labels = {"125", "500", "2000", "8000"};
+  auto img = plot_lines({plain}, opt);
+  const auto grey = (img.select(2, 0) == 225) & (img.select(2, 1) == 225) & (img.select(2, 2) == 225);
+  const int64_t row = opt.height - 60;  // inside the frame, below the data
+  EXPECT_EQ(grey[row].sum().item<int64_t>(), 4) << "one grid column per tick";
+  Series bad_error{"e", {1, 2}, {1, 2}};
+  bad_error.y_err = {INFINITY, -1};  // ignored, never a crash
+  EXPECT_NO_THROW(plot_lines({bad_error}, PlotOptions{}));
+}
+
 }  // namespace uplvsm::io

@@ -74,9 +74,12 @@ TEST(StudyGrid, ReportWritesTablePlotsAndHeldOutCurves) {
                                        {"uplvsm", "noise sd 0", 0, 21.0, 0.5, std::nan(""), 777}};
   std::vector<study::RunCurve> curves = {{"lvsm", "noise sd 0", (dir / "a.jsonl").string(), 777},
                                          {"uplvsm", "noise sd 0", (dir / "missing.jsonl").string(), 777}};
-  const auto table = study::write_grid_report(runs, curves, dir.string(), {"Pose noise", "level"}, "Two runs.");
+  study::GridFigure fig;
+  fig.title = "Pose noise", fig.xlabel = "level";
+  const auto table = study::write_grid_report(runs, curves, dir.string(), fig, "Two runs.");
   EXPECT_NE(table.find("| lvsm | 22.25 / 0.600 / - |"), std::string::npos) << table;
-  for (const auto* file : {"table.md", "table.csv", "psnr.png", "ssim.png", "curves.csv", "curves.png", "README.md"})
+  for (const auto* file :
+       {"table.md", "table.csv", "psnr.png", "ssim.png", "curves.csv", "curves_lvsm.png", "levelling.md", "README.md"})
     EXPECT_TRUE(std::filesystem::exists(dir / file)) << file;
   EXPECT_FALSE(std::filesystem::exists(dir / "lpips.png"));
   std::ifstream csv(dir / "curves.csv");
@@ -84,6 +87,59 @@ TEST(StudyGrid, ReportWritesTablePlotsAndHeldOutCurves) {
   EXPECT_EQ(text,
             "series,setting,seed,step,psnr\nlvsm,noise sd 0,777,500,21.500000\nlvsm,noise sd 0,777,1000,22.250000\n");
   const auto empty = test::temp_dir("grid_report_no_curves");
-  study::write_grid_report(runs, {curves[1]}, empty.string(), {"Pose noise", "level"}, "No curves.");
-  EXPECT_FALSE(std::filesystem::exists(empty / "curves.png"));
+  study::write_grid_report(runs, {curves[1]}, empty.string(), fig, "No curves.");
+  EXPECT_FALSE(std::filesystem::exists(empty / "curves.csv"));
+  EXPECT_FALSE(std::filesystem::exists(empty / "curves_uplvsm.png"));
+}
+
+// A curve has levelled off when its last 2000 steps rise by less than 0.05 dB per 1000 steps (a least-squares fit,
+// so one noisy point does not decide); a falling curve has levelled too; fewer than three points decide nothing.
+TEST(StudyGrid, LevellingIsTheSlopeOfTheCurvesLastStretch) {
+  io::Series rising{"r", {0, 500, 1000, 1500, 2000, 2500, 3000}, {20, 22, 23, 23.5, 23.7, 23.8, 23.9}};
+  auto l = study::levelling(rising);
+  EXPECT_EQ(l.points, 5);  // steps 1000..3000
+  EXPECT_NEAR(l.slope, 0.42, 1e-9);
+  EXPECT_DOUBLE_EQ(l.final_psnr, 23.9);
+  EXPECT_FALSE(l.levelled());
+  io::Series flat{"f", {4000, 4500, 5000, 5500, 6000}, {25.0, 25.02, 24.98, 25.01, 25.0}};
+  EXPECT_TRUE(study::levelling(flat).levelled());
+  io::Series falling{"d", {4000, 5000, 6000}, {25.0, 24.8, 24.5}};
+  EXPECT_NEAR(study::levelling(falling).slope, -0.25, 1e-9);
+  EXPECT_TRUE(study::levelling(falling).levelled());
+  io::Series short_curve{"s", {500, 1000}, {20, 21}};
+  EXPECT_TRUE(std::isnan(study::levelling(short_curve).slope));
+  EXPECT_FALSE(study::levelling(short_curve).levelled());
+}
+
+// Two seeds that ran every setting give the PSNR gain a spread; a seed that ran only some settings does not count.
+TEST(StudyGrid, GainSpreadComesFromTheSeedsThatRanEverySetting) {
+  std::vector<study::GridCell> runs = {
+      {"lvsm", "125", 125, 20.0, 0.6, std::nan(""), 777}, {"lvsm", "500", 500, 21.0, 0.6, std::nan(""), 777},
+      {"lvsm", "125", 125, 20.2, 0.6, std::nan(""), 778}, {"lvsm", "500", 500, 21.6, 0.6, std::nan(""), 778},
+      {"up", "125", 125, 19.0, 0.5, std::nan(""), 777},   {"up", "500", 500, 19.5, 0.5, std::nan(""), 777},
+      {"up", "125", 125, 19.4, 0.5, std::nan(""), 778},
+  };
+  const auto md = study::grid_markdown(study::mean_over_seeds(runs), true, runs);
+  // lvsm: gains 1.0 and 1.4, mean cells 20.1 -> 21.3: 1.20 ±0.20; up: one complete seed, no spread.
+  EXPECT_NE(md.find("| 1.20 ±0.20 / 0.000 / - |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| up | 19.20 ±0.20 / 0.500 / - | 19.50 / 0.500 / - | 0.30 / 0.000 / - |"), std::string::npos)
+      << md;
+}
+
+// --report-only passes the runs not done yet as planned cells (runs 0): the table reads "(not run)" until a seed of
+// that cell is done, table.csv and the plot leave them out, and the gain needs every setting.
+TEST(StudyGrid, PlannedRunsReadNotRunUntilDone) {
+  study::GridCell planned{"lvsm", "500", 500, std::nan(""), std::nan(""), std::nan(""), 778};
+  planned.runs = 0;
+  std::vector<study::GridCell> runs = {
+      {"lvsm", "125", 125, 20.0, 0.6, std::nan(""), 777}, planned, {"up", "125", 125, 19.0, 0.5, std::nan(""), 777}};
+  auto cells = study::mean_over_seeds(runs);
+  auto md = study::grid_markdown(cells, true, runs);
+  EXPECT_NE(md.find("| lvsm | 20.00 / 0.600 / - | (not run) | - / - / - |"), std::string::npos) << md;
+  EXPECT_NE(md.find("| up | 19.00 / 0.500 / - | (not run) | - / - / - |"), std::string::npos) << md;
+  EXPECT_EQ(study::grid_csv(runs).find("lvsm,500"), std::string::npos);
+  EXPECT_NO_THROW(study::grid_plot(cells, "psnr", io::PlotOptions{}));
+  runs.push_back({"lvsm", "500", 500, 21.0, 0.6, std::nan(""), 777});  // one seed done: the cell is that seed's
+  md = study::grid_markdown(study::mean_over_seeds(runs), true, runs);
+  EXPECT_NE(md.find("| lvsm | 20.00 / 0.600 / - | 21.00 / 0.600 / - | 1.00 / 0.000 / - |"), std::string::npos) << md;
 }

@@ -4,7 +4,8 @@
 # from its last checkpoint, so this script continues where it stopped (a fresh machine: the same command).
 #   tools/thesis/run_tiny.sh [pose-noise|shuffle|scaling|scaling-exact|scaling-noise|all]   (default all; OUT=out/thesis, THREADS=1)
 # Two cores: run it twice at once, SEEDS=777 and SEEDS=778 (distinct run folders), then once with both seeds to
-# write the combined tables and plots (every run is then found done).
+# write the combined tables and plots (every run is then found done); REPORT_ONLY=1 writes a scaling study's tables
+# and plots from the runs done so far (the others "(not run)") without training.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 UPLVSM=${UPLVSM:-build/uplvsm}
@@ -48,7 +49,8 @@ if [ "$WHAT" = scaling ] || [ "$WHAT" = scaling-exact ] || [ "$WHAT" = scaling-n
     --seeds "${SEEDS[@]}" --set training.eval_every=500 --set training.checkpoint_every=500)
   if [ "$WHAT" != scaling-noise ]; then
     $UPLVSM study scaling --config configs/tiny.json configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" \
-      ${REPORT_ONLY:+--report-only} --out "$OUT/scaling"
+      --reference docs/research/data/paper_objaverse_scaling.csv \
+      --reference-title "the paper, Objaverse (exact poses)" ${REPORT_ONLY:+--report-only} --out "$OUT/scaling"
   fi
   if [ "$WHAT" != scaling-exact ]; then
     # The posed models again with pose noise on their cameras (UP-LVSM never reads them).

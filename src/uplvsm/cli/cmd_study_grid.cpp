@@ -40,6 +40,8 @@ struct GridArgs {
   std::vector<int64_t> seeds;          // empty: each config's training.seed
   std::vector<std::string> overrides;  // --set, applied to every config
   train::VggInput vgg19_input = train::VggInput::Auto;
+  bool report_only = false;                              // tables and plots from the runs already done; nothing trains
+  std::string reference, reference_title = "reference";  // published numbers drawn beside ours
 };
 
 struct GridRun {
@@ -70,6 +72,14 @@ void add_grid_options(CLI::App* cmd, GridArgs& a) {
       ->check(CLI::NonNegativeNumber);
   cmd->add_option("--eval-scenes", a.eval_scenes, "test scenes scored per run (0: the whole index)")
       ->capture_default_str();
+  cmd->add_option("--reference", a.reference,
+                  "published numbers to plot beside ours (CSV: series,setting,x,psnr,ssim,lpips), e.g. "
+                  "docs/research/data/paper_objaverse_scaling.csv")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--reference-title", a.reference_title, "the reference plots' title")->capture_default_str();
+  cmd->add_flag("--report-only", a.report_only,
+                "write the table, plots and curves from the runs done so far (a run without result.json reads "
+                "'(not run)'; an unfinished run's curve is shown as far as it got); nothing trains");
   cmd->add_option("--vgg19", a.vgg19, "VGG19 weights for the perceptual loss (as for `uplvsm train`)")
       ->check(CLI::ExistingFile);
   add_vgg19_input_option(cmd, a.vgg19_input);
@@ -121,17 +131,18 @@ study::GridCell cell_from_json(const nlohmann::json& j) {
 study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device device, const eval::Lpips& lpips) {
   const auto dir = fs::path(a.out) / "runs" / r.dir_name;
   const auto result_path = dir / "result.json";
-  if (!r.same_as.empty()) {
-    auto c =
-        cell_from_json(read_json_file((fs::path(a.out) / "runs" / r.same_as / "result.json").string(), "study result"));
+  // A finished run (or the run it stands for) is read back, placed where this grid plots it.
+  const auto done = r.same_as.empty() ? result_path : fs::path(a.out) / "runs" / r.same_as / "result.json";
+  if (fs::exists(done)) {
+    if (r.same_as.empty()) spdlog::info("study: {} @ {} already done ({})", r.series, r.setting, done.string());
+    auto c = cell_from_json(read_json_file(done.string(), "study result"));
     c.setting = r.setting;
     c.x = r.x;
     return c;
   }
-  if (fs::exists(result_path)) {
-    spdlog::info("study: {} @ {} already done ({})", r.series, r.setting, result_path.string());
-    return cell_from_json(read_json_file(result_path.string(), "study result"));
-  }
+  if (!r.same_as.empty())
+    throw std::runtime_error(
+        fmt::format("study: {} @ {} stands for {}, which has no result.json yet", r.series, r.setting, r.same_as));
   train::TrainOptions topt;
   topt.data_root = a.data;
   topt.run_dir = dir.string();
@@ -198,9 +209,11 @@ std::vector<GridRun> for_each_seed(const std::vector<GridRun>& runs, const std::
   return out;
 }
 
-void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, const study::GridFigure& fig,
+void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, study::GridFigure fig,
               const std::string& description) {
   apply_common_options(a.common);
+  if (!a.reference.empty()) fig.reference = study::read_reference_cells(a.reference);
+  fig.reference_title = a.reference_title;
   const auto runs = for_each_seed(grid, a.seeds);
   // Every run's loss checked before the first trains: a later run's missing --vgg19 would otherwise stop the study
   // hours in.
@@ -222,6 +235,25 @@ void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, const study::
   io::write_file_atomic((fs::path(a.out) / "study.json").string(), plan_text.data(), plan_text.size());
 
   std::vector<study::GridCell> cells;
+  if (a.report_only) {
+    for (const auto& r : runs) {
+      const auto result = fs::path(a.out) / "runs" / (r.same_as.empty() ? r.dir_name : r.same_as) / "result.json";
+      if (fs::exists(result)) {
+        cells.push_back(run_cell(r, a, device, lpips));
+      } else {  // planned, not done: "(not run)" in the table
+        study::GridCell planned;
+        planned.series = r.series, planned.setting = r.setting, planned.x = r.x;
+        planned.seed = r.config.training.seed, planned.runs = 0;
+        planned.psnr = planned.ssim = planned.lpips = std::nan("");
+        cells.push_back(planned);
+      }
+    }
+    const auto done = std::count_if(cells.begin(), cells.end(), [](const auto& c) { return c.runs > 0; });
+    spdlog::info("study: --report-only: {} of {} runs done", done, runs.size());
+    const auto table = study::write_grid_report(cells, run_curves(runs, a), a.out, fig, description);
+    std::cout << "\n" << table << fmt::format("\nstudy results -> {}/README.md\n", a.out);
+    return;
+  }
   const auto t0 = std::chrono::steady_clock::now();
   for (size_t i = 0; i < runs.size(); ++i) {
     spdlog::info("study: run {}/{}: {} @ {}", i + 1, runs.size(), runs[i].series, runs[i].setting);
@@ -311,7 +343,9 @@ void add_scaling(CLI::App& study) {
         "Each run: {} on the first N training scenes of {}{}; scored on its test split. Avg. gain: mean change per "
         "subset step (improvement positive; LPIPS lower is better).",
         budget, a->data, noise_note);
-    run_grid(runs, *a, {"Scalability", "training scenes", true, true}, description);
+    study::GridFigure fig;
+    fig.title = "Scalability", fig.xlabel = "training scenes", fig.log_x = true, fig.with_gain = true;
+    run_grid(runs, *a, fig, description);
   });
 }
 
@@ -348,8 +382,7 @@ std::vector<GridRun> pose_noise_runs(const GridArgs& a, const std::vector<std::p
     const auto first_dir = fmt::format("{}__noise_sd{:g}", series, levels.front().first);
     for (size_t i = 0; i < levels.size(); ++i) {
       const auto& [sd, label] = levels[i];
-      GridRun r{series, "noise " + label, fmt::format("{}__noise_sd{:g}", series, sd), static_cast<double>(i), config,
-                {}};
+      GridRun r{series, "noise " + label, fmt::format("{}__noise_sd{:g}", series, sd), sd, config, {}};
       r.config.training.pose_noise_std = sd;
       if (i > 0 && !reads_training_cameras(config)) r.same_as = first_dir;
       runs.push_back(r);
@@ -376,15 +409,16 @@ void add_pose_noise(CLI::App& study) {
     auto levels = noise_levels(*stds, *variances);
     if (levels.empty()) levels = noise_levels({0, 0.001, 0.01, 0.1}, {});
     const auto runs = pose_noise_runs(*a, levels);
-    std::string axis = "noise level:";
-    for (size_t i = 0; i < levels.size(); ++i) axis += fmt::format(" {}={}", i, levels[i].second);
+    const std::string axis = "pose noise sd (the official noise_scale; log axis, no noise at the left)";
     const auto description = fmt::format(
         "Each run: {} training steps on {} with N(0, sd^2) added to the 7-D (t, q) encoding of the input and, drawn "
         "apart, the target cameras after the scene normalisation (the official noise_scale; 'var v' is sd = sqrt(v));"
         " scored with clean test cameras. A model that never reads training cameras is trained once per seed and "
         "stands at every level.",
         runs.front().config.training.train_steps, a->data);
-    run_grid(runs, *a, {"Pose noise", axis, false, false}, description);
+    study::GridFigure fig;
+    fig.title = "Pose noise", fig.xlabel = axis, fig.log_x = true;
+    run_grid(runs, *a, fig, description);
   });
 }
 

@@ -350,8 +350,9 @@ torch::Tensor training_curve(const std::vector<TrainPoint>& points) {
     psnr.y.push_back(p.psnr);
     if (std::isfinite(p.loss) && p.loss <= 0) positive = false;
   }
-  io::PlotOptions top{"Training loss", "step", "loss", false, positive, 800, 360};
-  io::PlotOptions bottom{"Training PSNR", "step", "PSNR (dB)", false, false, 800, 360};
+  io::PlotOptions top, bottom;
+  top.title = "Training loss", top.xlabel = "step", top.ylabel = "loss", top.log_y = positive, top.height = 360;
+  bottom.title = "Training PSNR", bottom.xlabel = "step", bottom.ylabel = "PSNR (dB)", bottom.height = 360;
   return torch::cat(
              {io::plot_lines({loss}, top), io::plot_lines(held_out.x.empty() ? std::vector<io::Series>{psnr}
                                                                              : std::vector<io::Series>{psnr, held_out},

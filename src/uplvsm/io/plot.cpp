@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "uplvsm/io/raster.h"
 
@@ -35,18 +36,50 @@ double nice_step(double raw) {
   return (f < 1.5 ? 1 : f < 3 ? 2 : f < 7 ? 5 : 10) * e;
 }
 
-// Data range over all usable points of one coordinate; false when there is none.
+// A point's error bar half-length (0 without one).
+double error_of(const Series& s, size_t i) { return i < s.y_err.size() && std::isfinite(s.y_err[i]) ? s.y_err[i] : 0; }
+
+// Data range over all usable points of one coordinate (y with its error bars); false when there is none.
 bool data_range(const std::vector<Series>& series, bool use_x, bool log_x, bool log_y, double& lo, double& hi) {
   lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (const auto& s : series) {
     size_t n = std::min(s.x.size(), s.y.size());
     for (size_t i = 0; i < n; ++i) {
       if (!usable(s.x[i], log_x) || !usable(s.y[i], log_y)) continue;
-      double v = to_axis(use_x ? s.x[i] : s.y[i], use_x ? log_x : log_y);
-      lo = std::min(lo, v), hi = std::max(hi, v);
+      const double e = use_x ? 0 : error_of(s, i);
+      for (double v : {(use_x ? s.x[i] : s.y[i]) - e, (use_x ? s.x[i] : s.y[i]) + e}) {
+        if (!usable(v, use_x ? log_x : log_y)) continue;
+        v = to_axis(v, use_x ? log_x : log_y);
+        lo = std::min(lo, v), hi = std::max(hi, v);
+      }
     }
   }
   return lo <= hi;
+}
+
+// Ticks exactly at opt.x_ticks (the measured settings), the axis spanning them and the data with a margin.
+Axis data_tick_axis(const std::vector<Series>& series, const PlotOptions& opt) {
+  Axis a;
+  a.log = opt.log_x;
+  double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+  for (size_t i = 0; i < opt.x_ticks.size(); ++i) {
+    if (!usable(opt.x_ticks[i], a.log)) continue;
+    const double t = to_axis(opt.x_ticks[i], a.log);
+    a.ticks.push_back(t);
+    lo = std::min(lo, t), hi = std::max(hi, t);
+  }
+  double dlo = 0, dhi = 0;
+  if (data_range(series, true, opt.log_x, opt.log_y, dlo, dhi)) lo = std::min(lo, dlo), hi = std::max(hi, dhi);
+  if (!(lo <= hi)) lo = 0, hi = 1;
+  const double margin = hi > lo ? 0.06 * (hi - lo) : 0.5;
+  a.lo = lo - margin, a.hi = hi + margin;
+  const double step = a.ticks.size() > 1 ? std::abs(a.ticks[1] - a.ticks[0]) : 1.0;
+  for (size_t i = 0; i < opt.x_ticks.size(); ++i)
+    if (usable(opt.x_ticks[i], a.log))
+      a.labels.push_back(i < opt.x_tick_labels.size() ? opt.x_tick_labels[i]
+                         : a.log                      ? fmt::format("{:g}", opt.x_ticks[i])
+                                                      : format_tick(opt.x_ticks[i], step));
+  return a;
 }
 
 Axis linear_axis(double lo, double hi, int target) {
@@ -89,6 +122,7 @@ Axis log_axis(double lo, double hi) {
 }
 
 Axis make_axis(const std::vector<Series>& series, bool is_x, const PlotOptions& opt, int pixels) {
+  if (is_x && !opt.x_ticks.empty()) return data_tick_axis(series, opt);
   double lo = 0, hi = 1;
   bool log = is_x ? opt.log_x : opt.log_y;
   if (!data_range(series, is_x, opt.log_x, opt.log_y, lo, hi)) lo = 0, hi = 1;  // log: 1 to 10
@@ -166,9 +200,27 @@ void draw_styled_line(torch::Tensor& img, int x0, int y0, int x1, int y1, const 
     draw_line(img, at(t, x0, x1), at(t, y0, y1), at(t + st.on, x0, x1), at(t + st.on, y0, y1), st.colour, 2);
 }
 
-// Lines between consecutive usable points, clipped to the frame; isolated points become 4x4 squares.
+// Series i's marker centred at (x, y): a filled square, a diamond, a triangle or an open square, in turn.
+void draw_marker(torch::Tensor& img, int x, int y, size_t i, Rgb colour) {
+  const int r = 4;
+  switch (i % 4) {
+    case 0: return fill_rect(img, x - r + 1, y - r + 1, 2 * r - 1, 2 * r - 1, colour);
+    case 1:
+      for (int dy = -r - 1; dy <= r + 1; ++dy)
+        draw_line(img, x - (r + 1 - std::abs(dy)), y + dy, x + (r + 1 - std::abs(dy)), y + dy, colour);
+      return;
+    case 2:
+      for (int dy = -r; dy <= r; ++dy)
+        draw_line(img, x - (dy + r) / 2 - 1, y + dy, x + (dy + r) / 2 + 1, y + dy, colour);
+      return;
+    default: return draw_rect(img, x - r, y - r, 2 * r + 1, 2 * r + 1, colour, 2);
+  }
+}
+
+// Lines between consecutive usable points, clipped to the frame; error bars with caps; markers at every point
+// (s.markers) or at isolated points only (4x4 squares).
 void draw_series(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis& ay, const Series& s,
-                 const LineStyle& style) {
+                 const LineStyle& style, size_t index) {
   if (l.y1 - l.y0 < 2 || l.x1 - l.x0 < 2) return;
   torch::Tensor area = img.narrow(0, l.y0 + 1, l.y1 - l.y0 - 1).narrow(1, l.x0 + 1, l.x1 - l.x0 - 1);
   size_t n = std::min(s.x.size(), s.y.size());
@@ -176,12 +228,21 @@ void draw_series(torch::Tensor& img, const Layout& l, const Axis& ax, const Axis
   auto px = [&](size_t i) { return to_pixel(to_axis(s.x[i], ax.log), ax, l.x0, l.x1) - (l.x0 + 1); };
   auto py = [&](size_t i) { return to_pixel(to_axis(s.y[i], ay.log), ay, l.y1, l.y0) - (l.y0 + 1); };
   auto clamp_px = [](double v) { return int(std::lround(std::clamp(v, -1e8, 1e8))); };
+  auto py_of = [&](double y) { return to_pixel(to_axis(y, ay.log), ay, l.y1, l.y0) - (l.y0 + 1); };
   for (size_t i = 0; i < n; ++i) {
     if (!ok(i)) continue;
     bool prev = i > 0 && ok(i - 1), next = ok(i + 1);
-    if (next)
-      draw_styled_line(area, clamp_px(px(i)), clamp_px(py(i)), clamp_px(px(i + 1)), clamp_px(py(i + 1)), style);
-    else if (!prev)
+    if (next) draw_styled_line(area, clamp_px(px(i)), clamp_px(py(i)), clamp_px(px(i + 1)), clamp_px(py(i + 1)), style);
+    const double e = error_of(s, i);
+    if (e > 0 && usable(s.y[i] - e, ay.log)) {
+      const int x = clamp_px(px(i)), top = clamp_px(py_of(s.y[i] + e)), bottom = clamp_px(py_of(s.y[i] - e));
+      draw_line(area, x, top, x, bottom, style.colour, 2);
+      draw_line(area, x - 5, top, x + 5, top, style.colour, 2);
+      draw_line(area, x - 5, bottom, x + 5, bottom, style.colour, 2);
+    }
+    if (s.markers)
+      draw_marker(area, clamp_px(px(i)), clamp_px(py(i)), index, style.colour);
+    else if (!next && !prev)
       fill_rect(area, clamp_px(px(i)) - 2, clamp_px(py(i)) - 2, 4, 4, style.colour);
   }
 }
@@ -193,13 +254,23 @@ void draw_legend(torch::Tensor& img, const Layout& l, const std::vector<Series>&
   if (count == 0) return;
   const int row = 14, sample = 18;
   int w = 6 + sample + 6 + name_w + 6, h = 6 + count * row;
+  // The corner of the frame whose box covers the fewest series pixels (coloured: channels apart), top right first.
   int x = l.x1 - 8 - w, y = l.y0 + 8;
+  int64_t fewest = -1;
+  for (auto [cx, cy] : {std::pair{l.x1 - 8 - w, l.y0 + 8}, std::pair{l.x0 + 8, l.y0 + 8},
+                        std::pair{l.x1 - 8 - w, l.y1 - 8 - h}, std::pair{l.x0 + 8, l.y1 - 8 - h}}) {
+    if (cx < 0 || cy < 0 || cx + w > img.size(1) || cy + h > img.size(0)) continue;
+    auto box = img.narrow(0, cy, h).narrow(1, cx, w).to(torch::kInt32);
+    const int64_t covered = ((std::get<0>(box.max(2)) - std::get<0>(box.min(2))) > 40).sum().item<int64_t>();
+    if (fewest < 0 || covered < fewest) fewest = covered, x = cx, y = cy;
+  }
   fill_rect(img, x, y, w, h, kWhite);
   draw_rect(img, x, y, w, h, kLegendBorder);
   int yy = y + 5;
   for (size_t i = 0; i < series.size(); ++i) {
     if (series[i].name.empty()) continue;
     draw_styled_line(img, x + 6, yy + 4, x + 6 + sample, yy + 4, series_style(i));
+    if (series[i].markers) draw_marker(img, x + 6 + sample / 2, yy + 4, i, series_style(i).colour);
     draw_text(img, x + 6 + sample + 6, yy, series[i].name, kBlack);
     yy += row;
   }
@@ -239,7 +310,7 @@ torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& o
   Layout l = compute_layout(opt, ax, ay);
   torch::Tensor img = blank_image(opt.height, opt.width, kWhite);
   draw_axes(img, l, ax, ay);
-  for (size_t i = 0; i < series.size(); ++i) draw_series(img, l, ax, ay, series[i], series_style(i));
+  for (size_t i = 0; i < series.size(); ++i) draw_series(img, l, ax, ay, series[i], series_style(i), i);
   draw_legend(img, l, series);
   draw_labels(img, l, opt);
   return img;

@@ -1,16 +1,24 @@
 // Minimal line plots rendered straight to an RGB image (training curves, metric sweeps) without any plotting
-// library: axes with round-number ticks and numeric labels, optional log axes, title, axis labels and a legend.
+// library: axes with round-number ticks and numeric labels (or ticks only where the data is), optional log axes,
+// markers at measured points, error bars, title, axis labels and a legend.
 #pragma once
 #include <torch/torch.h>
 
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace uplvsm::io {
 
 struct Series {
+  Series() = default;
+  Series(std::string name, std::vector<double> x, std::vector<double> y)
+      : name(std::move(name)), x(std::move(x)), y(std::move(y)) {}
+
   std::string name;  // shown in the legend when non-empty
   std::vector<double> x, y;
+  std::vector<double> y_err;  // each point's error bar, y - e to y + e (e.g. half the seeds' range); empty: none
+  bool markers = false;       // a marker at every point (one shape per series), not only at isolated points
 };
 
 struct PlotOptions {
@@ -18,6 +26,10 @@ struct PlotOptions {
   bool log_x = false;
   bool log_y = false;
   int width = 800, height = 480;
+  // Ticks only at these x values (data units, e.g. the measured settings), labelled x_tick_labels[i] when given
+  // (else the number); the axis then spans them with a margin. Empty: round-number ticks.
+  std::vector<double> x_ticks{};
+  std::vector<std::string> x_tick_labels{};
 };
 
 // uint8 [height, width, 3]. Points with a non-finite coordinate (or <= 0 on a log axis) are skipped and break the

@@ -3,6 +3,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <stdexcept>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -20,26 +22,46 @@ void write_text(const fs::path& path, const std::string& text) {
   io::write_file_atomic(path.string(), text.data(), text.size());
 }
 
-// curves.csv and curves.png: every trained run's held-out PSNR against the step, to show where it levels off.
-bool write_curves(const std::vector<RunCurve>& runs, const fs::path& out, const std::string& title) {
-  std::vector<io::Series> curves;
+// curves.csv, one curves_<series>.png per series (every trained run's held-out PSNR against the step) and
+// levelling.md (has each run levelled off?); returns the README's section, empty without any curve.
+std::string write_curves(const std::vector<RunCurve>& runs, const fs::path& out, const std::string& title) {
+  std::map<std::string, std::vector<io::Series>> by_series;
   std::string csv = "series,setting,seed,step,psnr\n";
+  std::string table = fmt::format(
+      "| run | steps | held-out PSNR | slope, last 2000 steps (dB / 1000) | levelled (< {:g}) "
+      "|\n|---|---|---|---|---|\n",
+      kLevelledSlope);
   for (const auto& r : runs) {
     auto c = held_out_curve(r);
     for (size_t i = 0; i < c.x.size(); ++i)
       csv += fmt::format("{},{},{},{:g},{:.6f}\n", r.series, r.setting, r.seed, c.x[i], c.y[i]);
-    if (!c.x.empty()) curves.push_back(std::move(c));
+    if (c.x.empty()) continue;
+    const auto l = levelling(c);
+    table += fmt::format("| {} | {:g} | {:.2f} | {} | {} |\n", c.name, l.last_step, l.final_psnr,
+                         std::isnan(l.slope) ? std::string("-") : fmt::format("{:+.3f}", l.slope),
+                         std::isnan(l.slope) ? "too few points"
+                         : l.levelled()      ? "yes"
+                                             : "no");
+    c.name = fmt::format("{} s{}", r.setting, r.seed);
+    c.markers = true;
+    by_series[r.series].push_back(std::move(c));
   }
-  if (curves.empty()) return false;
+  if (by_series.empty()) return "";
   write_text(out / "curves.csv", csv);
-  io::PlotOptions po;
-  po.title = title + ": held-out PSNR during training";
-  po.xlabel = "step";
-  po.ylabel = "psnr";
-  po.width = 1200;
-  po.height = 720;
-  io::write_png((out / "curves.png").string(), io::plot_lines(curves, po));
-  return true;
+  write_text(out / "levelling.md", table);
+  std::string readme = "\nHeld-out PSNR during training (curves.csv), and whether each run levelled off:\n\n" + table;
+  for (const auto& [series, curves] : by_series) {
+    io::PlotOptions po;
+    po.title = fmt::format("{}: {} held-out PSNR during training", title, series);
+    po.xlabel = "step";
+    po.ylabel = "psnr";
+    po.width = 1200;
+    po.height = 720;
+    const auto file = "curves_" + series + ".png";
+    io::write_png((out / file).string(), io::plot_lines(curves, po));
+    readme += "\n![" + series + " curves](" + file + ")\n";
+  }
+  return readme;
 }
 
 }  // namespace
@@ -56,11 +78,58 @@ io::Series held_out_curve(const RunCurve& run) {
   return curve;
 }
 
+std::vector<GridCell> read_reference_cells(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("study --reference " + path + ": cannot open file");
+  std::string line;
+  const std::string header = "series,setting,x,psnr,ssim,lpips";
+  if (!std::getline(in, line) || line != header)
+    throw std::runtime_error(fmt::format("study --reference {}: line 1 must be '{}'", path, header));
+  std::vector<GridCell> cells;
+  for (int n = 2; std::getline(in, line); ++n) {
+    if (line.empty()) continue;
+    std::vector<std::string> f;
+    for (size_t start = 0;;) {
+      const size_t comma = line.find(',', start);
+      f.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+      if (comma == std::string::npos) break;
+      start = comma + 1;
+    }
+    GridCell c;
+    try {
+      if (f.size() != 6) throw std::invalid_argument("fields");
+      c.series = f[0], c.setting = f[1];
+      c.x = std::stod(f[2]), c.psnr = std::stod(f[3]), c.ssim = std::stod(f[4]);
+      c.lpips = f[5].empty() ? std::nan("") : std::stod(f[5]);
+    } catch (const std::exception&) {
+      throw std::runtime_error(fmt::format(
+          "study --reference {} line {}: expected series,setting,x,psnr,ssim,lpips, got '{}'", path, n, line));
+    }
+    cells.push_back(c);
+  }
+  return cells;
+}
+
+Levelling levelling(const io::Series& curve, double window) {
+  Levelling l;
+  if (curve.x.empty()) return l;
+  l.last_step = curve.x.back(), l.final_psnr = curve.y.back();
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (size_t i = 0; i < curve.x.size(); ++i) {
+    if (curve.x[i] < l.last_step - window) continue;
+    const double x = curve.x[i] / 1000, y = curve.y[i];
+    sx += x, sy += y, sxx += x * x, sxy += x * y, ++l.points;
+  }
+  const double n = l.points, denominator = n * sxx - sx * sx;
+  l.slope = l.points >= 3 && denominator > 0 ? (n * sxy - sx * sy) / denominator : std::nan("");
+  return l;
+}
+
 std::string write_grid_report(const std::vector<GridCell>& runs, const std::vector<RunCurve>& curves,
                               const std::string& out_dir, const GridFigure& fig, const std::string& description) {
   const fs::path out(out_dir);
   const auto cells = mean_over_seeds(runs);
-  const auto table = grid_markdown(cells, fig.with_gain);
+  const auto table = grid_markdown(cells, fig.with_gain, runs);
   write_text(out / "table.md", table);
   write_text(out / "table.csv", grid_csv(runs));
   std::string readme = "# " + fig.title + "\n\n" + description +
@@ -79,10 +148,15 @@ std::string write_grid_report(const std::vector<GridCell>& runs, const std::vect
     po.ylabel = metric;
     po.log_x = fig.log_x;
     io::write_png((out / (metric + ".png")).string(), grid_plot(cells, metric, po));
-    readme += "![" + metric + "](" + metric + ".png)\n";
+    readme += "![" + metric + "](" + metric + ".png)";
+    if (!fig.reference.empty()) {
+      po.title = fig.reference_title + ": " + metric;
+      io::write_png((out / ("reference_" + metric + ".png")).string(), grid_plot(fig.reference, metric, po));
+      readme += " ![" + fig.reference_title + "](reference_" + metric + ".png)";
+    }
+    readme += "\n";
   }
-  if (write_curves(curves, out, fig.title))
-    readme += "\nHeld-out PSNR during training (curves.csv):\n\n![curves](curves.png)\n";
+  readme += write_curves(curves, out, fig.title);
   write_text(out / "README.md", readme);
   return table;
 }

@@ -12,7 +12,14 @@ namespace uplvsm::study {
 struct GridFigure {
   std::string title, xlabel;
   bool log_x = false, with_gain = false;
+  // Published numbers to show beside ours (e.g. the paper's table), drawn alike in reference_<metric>.png.
+  std::vector<GridCell> reference{};
+  std::string reference_title{};
 };
+
+// Reference cells from a CSV with the header series,setting,x,psnr,ssim,lpips (lpips may be empty); throws naming
+// the file and line for anything else.
+std::vector<GridCell> read_reference_cells(const std::string& path);
 
 // One trained run's periodic evaluations: its legend label and its metrics.jsonl.
 struct RunCurve {
@@ -22,6 +29,17 @@ struct RunCurve {
 
 // A run's held-out PSNR by step (the "eval" lines of its metrics.jsonl); empty without them.
 io::Series held_out_curve(const RunCurve& run);
+
+// Whether a held-out curve has levelled off: the least-squares slope of its points in the last `window` steps, in
+// dB per 1000 steps; levelled when under kLevelledSlope (a falling curve, over-fitting, has levelled too).
+inline constexpr double kLevelledSlope = 0.05;
+struct Levelling {
+  double last_step = 0, final_psnr = 0;
+  double slope = 0;  // dB per 1000 steps; NaN with fewer than three points in the window
+  int points = 0;
+  bool levelled() const { return slope < kLevelledSlope; }  // false for NaN
+};
+Levelling levelling(const io::Series& curve, double window = 2000);
 
 // Writes the files above into out_dir from every run's cell (seeds averaged for the table and plots, each run in
 // table.csv) and the runs' curves (curves.* only where some run has periodic evaluations). Returns the table.

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include <fmt/format.h>
 
@@ -30,6 +32,30 @@ double metric_of(const GridCell& c, const std::string& metric) {
   throw std::invalid_argument("study grid: unknown metric '" + metric + "' (expected psnr, ssim or lpips)");
 }
 
+double spread_of(const GridCell& c, const std::string& metric) {
+  return metric == "psnr" ? c.psnr_spread : metric == "ssim" ? c.ssim_spread : c.lpips_spread;
+}
+
+// Half the range of the PSNR gains of the seeds with a run at every setting of `series`; NaN with fewer than two.
+double gain_spread(const std::vector<GridCell>& runs, const std::string& series,
+                   const std::vector<std::string>& settings) {
+  std::vector<int64_t> seeds;
+  for (const auto& r : runs)
+    if (r.series == series && r.runs > 0 && std::find(seeds.begin(), seeds.end(), r.seed) == seeds.end())
+      seeds.push_back(r.seed);
+  std::vector<double> gains;
+  for (int64_t seed : seeds) {
+    std::vector<double> psnr;
+    for (const auto& s : settings)
+      for (const auto& r : runs)
+        if (r.series == series && r.setting == s && r.seed == seed && r.runs > 0) psnr.push_back(r.psnr);
+    if (psnr.size() == settings.size()) gains.push_back(average_gain(psnr, true));
+  }
+  if (gains.size() < 2) return std::nan("");
+  const auto [lo, hi] = std::minmax_element(gains.begin(), gains.end());
+  return (*hi - *lo) / 2;
+}
+
 std::string format_lpips(double v) { return std::isnan(v) ? "-" : fmt::format("{:.3f}", v); }
 
 }  // namespace
@@ -54,27 +80,33 @@ std::vector<GridCell> mean_over_seeds(const std::vector<GridCell>& runs) {
   for (const auto& series : series_of(runs))
     for (const auto& setting : settings_of(runs)) {
       std::vector<const GridCell*> group;
+      const GridCell* planned = nullptr;  // a run not done yet: the cell reads "(not run)" while no seed is done
       for (const auto& r : runs)
-        if (r.series == series && r.setting == setting) group.push_back(&r);
-      if (group.empty()) continue;
-      GridCell mean = *group.front();
-      mean.psnr = mean.ssim = mean.lpips = 0;
-      double lo = group.front()->psnr, hi = lo;
-      for (const auto* r : group) {
-        mean.psnr += r->psnr / static_cast<double>(group.size());
-        mean.ssim += r->ssim / static_cast<double>(group.size());
-        mean.lpips += r->lpips / static_cast<double>(group.size());  // NaN stays NaN: no made-up LPIPS
-        lo = std::min(lo, r->psnr);
-        hi = std::max(hi, r->psnr);
+        if (r.series == series && r.setting == setting) (r.runs > 0 ? group.push_back(&r) : void(planned = &r));
+      if (group.empty()) {
+        if (planned) out.push_back(*planned);
+        continue;
       }
+      GridCell mean = *group.front();
       mean.runs = static_cast<int64_t>(group.size());
-      mean.psnr_spread = (hi - lo) / 2;
+      // NaN stays NaN (LPIPS without its weights): no made-up number.
+      for (auto [value, spread] :
+           {std::pair{&GridCell::psnr, &GridCell::psnr_spread}, std::pair{&GridCell::ssim, &GridCell::ssim_spread},
+            std::pair{&GridCell::lpips, &GridCell::lpips_spread}}) {
+        double sum = 0, lo = group.front()->*value, hi = lo;
+        for (const auto* r : group) {
+          sum += r->*value;
+          lo = std::min(lo, r->*value), hi = std::max(hi, r->*value);
+        }
+        mean.*value = sum / static_cast<double>(group.size());
+        mean.*spread = std::isnan(sum) ? sum : (hi - lo) / 2;
+      }
       out.push_back(mean);
     }
   return out;
 }
 
-std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
+std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain, const std::vector<GridCell>& runs) {
   const auto series = series_of(cells);
   const auto settings = settings_of(cells);
   std::string out = "| Method |";
@@ -88,7 +120,7 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
     std::vector<double> psnr, ssim, lpips;
     for (const auto& s : settings) {
       const auto* c = find_cell(cells, name, s);
-      if (!c) {
+      if (!c || c->runs == 0) {
         out += " (not run) |";
         psnr.push_back(std::nan(""));
         ssim.push_back(std::nan(""));
@@ -105,7 +137,10 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
       auto gain = [](double v, int digits) {
         return std::isnan(v) ? std::string("-") : fmt::format("{:.{}f}", v, digits);
       };
-      out += fmt::format(" {} / {} / {} |", gain(average_gain(psnr, true), 2), gain(average_gain(ssim, true), 3),
+      const double psnr_gain_spread = gain_spread(runs, name, settings);
+      const auto psnr_gain = gain(average_gain(psnr, true), 2) +
+                             (std::isnan(psnr_gain_spread) ? "" : fmt::format(" ±{:.2f}", psnr_gain_spread));
+      out += fmt::format(" {} / {} / {} |", psnr_gain, gain(average_gain(ssim, true), 3),
                          gain(average_gain(lpips, false), 3));
     }
     out += "\n";
@@ -116,19 +151,37 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain) {
 std::string grid_csv(const std::vector<GridCell>& cells) {
   std::string out = "series,setting,x,seed,psnr,ssim,lpips\n";
   for (const auto& c : cells)
-    out += fmt::format("{},{},{},{},{:.6f},{:.6f},{}\n", c.series, c.setting, c.x, c.seed, c.psnr, c.ssim,
-                       std::isnan(c.lpips) ? std::string() : fmt::format("{:.6f}", c.lpips));
+    if (c.runs > 0)
+      out += fmt::format("{},{},{},{},{:.6f},{:.6f},{}\n", c.series, c.setting, c.x, c.seed, c.psnr, c.ssim,
+                         std::isnan(c.lpips) ? std::string() : fmt::format("{:.6f}", c.lpips));
   return out;
 }
 
 torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& metric, io::PlotOptions options) {
+  // Where an x of 0 stands on a log axis: a decade left of the smallest positive x.
+  double smallest = std::numeric_limits<double>::infinity();
+  for (const auto& c : cells)
+    if (c.x > 0) smallest = std::min(smallest, c.x);
+  const double zero_at = std::isfinite(smallest) ? smallest / 10 : 1;
+  auto plotted = [&](double x) { return options.log_x && x == 0 ? zero_at : x; };
+  std::vector<double> xs;
+  for (const auto& c : cells)
+    if (std::find(xs.begin(), xs.end(), c.x) == xs.end()) xs.push_back(c.x);
+  std::sort(xs.begin(), xs.end());
+  options.x_ticks.clear(), options.x_tick_labels.clear();
+  for (double x : xs) {
+    options.x_ticks.push_back(plotted(x));
+    options.x_tick_labels.push_back(fmt::format("{:g}", x));
+  }
   std::vector<io::Series> lines;
   for (const auto& name : series_of(cells)) {
     io::Series line{name, {}, {}};
+    line.markers = true;
     for (const auto& c : cells) {
-      if (c.series != name) continue;
-      line.x.push_back(c.x);
+      if (c.series != name || c.runs == 0) continue;
+      line.x.push_back(plotted(c.x));
       line.y.push_back(metric_of(c, metric));
+      line.y_err.push_back(c.runs > 1 ? spread_of(c, metric) : 0.0);
     }
     lines.push_back(std::move(line));
   }

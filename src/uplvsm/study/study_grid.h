@@ -21,12 +21,12 @@ struct GridCell {
   double psnr = 0, ssim = 0;
   double lpips = std::numeric_limits<double>::quiet_NaN();  // NaN: LPIPS weights were not given
   int64_t seed = 0;                                         // the run's training seed
-  int64_t runs = 1;                                         // seeds averaged into this cell (mean_over_seeds)
-  double psnr_spread = 0;                                   // half the PSNR range over those seeds
+  int64_t runs = 1;  // seeds averaged into this cell (mean_over_seeds); 0: a planned run not done yet (no metrics)
+  double psnr_spread = 0, ssim_spread = 0, lpips_spread = 0;  // half of each metric's range over those seeds
 };
 
 // One cell per (series, setting), in order of first appearance: the mean over its seeds' runs, with their count
-// and PSNR spread.
+// and spreads.
 std::vector<GridCell> mean_over_seeds(const std::vector<GridCell>& runs);
 
 // Mean change between consecutive settings, signed so that an improvement is positive (PSNR, SSIM up; LPIPS
@@ -40,11 +40,14 @@ std::vector<std::string> settings_of(const std::vector<GridCell>& cells);
 
 // Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable; a mean over
 // several seeds shows "PSNR ±half-range"), plus the average-gain column when with_gain. Missing cells read
-// "(not run)".
-std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain);
+// "(not run)". Given the per-seed `runs`, the PSNR gain also shows its spread: half the range of the gains of the
+// seeds that ran every setting, where two or more did.
+std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain, const std::vector<GridCell>& runs = {});
 // One row per cell: series,setting,x,seed,psnr,ssim,lpips (empty when unavailable).
 std::string grid_csv(const std::vector<GridCell>& cells);
-// metric "psnr" | "ssim" | "lpips" against x, one line per series. uint8 [H, W, 3].
+// metric "psnr" | "ssim" | "lpips" against x, one line per series, a marker per cell, the seeds' spread as error
+// bars and x ticks only at the cells' x. On a log x axis an x of 0 (e.g. no pose noise) stands a decade left of the
+// smallest positive x, labelled "0". uint8 [H, W, 3].
 torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& metric, io::PlotOptions options);
 
 }  // namespace uplvsm::study
