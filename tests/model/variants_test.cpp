@@ -62,6 +62,19 @@ TEST(Variants, TheFactoryBuildsOneClassPerModel) {
     EXPECT_NE(test::error_of([&] { model::require_uplvsm(net, "pose pairs"); }).find("pose pairs: only UP-LVSM"),
               std::string::npos);
   }
+  // One enum from the config to the render: Auto is each model's own source.
+  torch::manual_seed(3);
+  torch::NoGradGuard no_grad;
+  up->eval();
+  auto s = random_scene(1, 2, 2);
+  EXPECT_TRUE(torch::equal(up->render(s.inputs, s.targets, TargetPoses::Auto).render,
+                           up->render(s.inputs, s.targets, TargetPoses::Estimator).render));
+  auto posed = model::make_model(small_config("lvsm"));
+  posed->eval();
+  EXPECT_TRUE(torch::equal(posed->render(s.inputs, s.targets, TargetPoses::Auto).render,
+                           posed->render(s.inputs, s.targets, TargetPoses::Dataset).render));
+  EXPECT_NE(test::error_of([&] { posed->render(s.inputs, s.targets, TargetPoses::Estimator); }).find("'estimator'"),
+            std::string::npos);
   auto mapped = small_config("ptlvsm");
   mapped.pose_mapper = true;
   EXPECT_NE(test::error_of([&] { model::make_model(mapped); }).find("model.pose_mapper"), std::string::npos);
