@@ -143,3 +143,18 @@ TEST(StudyGrid, PlannedRunsReadNotRunUntilDone) {
   md = study::grid_markdown(study::mean_over_seeds(runs), true, runs);
   EXPECT_NE(md.find("| lvsm | 20.00 / 0.600 / - | 21.00 / 0.600 / - | 1.00 / 0.000 / - |"), std::string::npos) << md;
 }
+
+// The pose-noise figure: sigma on a log axis, no noise drawn a decade left of the smallest level (not dropped as
+// log(0) would be), with a tick labelled 0.
+TEST(StudyGrid, NoNoiseStandsLeftOfTheSmallestLevelOnALogAxis) {
+  auto blue = [](const torch::Tensor& img) {
+    return ((img.select(2, 0) == 31) & (img.select(2, 1) == 119) & (img.select(2, 2) == 180)).sum().item<int64_t>();
+  };
+  std::vector<study::GridCell> levels = {{"lvsm", "sd 0.01", 0.01, 26.0, 0.6, std::nan("")},
+                                         {"lvsm", "sd 0.1", 0.1, 24.0, 0.5, std::nan("")}};
+  io::PlotOptions po;
+  po.log_x = true;
+  const auto without_zero = blue(study::grid_plot(levels, "psnr", po));
+  levels.insert(levels.begin(), {"lvsm", "sd 0", 0.0, 26.5, 0.6, std::nan("")});
+  EXPECT_GT(blue(study::grid_plot(levels, "psnr", po)), without_zero + 40);  // its marker and segment
+}
