@@ -62,6 +62,9 @@ TEST(Config, ExtendsTakesTheBaseAndWritesTheDifferencesOverIt) {
   EXPECT_NE(error_of("missing.json").find("nowhere.json"), std::string::npos) << error_of("missing.json");
   write("device.json", {{"extends", "/dev/zero"}});
   EXPECT_NE(error_of("device.json").find("not a config file"), std::string::npos) << error_of("device.json");
+  std::ofstream(dir / "array.json") << "[1, 2]";
+  write("on_array.json", {{"extends", "array.json"}});
+  EXPECT_NE(error_of("on_array.json").find("array.json: expected a JSON object"), std::string::npos);
   write("bad.json", {{"extends", 3}});
   EXPECT_NE(error_of("bad.json").find("'extends' must be a config file name"), std::string::npos);
   write("typo.json", {{"extends", "base.json"}, {"training", {{"lrr", 1}}}});

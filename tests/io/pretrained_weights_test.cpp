@@ -2,6 +2,7 @@
 // Meta .pth and HuggingFace safetensors -> same tokens; inferred configs; wrong-shape / missing-key errors.
 #include <gtest/gtest.h>
 
+#include "dinov2_fixture.h"
 #include "test_util.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/pretrained_weights.h"
@@ -13,19 +14,6 @@
 using namespace uplvsm;
 
 namespace {
-// Meta's plain ViT as in ../shared/fixtures/dinov2 (no registers, 0.1-offset bicubic interpolation).
-Dinov2Config meta_fixture_dinov2() {
-  Dinov2Config c;
-  c.embed_dim = 384;
-  c.depth = 2;
-  c.num_heads = 6;
-  c.num_register_tokens = 0;
-  c.qk_norm = false;
-  c.interpolate_antialias = false;
-  c.interpolate_offset = 0.1;
-  return c;
-}
-
 void expect_meta_tokens(model::Dinov2Impl& vit, const std::string& what) {
   auto io = io::read_safetensors(test::fixture("dinov2/io.safetensors")).tensors;
   torch::NoGradGuard no_grad;
@@ -45,7 +33,7 @@ TEST(PretrainedWeights, Dinov2FromAllThreeFiles) {
     EXPECT_EQ(w.source, file == "weights_hf.safetensors" ? model::WeightSource::Dinov2HuggingFace
                                                          : model::WeightSource::Dinov2Meta)
         << file;
-    model::Dinov2 vit(meta_fixture_dinov2(), 14);
+    model::Dinov2 vit(test::meta_fixture_dinov2(), 14);
     model::LoadOptions opt;
     opt.skip_prefixes = {"mask_token"};
     auto report = model::load_state_dict(*vit, w.tensors, file, opt);
@@ -72,7 +60,7 @@ TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
     c.transformer.d_head = 64;
     c.transformer.encoder_n_layer = c.transformer.estimator_n_layer = c.transformer.decoder_n_layer = 1;
     c.transformer.n_latent_vectors = 4;
-    c.dinov2 = meta_fixture_dinov2();
+    c.dinov2 = test::meta_fixture_dinov2();
     c.dinov2.qk_norm = qk_norm;
     c.dinov2.imagenet_normalize = false;  // the fixture input is already normalised
     model::UPLVSM net(c);

@@ -2,6 +2,7 @@
 // ../shared/fixtures/dinov2, with the official-names safetensors weights.
 #include <gtest/gtest.h>
 
+#include "dinov2_fixture.h"
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/state_dict.h"
@@ -11,15 +12,7 @@ using namespace uplvsm;
 
 namespace {
 model::Dinov2 fixture_dinov2() {
-  Dinov2Config c;
-  c.embed_dim = 384;
-  c.depth = 2;
-  c.num_heads = 6;
-  c.num_register_tokens = 0;
-  c.qk_norm = false;
-  c.interpolate_antialias = false;
-  c.interpolate_offset = 0.1;
-  model::Dinov2 vit(c, 14);
+  model::Dinov2 vit(test::meta_fixture_dinov2(), 14);
   auto weights = io::read_safetensors(test::fixture("dinov2/weights.safetensors")).tensors;
   model::LoadOptions opt;
   opt.skip_prefixes = {"mask_token"};  // only used for masked-image pretraining

@@ -158,3 +158,25 @@ TEST(StudyGrid, NoNoiseStandsLeftOfTheSmallestLevelOnALogAxis) {
   levels.insert(levels.begin(), {"lvsm", "sd 0", 0.0, 26.5, 0.6, std::nan("")});
   EXPECT_GT(blue(study::grid_plot(levels, "psnr", po)), without_zero + 40);  // its marker and segment
 }
+
+// --reference: published numbers as cells; a wrong header or line is refused naming the file and the line.
+TEST(StudyGrid, ReferenceCellsAreReadOrRefusedNamingTheLine) {
+  const auto dir = test::temp_dir("grid_reference");
+  std::ofstream(dir / "ok.csv") << "series,setting,x,psnr,ssim,lpips\nlvsm,2K,2000,24.58,0.814,0.177\nup,8K,8000,23.38,"
+                                   "0.773,\n";
+  const auto cells = study::read_reference_cells((dir / "ok.csv").string());
+  ASSERT_EQ(cells.size(), 2u);
+  EXPECT_DOUBLE_EQ(cells[0].x, 2000);
+  EXPECT_DOUBLE_EQ(cells[0].lpips, 0.177);
+  EXPECT_TRUE(std::isnan(cells[1].lpips));
+  std::ofstream(dir / "header.csv") << "series,x,psnr\n";
+  EXPECT_NE(test::error_of([&] { study::read_reference_cells((dir / "header.csv").string()); }).find("line 1 must be"),
+            std::string::npos);
+  std::ofstream(dir / "line.csv")
+      << "series,setting,x,psnr,ssim,lpips\nlvsm,2K,2000,24.58,0.814,\nlvsm,8K,8000abc,1,1,\n";
+  const auto msg = test::error_of([&] { study::read_reference_cells((dir / "line.csv").string()); });
+  EXPECT_NE(msg.find("line.csv line 3"), std::string::npos) << msg;
+  EXPECT_NE(test::error_of([&] { study::read_reference_cells((dir / "missing.csv").string()); }).find("cannot open"),
+            std::string::npos);
+  test::remove_tree(dir);
+}

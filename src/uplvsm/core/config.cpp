@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
-#include <fstream>
 #include <set>
 #include <stdexcept>
 #include <type_traits>
@@ -279,14 +278,7 @@ Config apply_config_overrides(const Config& c, const std::vector<std::string>& a
 namespace {
 
 json read_config_object(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(fmt::format("config {}: cannot open file", path));
-  json j;
-  try {
-    in >> j;
-  } catch (const json::exception& e) {
-    throw std::runtime_error(fmt::format("config {}: invalid JSON ({})", path, e.what()));
-  }
+  json j = read_json_file(path, "config");
   if (!j.is_object()) throw std::runtime_error(fmt::format("config {}: expected a JSON object", path));
   return j;
 }

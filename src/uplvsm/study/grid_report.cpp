@@ -99,8 +99,14 @@ std::vector<GridCell> read_reference_cells(const std::string& path) {
     try {
       if (f.size() != 6) throw std::invalid_argument("fields");
       c.series = f[0], c.setting = f[1];
-      c.x = std::stod(f[2]), c.psnr = std::stod(f[3]), c.ssim = std::stod(f[4]);
-      c.lpips = f[5].empty() ? std::nan("") : std::stod(f[5]);
+      auto number = [](const std::string& text) {  // the whole field, finite ("2000abc" is no number)
+        size_t used = 0;
+        const double v = std::stod(text, &used);
+        if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument(text);
+        return v;
+      };
+      c.x = number(f[2]), c.psnr = number(f[3]), c.ssim = number(f[4]);
+      c.lpips = f[5].empty() ? std::nan("") : number(f[5]);
     } catch (const std::exception&) {
       throw std::runtime_error(fmt::format(
           "study --reference {} line {}: expected series,setting,x,psnr,ssim,lpips, got '{}'", path, n, line));
