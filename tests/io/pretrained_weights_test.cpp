@@ -2,7 +2,7 @@
 // Meta .pth and HuggingFace safetensors -> same tokens; inferred configs; wrong-shape / missing-key errors.
 #include <gtest/gtest.h>
 
-#include "dinov2_fixture.h"
+#include "official_fixture.h"
 #include "test_util.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/pretrained_weights.h"

@@ -2,7 +2,7 @@
 // ../shared/fixtures/dinov2, with the official-names safetensors weights.
 #include <gtest/gtest.h>
 
-#include "dinov2_fixture.h"
+#include "official_fixture.h"
 #include "test_util.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/state_dict.h"
