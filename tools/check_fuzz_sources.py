@@ -4,9 +4,11 @@
     python3 tools/check_fuzz_sources.py
 
 The fuzz build compiles its own short list of sources (with sanitizers), so a function moved out of a listed file into
-a new one links in the main build and fails only in `make fuzz` (core/config_validation.cpp did). The rule, a heuristic:
-a source implements the header of its own name, or else the first header of its own directory it includes; every source
-that implements the header of a listed source must be listed too. Exits 1 naming what is missing.
+a new one links in the main build and fails only in `make fuzz` (core/config_validation.cpp did, data/stored_scene.cpp
+did). The rules, heuristics: a source implements the header of its own name, or else the first header of its own
+directory it includes; every source that implements the header of a listed source must be listed too, and so must the
+source of the same name as any project header a listed source includes (directly or through other project headers).
+Exits 1 naming what is missing.
 """
 import pathlib
 import re
@@ -37,6 +39,17 @@ def implemented_header(source):
     return None
 
 
+def project_includes(relative):
+    """The project headers a file includes, directly or through other project headers."""
+    seen, todo = set(), [relative]
+    while todo:
+        for header in re.findall(r'#include "uplvsm/([^"]+\.h)"', (SRC / todo.pop()).read_text()):
+            if header not in seen and (SRC / header).exists():
+                seen.add(header)
+                todo.append(header)
+    return seen
+
+
 def main():
     readers = reader_sources()
     implementers = {}
@@ -53,6 +66,10 @@ def main():
         for other in sorted(implementers.get(header, ())):
             if other not in readers:
                 missing.append(f"{other} (implements uplvsm/{header}, as {reader} does)")
+        for included in sorted(project_includes(reader)):
+            source = str(pathlib.PurePath(included).with_suffix(".cpp"))
+            if (SRC / source).exists() and source not in readers:
+                missing.append(f"{source} (implements uplvsm/{included}, which {reader} includes)")
     for line in missing:
         print(f"check_fuzz_sources: fuzz/CMakeLists.txt READER_SOURCES lacks {line}")
     print(f"check_fuzz_sources: {len(readers)} reader sources, {len(missing)} missing")
