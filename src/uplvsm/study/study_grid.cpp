@@ -36,20 +36,24 @@ double spread_of(const GridCell& c, const std::string& metric) {
   return metric == "psnr" ? c.psnr_spread : metric == "ssim" ? c.ssim_spread : c.lpips_spread;
 }
 
-// Half the range of the PSNR gains of the seeds with a run at every setting of `series`; NaN with fewer than two.
+// Half the range of the PSNR gains of the seeds that ran the first and the last setting of `series` (the average
+// gain per step reads only those two, so a second seed costs two runs, not one per setting); NaN with fewer than two.
 double gain_spread(const std::vector<GridCell>& runs, const std::string& series,
                    const std::vector<std::string>& settings) {
+  auto psnr_at = [&](const std::string& setting, int64_t seed) {
+    for (const auto& r : runs)
+      if (r.series == series && r.setting == setting && r.seed == seed && r.runs > 0) return r.psnr;
+    return std::nan("");
+  };
   std::vector<int64_t> seeds;
   for (const auto& r : runs)
     if (r.series == series && r.runs > 0 && std::find(seeds.begin(), seeds.end(), r.seed) == seeds.end())
       seeds.push_back(r.seed);
   std::vector<double> gains;
   for (int64_t seed : seeds) {
-    std::vector<double> psnr;
-    for (const auto& s : settings)
-      for (const auto& r : runs)
-        if (r.series == series && r.setting == s && r.seed == seed && r.runs > 0) psnr.push_back(r.psnr);
-    if (psnr.size() == settings.size()) gains.push_back(average_gain(psnr, true));
+    const double first = psnr_at(settings.front(), seed), last = psnr_at(settings.back(), seed);
+    if (!std::isnan(first) && !std::isnan(last))
+      gains.push_back((last - first) / static_cast<double>(settings.size() - 1));
   }
   if (gains.size() < 2) return std::nan("");
   const auto [lo, hi] = std::minmax_element(gains.begin(), gains.end());

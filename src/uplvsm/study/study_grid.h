@@ -41,7 +41,7 @@ std::vector<std::string> settings_of(const std::vector<GridCell>& cells);
 // Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable; a mean over
 // several seeds shows "PSNR ±half-range"), plus the average-gain column when with_gain. Missing cells read
 // "(not run)". Given the per-seed `runs`, the PSNR gain also shows its spread: half the range of the gains of the
-// seeds that ran every setting, where two or more did.
+// seeds that ran the first and the last setting (all the gain reads), where two or more did.
 std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain, const std::vector<GridCell>& runs = {});
 // One row per cell: series,setting,x,seed,psnr,ssim,lpips (empty when unavailable).
 std::string grid_csv(const std::vector<GridCell>& cells);
