@@ -67,7 +67,7 @@ TEST(StudyGrid, SeedsAreAveragedWithTheirSpread) {
 // from the runs' periodic evaluations (a run without them adds no curve; no run with them, no curves files).
 TEST(StudyGrid, ReportWritesTablePlotsAndHeldOutCurves) {
   const auto dir = test::temp_dir("grid_report");
-  std::ofstream(dir / "a.jsonl") << "{\"step\": 10, \"loss\": 0.1}\n"
+  std::ofstream(dir / "a.jsonl") << "{\"step\": 10, \"loss\": 0.1, \"mse\": 0.01}\n"
                                  << "{\"step\": 500, \"eval\": {\"psnr\": 21.5}}\n"
                                  << "{\"step\": 1000, \"eval\": {\"psnr\": 22.25}}\n";
   std::vector<study::GridCell> runs = {{"lvsm", "noise sd 0", 0, 22.25, 0.6, std::nan(""), 777},
@@ -86,10 +86,30 @@ TEST(StudyGrid, ReportWritesTablePlotsAndHeldOutCurves) {
   const std::string text((std::istreambuf_iterator<char>(csv)), std::istreambuf_iterator<char>());
   EXPECT_EQ(text,
             "series,setting,seed,step,psnr\nlvsm,noise sd 0,777,500,21.500000\nlvsm,noise sd 0,777,1000,22.250000\n");
+  std::ifstream levelling(dir / "levelling.md");
+  const std::string rows((std::istreambuf_iterator<char>(levelling)), std::istreambuf_iterator<char>());
+  EXPECT_NE(rows.find("| lvsm noise sd 0 s777 | 1000 | 22.25 | 20.00 | - | too few points |"), std::string::npos)
+      << rows;
   const auto empty = test::temp_dir("grid_report_no_curves");
   study::write_grid_report(runs, {curves[1]}, empty.string(), fig, "No curves.");
   EXPECT_FALSE(std::filesystem::exists(empty / "curves.csv"));
   EXPECT_FALSE(std::filesystem::exists(empty / "curves_uplvsm.png"));
+}
+
+// The training PSNR is the mean training MSE of the last 1000 steps in dB (not the mean of per-step PSNRs), skipped
+// steps and eval lines left out; a run without training lines has none.
+TEST(StudyGrid, TrainingPsnrIsTheMeanMseOfTheLastStretch) {
+  const auto dir = test::temp_dir("training_psnr");
+  std::ofstream(dir / "m.jsonl") << "{\"step\": 10, \"mse\": 1.0}\n"
+                                 << "{\"step\": 1500, \"mse\": 0.001}\n"
+                                 << "{\"step\": 1500, \"eval\": {\"psnr\": 20.0}}\n"
+                                 << "{\"step\": 1600, \"mse\": 0.5, \"skipped\": true}\n"
+                                 << "{\"step\": 2000, \"mse\": 0.003}\n";
+  const double psnr = study::training_psnr({"lvsm", "125", (dir / "m.jsonl").string(), 777});
+  EXPECT_NEAR(psnr, -10 * std::log10(0.002), 1e-9);  // steps 1500 and 2000; step 10 is outside the window
+  std::ofstream(dir / "eval_only.jsonl") << "{\"step\": 500, \"eval\": {\"psnr\": 21.5}}\n";
+  EXPECT_TRUE(std::isnan(study::training_psnr({"lvsm", "125", (dir / "eval_only.jsonl").string(), 777})));
+  EXPECT_TRUE(std::isnan(study::training_psnr({"lvsm", "125", (dir / "missing.jsonl").string(), 777})));
 }
 
 // A curve has levelled off when its last 2000 steps rise by less than 0.05 dB per 1000 steps (a least-squares fit,

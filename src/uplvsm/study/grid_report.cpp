@@ -28,8 +28,8 @@ std::string write_curves(const std::vector<RunCurve>& runs, const fs::path& out,
   std::map<std::string, std::vector<io::Series>> by_series;
   std::string csv = "series,setting,seed,step,psnr\n";
   std::string table = fmt::format(
-      "| run | steps | held-out PSNR | slope, last 2000 steps (dB / 1000) | levelled (< {:g}) "
-      "|\n|---|---|---|---|---|\n",
+      "| run | steps | held-out PSNR | training PSNR, last 1000 steps | slope, last 2000 steps (dB / 1000) | "
+      "levelled (< {:g}) |\n|---|---|---|---|---|---|\n",
       kLevelledSlope);
   for (const auto& r : runs) {
     auto c = held_out_curve(r);
@@ -37,7 +37,9 @@ std::string write_curves(const std::vector<RunCurve>& runs, const fs::path& out,
       csv += fmt::format("{},{},{},{:g},{:.6f}\n", r.series, r.setting, r.seed, c.x[i], c.y[i]);
     if (c.x.empty()) continue;
     const auto l = levelling(c);
-    table += fmt::format("| {} | {:g} | {:.2f} | {} | {} |\n", c.name, l.last_step, l.final_psnr,
+    const double train = training_psnr(r);
+    table += fmt::format("| {} | {:g} | {:.2f} | {} | {} | {} |\n", c.name, l.last_step, l.final_psnr,
+                         std::isnan(train) ? std::string("-") : fmt::format("{:.2f}", train),
                          std::isnan(l.slope) ? std::string("-") : fmt::format("{:+.3f}", l.slope),
                          std::isnan(l.slope) ? "too few points"
                          : l.levelled()      ? "yes"
@@ -49,7 +51,10 @@ std::string write_curves(const std::vector<RunCurve>& runs, const fs::path& out,
   if (by_series.empty()) return "";
   write_text(out / "curves.csv", csv);
   write_text(out / "levelling.md", table);
-  std::string readme = "\nHeld-out PSNR during training (curves.csv), and whether each run levelled off:\n\n" + table;
+  std::string readme =
+      "\nHeld-out PSNR during training (curves.csv), the training PSNR at the end (held-out below it: the subset is\n"
+      "over-fitted) and whether each run levelled off:\n\n" +
+      table;
   for (const auto& [series, curves] : by_series) {
     io::PlotOptions po;
     po.title = fmt::format("{}: {} held-out PSNR during training", title, series);
@@ -76,6 +81,24 @@ io::Series held_out_curve(const RunCurve& run) {
     curve.y.push_back(j["eval"]["psnr"].get<double>());
   }
   return curve;
+}
+
+double training_psnr(const RunCurve& run, double window) {
+  std::vector<std::pair<double, double>> step_mse;
+  std::ifstream in(run.metrics_path);
+  for (std::string line; std::getline(in, line);) {
+    auto j = nlohmann::json::parse(line, nullptr, /*allow_exceptions=*/false);
+    if (j.is_discarded() || !j.contains("mse") || !j["mse"].is_number() || !j.contains("step")) continue;
+    if (j.value("skipped", false)) continue;
+    step_mse.emplace_back(j["step"].get<double>(), j["mse"].get<double>());
+  }
+  if (step_mse.empty()) return std::nan("");
+  const double last = step_mse.back().first;
+  double sum = 0;
+  int n = 0;
+  for (const auto& [step, mse] : step_mse)
+    if (step > last - window) sum += mse, ++n;
+  return -10 * std::log10(sum / n);
 }
 
 std::vector<GridCell> read_reference_cells(const std::string& path) {

@@ -30,6 +30,11 @@ struct RunCurve {
 // A run's held-out PSNR by step (the "eval" lines of its metrics.jsonl); empty without them.
 io::Series held_out_curve(const RunCurve& run);
 
+// A run's training PSNR near its end: -10 log10 of the mean training MSE (its metrics.jsonl's "mse" lines, skipped
+// steps left out) over the last `window` steps. Beside the held-out PSNR it shows how much a run over-fits its
+// subset, the most that more data could give it back (the two sample views alike, not identically). NaN without any.
+double training_psnr(const RunCurve& run, double window = 1000);
+
 // Whether a held-out curve has levelled off: the least-squares slope of its points in the last `window` steps, in
 // dB per 1000 steps; levelled when under kLevelledSlope (a falling curve, over-fitting, has levelled too).
 inline constexpr double kLevelledSlope = 0.05;
