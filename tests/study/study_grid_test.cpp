@@ -208,3 +208,13 @@ TEST(StudyGrid, ReferenceCellsAreReadOrRefusedNamingTheLine) {
             std::string::npos);
   test::remove_tree(dir);
 }
+
+// Legends and axes speak the paper's words; unknown series and metrics pass through as they are.
+TEST(StudyGrid, PlotsNameModelsAndMetricsAsThePaperDoes) {
+  EXPECT_EQ(study::paper_name("uplvsm"), "UP-LVSM");
+  EXPECT_EQ(study::paper_name("ptlvsm"), "PT-LVSM");
+  EXPECT_EQ(study::paper_name("lvsm"), "LVSM");
+  EXPECT_EQ(study::paper_name("chunk pairs"), "chunk pairs");
+  EXPECT_EQ(study::metric_label("psnr"), "PSNR (dB)");
+  EXPECT_EQ(study::metric_label("lpips"), "LPIPS");
+}

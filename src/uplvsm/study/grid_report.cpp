@@ -57,9 +57,9 @@ std::string write_curves(const std::vector<RunCurve>& runs, const fs::path& out,
       table;
   for (const auto& [series, curves] : by_series) {
     io::PlotOptions po;
-    po.title = fmt::format("{}: {} held-out PSNR during training", title, series);
+    po.title = fmt::format("{}: {}, held-out PSNR during training", title, paper_name(series));
     po.xlabel = "step";
-    po.ylabel = "psnr";
+    po.ylabel = metric_label("psnr");
     po.width = 1200;
     po.height = 720;
     const auto file = "curves_" + series + ".png";
@@ -172,14 +172,14 @@ std::string write_grid_report(const std::vector<GridCell>& runs, const std::vect
     io::PlotOptions po;
     po.width = 960;
     po.height = 600;
-    po.title = fig.title + ": " + metric;
+    po.title = fig.title + ": " + metric_label(metric);
     po.xlabel = fig.xlabel;
-    po.ylabel = metric;
+    po.ylabel = metric_label(metric);
     po.log_x = fig.log_x;
     io::write_png((out / (metric + ".png")).string(), grid_plot(cells, metric, po));
     readme += "![" + metric + "](" + metric + ".png)";
     if (!fig.reference.empty()) {
-      po.title = fig.reference_title + ": " + metric;
+      po.title = fig.reference_title + ": " + metric_label(metric);
       io::write_png((out / ("reference_" + metric + ".png")).string(), grid_plot(fig.reference, metric, po));
       readme += " ![" + fig.reference_title + "](reference_" + metric + ".png)";
     }

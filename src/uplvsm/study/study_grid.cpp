@@ -75,6 +75,20 @@ double average_gain(const std::vector<double>& values, bool higher_is_better) {
 std::vector<std::string> series_of(const std::vector<GridCell>& cells) {
   return unique_in_order(cells, &GridCell::series);
 }
+std::string paper_name(const std::string& series) {
+  if (series == "uplvsm") return "UP-LVSM";
+  if (series == "ptlvsm") return "PT-LVSM";
+  if (series == "lvsm") return "LVSM";
+  return series;
+}
+
+std::string metric_label(const std::string& metric) {
+  if (metric == "psnr") return "PSNR (dB)";
+  if (metric == "ssim") return "SSIM";
+  if (metric == "lpips") return "LPIPS";
+  return metric;
+}
+
 std::vector<std::string> settings_of(const std::vector<GridCell>& cells) {
   return unique_in_order(cells, &GridCell::setting);
 }
@@ -179,7 +193,7 @@ torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& m
   }
   std::vector<io::Series> lines;
   for (const auto& name : series_of(cells)) {
-    io::Series line{name, {}, {}};
+    io::Series line{paper_name(name), {}, {}};
     line.markers = true;
     for (const auto& c : cells) {
       if (c.series != name || c.runs == 0) continue;

@@ -36,6 +36,11 @@ double average_gain(const std::vector<double>& values, bool higher_is_better);
 
 // Series and settings in the order they first appear in `cells`.
 std::vector<std::string> series_of(const std::vector<GridCell>& cells);
+// A series' name in the paper's words for legends and titles ("uplvsm" -> "UP-LVSM", "ptlvsm" -> "PT-LVSM", "lvsm" ->
+// "LVSM"); any other name as it is. Tables and CSVs keep the variant names scripts read.
+std::string paper_name(const std::string& series);
+// A metric's axis label: "PSNR (dB)", "SSIM", "LPIPS".
+std::string metric_label(const std::string& metric);
 std::vector<std::string> settings_of(const std::vector<GridCell>& cells);
 
 // Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable; a mean over
