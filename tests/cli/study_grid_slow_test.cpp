@@ -129,4 +129,22 @@ TEST(StudyGrid, ScalingBudgetGrowsWithTheSubset) {
   EXPECT_NE(text.find("| lvsm | "), std::string::npos) << text;
   EXPECT_NE(text.find("(not run)"), std::string::npos) << text;
   EXPECT_FALSE(fs::exists(fs::path(out) / "runs/lvsm__2"));
+  // --from-table: the same report from table.csv alone, in a folder without runs (a study run on another machine).
+  const auto moved = (f.dir / "scaling_from_table").string();
+  const auto report = "study scaling --config " + f.lvsm_cfg + " --data " + f.data +
+                      " --subsets 1 2 4 --steps 2 --steps-growth 2 --noise-std 0.05 --report-only --from-table " + out +
+                      "/table.csv --out ";
+  ASSERT_EQ(run_cli(report + moved, &text), 0) << text;
+  auto read_text = [](const fs::path& p) {
+    std::ifstream in(p);
+    return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  };
+  EXPECT_EQ(read_text(fs::path(moved) / "table.md"), read_text(fs::path(out) / "table.md"));
+  EXPECT_TRUE(fs::exists(fs::path(moved) / "psnr.png"));
+  EXPECT_FALSE(fs::exists(fs::path(moved) / "runs"));
+  EXPECT_NE(run_cli("study scaling --config " + f.lvsm_cfg + " --data " + f.data + " --subsets 1 --from-table " + out +
+                        "/table.csv --out " + moved + "_trained",
+                    &text),
+            0);  // --from-table only redraws
+  EXPECT_NE(text.find("--report-only"), std::string::npos) << text;
 }

@@ -187,6 +187,30 @@ TEST(StudyGrid, NoNoiseStandsLeftOfTheSmallestLevelOnALogAxis) {
   EXPECT_GT(blue(study::grid_plot(levels, "psnr", po)), without_zero + 40);  // its marker and segment
 }
 
+// --from-table: a study's own table.csv read back cell for cell (seed included); a seed that is no whole number is
+// refused naming the line.
+TEST(StudyGrid, TableCellsReadBackWhatGridCsvWrote) {
+  const auto dir = test::temp_dir("grid_table");
+  const std::vector<study::GridCell> runs = {{"lvsm", "noise sd 0", 0, 29.407487, 0.742866, std::nan(""), 777},
+                                             {"up", "noise var 0.1", 0.316, 26.1, 0.64, 0.25, 778}};
+  std::ofstream(dir / "table.csv") << study::grid_csv(runs);
+  const auto cells = study::read_table_cells((dir / "table.csv").string());
+  ASSERT_EQ(cells.size(), 2u);
+  EXPECT_EQ(cells[1].series, "up");
+  EXPECT_EQ(cells[1].setting, "noise var 0.1");
+  EXPECT_EQ(cells[1].seed, 778);
+  EXPECT_NEAR(cells[0].psnr, 29.407487, 1e-6);
+  EXPECT_TRUE(std::isnan(cells[0].lpips));
+  EXPECT_NEAR(cells[1].lpips, 0.25, 1e-6);
+  std::ofstream(dir / "seed.csv") << "series,setting,x,seed,psnr,ssim,lpips\nlvsm,a,0,7.5,20,0.5,\n";
+  const auto msg = test::error_of([&] { study::read_table_cells((dir / "seed.csv").string()); });
+  EXPECT_NE(msg.find("--from-table"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("line 2"), std::string::npos) << msg;
+  std::ofstream(dir / "reference.csv") << "series,setting,x,psnr,ssim,lpips\n";  // the reference format is not a table
+  EXPECT_NE(test::error_of([&] { study::read_table_cells((dir / "reference.csv").string()); }).find("line 1 must be"),
+            std::string::npos);
+}
+
 // --reference: published numbers as cells; a wrong header or line is refused naming the file and the line.
 TEST(StudyGrid, ReferenceCellsAreReadOrRefusedNamingTheLine) {
   const auto dir = test::temp_dir("grid_reference");

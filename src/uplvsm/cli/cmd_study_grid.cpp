@@ -42,6 +42,7 @@ struct GridArgs {
   train::VggInput vgg19_input = train::VggInput::Auto;
   bool report_only = false;                              // tables and plots from the runs already done; nothing trains
   std::string reference, reference_title = "reference";  // published numbers drawn beside ours
+  std::string from_table;  // with report_only: cells from a study's table.csv instead of runs/
 };
 
 struct GridRun {
@@ -77,9 +78,15 @@ void add_grid_options(CLI::App* cmd, GridArgs& a) {
                   "docs/research/data/paper_objaverse_scaling.csv")
       ->check(CLI::ExistingFile);
   cmd->add_option("--reference-title", a.reference_title, "the reference plots' title")->capture_default_str();
-  cmd->add_flag("--report-only", a.report_only,
-                "write the table, plots and curves from the runs done so far (a run without result.json reads "
-                "'(not run)'; an unfinished run's curve is shown as far as it got); nothing trains");
+  auto* report_only =
+      cmd->add_flag("--report-only", a.report_only,
+                    "write the table, plots and curves from the runs done so far (a run without result.json reads "
+                    "'(not run)'; an unfinished run's curve is shown as far as it got); nothing trains");
+  cmd->add_option("--from-table", a.from_table,
+                  "with --report-only: each run's scores from this table.csv of the same study (matched by series, "
+                  "setting and seed) instead of runs/, to redraw a study whose runs are on another machine")
+      ->check(CLI::ExistingFile)
+      ->needs(report_only);
   cmd->add_option("--vgg19", a.vgg19, "VGG19 weights for the perceptual loss (as for `uplvsm train`)")
       ->check(CLI::ExistingFile);
   add_vgg19_input_option(cmd, a.vgg19_input);
@@ -209,6 +216,32 @@ std::vector<GridRun> for_each_seed(const std::vector<GridRun>& runs, const std::
   return out;
 }
 
+// --report-only's cells: each run's row of --from-table (matched by series, setting and seed; placed at the plan's
+// x, as a result.json is), else its result.json, else a planned cell that reads "(not run)".
+std::vector<study::GridCell> done_cells(const std::vector<GridRun>& runs, const GridArgs& a, torch::Device device,
+                                        const eval::Lpips& lpips) {
+  const auto table = a.from_table.empty() ? std::vector<study::GridCell>{} : study::read_table_cells(a.from_table);
+  std::vector<study::GridCell> cells;
+  size_t from_table = 0;
+  for (const auto& r : runs) {
+    const auto row = std::find_if(table.begin(), table.end(), [&](const study::GridCell& c) {
+      return c.series == r.series && c.setting == r.setting && c.seed == r.config.training.seed;
+    });
+    if (row != table.end()) {
+      cells.push_back(*row), cells.back().x = r.x, ++from_table;
+    } else if (fs::exists(fs::path(a.out) / "runs" / (r.same_as.empty() ? r.dir_name : r.same_as) / "result.json")) {
+      cells.push_back(run_cell(r, a, device, lpips));
+    } else {  // planned, not done (runs 0, no metrics)
+      const double none = std::nan("");
+      cells.push_back({r.series, r.setting, r.x, none, none, none, r.config.training.seed, 0});
+    }
+  }
+  if (!a.from_table.empty() && from_table < table.size())
+    spdlog::warn("study --from-table {}: {} of its {} rows match no run of this study (series, setting, seed)",
+                 a.from_table, table.size() - from_table, table.size());
+  return cells;
+}
+
 void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, study::GridFigure fig,
               const std::string& description) {
   apply_common_options(a.common);
@@ -236,18 +269,7 @@ void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, study::GridFi
 
   std::vector<study::GridCell> cells;
   if (a.report_only) {
-    for (const auto& r : runs) {
-      const auto result = fs::path(a.out) / "runs" / (r.same_as.empty() ? r.dir_name : r.same_as) / "result.json";
-      if (fs::exists(result)) {
-        cells.push_back(run_cell(r, a, device, lpips));
-      } else {  // planned, not done: "(not run)" in the table
-        study::GridCell planned;
-        planned.series = r.series, planned.setting = r.setting, planned.x = r.x;
-        planned.seed = r.config.training.seed, planned.runs = 0;
-        planned.psnr = planned.ssim = planned.lpips = std::nan("");
-        cells.push_back(planned);
-      }
-    }
+    cells = done_cells(runs, a, device, lpips);
     const auto done = std::count_if(cells.begin(), cells.end(), [](const auto& c) { return c.runs > 0; });
     spdlog::info("study: --report-only: {} of {} runs done", done, runs.size());
     const auto table = study::write_grid_report(cells, run_curves(runs, a), a.out, fig, description);

@@ -101,42 +101,66 @@ double training_psnr(const RunCurve& run, double window) {
   return -10 * std::log10(sum / n);
 }
 
-std::vector<GridCell> read_reference_cells(const std::string& path) {
+namespace {
+
+std::vector<std::string> split_fields(const std::string& line) {
+  std::vector<std::string> f;
+  for (size_t start = 0;;) {
+    const size_t comma = line.find(',', start);
+    f.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) return f;
+    start = comma + 1;
+  }
+}
+
+double whole_number(const std::string& text) {  // the whole field, finite ("2000abc" is no number)
+  size_t used = 0;
+  const double v = std::stod(text, &used);
+  if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument(text);
+  return v;
+}
+
+// Cells from a CSV of series,setting,x[,seed],psnr,ssim,lpips (lpips may be empty); `what` names the option in
+// errors, which name the file and the line.
+std::vector<GridCell> read_cells_csv(const std::string& path, bool with_seed, const std::string& what) {
   std::ifstream in(path);
-  if (!in) throw std::runtime_error("study --reference " + path + ": cannot open file");
+  if (!in) throw std::runtime_error(what + " " + path + ": cannot open file");
+  const std::string header = with_seed ? "series,setting,x,seed,psnr,ssim,lpips" : "series,setting,x,psnr,ssim,lpips";
   std::string line;
-  const std::string header = "series,setting,x,psnr,ssim,lpips";
   if (!std::getline(in, line) || line != header)
-    throw std::runtime_error(fmt::format("study --reference {}: line 1 must be '{}'", path, header));
+    throw std::runtime_error(fmt::format("{} {}: line 1 must be '{}'", what, path, header));
   std::vector<GridCell> cells;
   for (int n = 2; std::getline(in, line); ++n) {
     if (line.empty()) continue;
-    std::vector<std::string> f;
-    for (size_t start = 0;;) {
-      const size_t comma = line.find(',', start);
-      f.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-      if (comma == std::string::npos) break;
-      start = comma + 1;
-    }
+    const auto f = split_fields(line);
     GridCell c;
     try {
-      if (f.size() != 6) throw std::invalid_argument("fields");
-      c.series = f[0], c.setting = f[1];
-      auto number = [](const std::string& text) {  // the whole field, finite ("2000abc" is no number)
-        size_t used = 0;
-        const double v = std::stod(text, &used);
-        if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument(text);
-        return v;
-      };
-      c.x = number(f[2]), c.psnr = number(f[3]), c.ssim = number(f[4]);
-      c.lpips = f[5].empty() ? std::nan("") : number(f[5]);
+      if (f.size() != (with_seed ? 7u : 6u)) throw std::invalid_argument("fields");
+      const size_t k = with_seed ? 1 : 0;  // the metrics' offset past the seed
+      c.series = f[0], c.setting = f[1], c.x = whole_number(f[2]);
+      if (with_seed) {
+        const double seed = whole_number(f[3]);
+        if (seed < 0 || seed > 9e15 || seed != std::floor(seed)) throw std::invalid_argument(f[3]);
+        c.seed = static_cast<int64_t>(seed);
+      }
+      c.psnr = whole_number(f[3 + k]), c.ssim = whole_number(f[4 + k]);
+      c.lpips = f[5 + k].empty() ? std::nan("") : whole_number(f[5 + k]);
     } catch (const std::exception&) {
-      throw std::runtime_error(fmt::format(
-          "study --reference {} line {}: expected series,setting,x,psnr,ssim,lpips, got '{}'", path, n, line));
+      throw std::runtime_error(fmt::format("{} {} line {}: expected {}, got '{}'", what, path, n, header, line));
     }
     cells.push_back(c);
   }
   return cells;
+}
+
+}  // namespace
+
+std::vector<GridCell> read_reference_cells(const std::string& path) {
+  return read_cells_csv(path, false, "study --reference");
+}
+
+std::vector<GridCell> read_table_cells(const std::string& path) {
+  return read_cells_csv(path, true, "study --from-table");
 }
 
 Levelling levelling(const io::Series& curve, double window) {

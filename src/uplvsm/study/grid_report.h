@@ -20,6 +20,9 @@ struct GridFigure {
 // Reference cells from a CSV with the header series,setting,x,psnr,ssim,lpips (lpips may be empty); throws naming
 // the file and line for anything else.
 std::vector<GridCell> read_reference_cells(const std::string& path);
+// Every run's cell from a study's own table.csv (series,setting,x,seed,psnr,ssim,lpips, as grid_csv writes it), to
+// redraw a study whose run folders are on another machine; throws naming the file and line for anything else.
+std::vector<GridCell> read_table_cells(const std::string& path);
 
 // One trained run's periodic evaluations: its legend label and its metrics.jsonl.
 struct RunCurve {

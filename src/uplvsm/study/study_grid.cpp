@@ -189,7 +189,8 @@ torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& m
   options.x_ticks.clear(), options.x_tick_labels.clear();
   for (double x : xs) {
     options.x_ticks.push_back(plotted(x));
-    options.x_tick_labels.push_back(fmt::format("{:g}", x));
+    // Three significant digits below 1 (a variance's sd 0.0316, not 0.0316228); whole scene counts as they are.
+    options.x_tick_labels.push_back(x < 1 ? fmt::format("{:.3g}", x) : fmt::format("{:g}", x));
   }
   std::vector<io::Series> lines;
   for (const auto& name : series_of(cells)) {
