@@ -5,8 +5,9 @@
 #   tools/thesis/run_tiny.sh [pose-noise|shuffle|scaling|scaling-exact|scaling-noise|scaling-budget|all]
 #   (default all; OUT=out/thesis, THREADS=1)
 # Two cores: run it twice at once, SEEDS=777 and SEEDS=778 (distinct run folders), then once with both seeds to
-# write the combined tables and plots (every run is then found done); REPORT_ONLY=1 writes a scaling study's tables
-# and plots from the runs done so far (the others "(not run)") without training.
+# write the combined tables and plots (every run is then found done); the scaling studies instead run scaling-exact
+# and scaling-noise at once (SEEDS=777), then SEEDS=778 SUBSETS="125 8000" scaling-exact and scaling-budget.
+# REPORT_ONLY=1 writes a study's tables and plots from the runs done so far (the others "(not run)") without training.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 UPLVSM=${UPLVSM:-build/uplvsm}
@@ -25,7 +26,8 @@ if [ "$WHAT" = shuffle ] || [ "$WHAT" = all ]; then
   # Issue 64 item 7: chunk pairs (ours) against one shuffle over the whole split (official), UP-LVSM, same budget.
   for per in 2 0; do
     $UPLVSM study scaling --config configs/tiny.json --data "$OUT/rooms" --subsets full --steps 4000 \
-      "${COMMON[@]}" --set training.chunks_per_shuffle=$per --out "$OUT/shuffle_chunks$per"
+      "${COMMON[@]}" --set training.chunks_per_shuffle=$per ${REPORT_ONLY:+--report-only} \
+      --out "$OUT/shuffle_chunks$per"
   done
 fi
 
@@ -34,7 +36,7 @@ if [ "$WHAT" = pose-noise ] || [ "$WHAT" = all ]; then
   # 0.01 / 0.1 (sd 0.0316 / 0.1 / 0.316).
   $UPLVSM study pose-noise --config configs/tiny.json configs/tiny_lvsm.json --data "$OUT/rooms" \
     --noise-std 0 0.001 0.01 0.1 --noise-variance 0.001 0.01 0.1 --steps "$STEPS" "${COMMON[@]}" \
-    --out "$OUT/pose_noise"
+    ${REPORT_ONLY:+--report-only} --out "$OUT/pose_noise"
 fi
 
 
