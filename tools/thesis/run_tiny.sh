@@ -68,8 +68,9 @@ fi
 
 if [ "$WHAT" = scaling-budget ] || [ "$WHAT" = all ]; then
   # Issue 72: is SCALE_STEPS enough? The largest subset at twice the budget (a cosine schedule always flattens at its
-  # end, so a flat tail alone does not prove it). UP-LVSM by default: the model said to need steps before data pays.
-  read -r -a BUDGET_CONFIGS <<<"${BUDGET_CONFIGS:-configs/tiny.json}"
+  # end, so a flat tail alone does not prove it). UP-LVSM (said to need steps before data pays) and LVSM (whose
+  # 8000-step curves still rose at their end).
+  read -r -a BUDGET_CONFIGS <<<"${BUDGET_CONFIGS:-configs/tiny.json configs/tiny_lvsm.json}"
   $UPLVSM study scaling --config "${BUDGET_CONFIGS[@]}" --data "$OUT/rooms_8000" --subsets 8000 \
     --steps $((2 * SCALE_STEPS)) --threads "$THREADS" --seeds "${SEEDS[@]}" --set training.eval_every=500 \
     --set training.checkpoint_every=500 ${REPORT_ONLY:+--report-only} --out "$OUT/scaling_budget$((2 * SCALE_STEPS))"
