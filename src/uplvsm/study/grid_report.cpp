@@ -52,8 +52,8 @@ std::string write_curves(const std::vector<RunCurve>& runs, const fs::path& out,
   write_text(out / "curves.csv", csv);
   write_text(out / "levelling.md", table);
   std::string readme =
-      "\nHeld-out PSNR during training (curves.csv), the training PSNR at the end (held-out below it: the subset is\n"
-      "over-fitted) and whether each run levelled off:\n\n" +
+      "\nHeld-out PSNR during training (curves.csv), the training PSNR at the end (the two sample views alike, not\n"
+      "identically: compare its gap to the held-out PSNR across subsets) and whether each run levelled off:\n\n" +
       table;
   for (const auto& [series, curves] : by_series) {
     io::PlotOptions po;

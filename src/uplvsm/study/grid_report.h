@@ -34,8 +34,8 @@ struct RunCurve {
 io::Series held_out_curve(const RunCurve& run);
 
 // A run's training PSNR near its end: -10 log10 of the mean training MSE (its metrics.jsonl's "mse" lines, skipped
-// steps left out) over the last `window` steps. Beside the held-out PSNR it shows how much a run over-fits its
-// subset, the most that more data could give it back (the two sample views alike, not identically). NaN without any.
+// steps left out) over the last `window` steps. Its gap to the held-out PSNR holds a fixed offset (the two sample
+// views alike, not identically); how the gap shrinks from small subsets to large shows over-fitting. NaN without any.
 double training_psnr(const RunCurve& run, double window = 1000);
 
 // Whether a held-out curve has levelled off: the least-squares slope of its points in the last `window` steps, in
