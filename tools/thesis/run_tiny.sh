@@ -6,7 +6,8 @@
 #   (default all; OUT=out/thesis, THREADS=1)
 # Two cores: run it twice at once, SEEDS=777 and SEEDS=778 (distinct run folders), then once with both seeds to
 # write the combined tables and plots (every run is then found done); the scaling studies instead run scaling-exact
-# and scaling-noise at once (SEEDS=777), then SEEDS=778 SUBSETS="125 8000" scaling-exact and scaling-budget.
+# and scaling-noise at once (SEEDS=777), then SEEDS=778 SUBSETS="125 8000" scaling-exact and scaling-budget, and
+# SEEDS=778 SUBSETS=8000 NOISE_CONFIGS=configs/tiny_lvsm.json scaling-noise (LVSM's lead over UP-LVSM at σ 0.1).
 # REPORT_ONLY=1 writes a study's tables and plots from the runs done so far (the others "(not run)") without training.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
@@ -58,8 +59,9 @@ if [ "$WHAT" = scaling ] || [ "$WHAT" = scaling-exact ] || [ "$WHAT" = scaling-n
   fi
   if [ "$WHAT" != scaling-exact ]; then
     # The posed models again with pose noise on their cameras (UP-LVSM never reads them); beside the paper's
-    # RealEstate10K table, whose cameras are COLMAP's estimates.
-    $UPLVSM study scaling --config configs/tiny_ptlvsm.json configs/tiny_lvsm.json "${SCALE[@]}" --noise-std 0.1 \
+    # RealEstate10K table, whose cameras are COLMAP's estimates. NOISE_CONFIGS picks the models (a second seed).
+    read -r -a NOISE_CONFIGS <<<"${NOISE_CONFIGS:-configs/tiny_ptlvsm.json configs/tiny_lvsm.json}"
+    $UPLVSM study scaling --config "${NOISE_CONFIGS[@]}" "${SCALE[@]}" --noise-std 0.1 \
       --reference docs/research/data/paper_re10k_scaling.csv \
       --reference-title "the paper, RealEstate10K (COLMAP poses)" ${REPORT_ONLY:+--report-only} \
       --out "$OUT/scaling_noise0.1"
@@ -67,11 +69,12 @@ if [ "$WHAT" = scaling ] || [ "$WHAT" = scaling-exact ] || [ "$WHAT" = scaling-n
 fi
 
 if [ "$WHAT" = scaling-budget ] || [ "$WHAT" = all ]; then
-  # Issue 72: is SCALE_STEPS enough? The largest subset at twice the budget (a cosine schedule always flattens at its
-  # end, so a flat tail alone does not prove it). UP-LVSM (said to need steps before data pays) and LVSM (whose
-  # 8000-step curves still rose at their end).
+  # Issue 72: is SCALE_STEPS enough? The end subsets at twice the budget (a cosine schedule always flattens at its
+  # end, so a flat tail alone does not prove it), which gives the gain per 4x again at that budget. UP-LVSM (said to
+  # need steps before data pays) and LVSM (whose 8000-step curves still rose at their end).
   read -r -a BUDGET_CONFIGS <<<"${BUDGET_CONFIGS:-configs/tiny.json configs/tiny_lvsm.json}"
-  $UPLVSM study scaling --config "${BUDGET_CONFIGS[@]}" --data "$OUT/rooms_8000" --subsets 8000 \
+  read -r -a BUDGET_SUBSETS <<<"${BUDGET_SUBSETS:-125 8000}"
+  $UPLVSM study scaling --config "${BUDGET_CONFIGS[@]}" --data "$OUT/rooms_8000" --subsets "${BUDGET_SUBSETS[@]}" \
     --steps $((2 * SCALE_STEPS)) --threads "$THREADS" --seeds "${SEEDS[@]}" --set training.eval_every=500 \
     --set training.checkpoint_every=500 ${REPORT_ONLY:+--report-only} --out "$OUT/scaling_budget$((2 * SCALE_STEPS))"
 fi
