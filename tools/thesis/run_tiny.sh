@@ -6,8 +6,9 @@
 #   (default all; OUT=out/thesis, THREADS=1)
 # Two cores: run it twice at once, SEEDS=777 and SEEDS=778 (distinct run folders), then once with both seeds to
 # write the combined tables and plots (every run is then found done); the scaling studies instead run scaling-exact
-# and scaling-noise at once (SEEDS=777), then SEEDS=778 SUBSETS="125 8000" scaling-exact and scaling-budget, and
-# SEEDS=778 SUBSETS=8000 NOISE_CONFIGS=configs/tiny_lvsm.json scaling-noise (LVSM's lead over UP-LVSM at σ 0.1).
+# and scaling-noise at once (SEEDS=777), then SEEDS=778 SUBSETS="125 8000" scaling-exact beside SEEDS=777
+# scaling-budget, and SEEDS=778 SUBSETS=8000 NOISE_CONFIGS=configs/tiny_lvsm.json scaling-noise (LVSM's lead over
+# UP-LVSM at σ 0.1).
 # REPORT_ONLY=1 writes a study's tables and plots from the runs done so far (the others "(not run)") without training.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
