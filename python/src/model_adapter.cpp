@@ -55,14 +55,14 @@ torch::Tensor ModelAdapter::on_device(const torch::Tensor& t) const {
 torch::Tensor ModelAdapter::encode_scene(const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                          const std::string& amp) {
   auto net = unposed("encode_scene");
-  AutocastGuard guard(device_, amp_enabled(amp));
+  Bf16Autocast guard(device_, amp_enabled(amp));
   return net->encode_scene(on_device(images), on_device(fxfycxcy));
 }
 
 torch::Tensor ModelAdapter::estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                            const std::string& amp) {
   auto net = unposed("estimate_poses");
-  AutocastGuard guard(device_, amp_enabled(amp));
+  Bf16Autocast guard(device_, amp_enabled(amp));
   return net->estimate_poses(on_device(target_images), scene_latents.to(device_));
 }
 
@@ -70,7 +70,7 @@ torch::Tensor ModelAdapter::render_views(const torch::Tensor& scene_latents, con
                                          const torch::Tensor& fxfycxcy, int64_t height, int64_t width,
                                          const std::string& amp) {
   auto net = unposed("render_views");
-  AutocastGuard guard(device_, amp_enabled(amp));
+  Bf16Autocast guard(device_, amp_enabled(amp));
   return net->render_views(scene_latents.to(device_), on_device(poses), on_device(fxfycxcy), height, width);
 }
 
@@ -85,7 +85,7 @@ ForwardResult ModelAdapter::forward(const model::Views& inputs, const model::Vie
   const auto source = model::resolve_target_poses(choice, *net_);
   model::Views in{on_device(inputs.images), on_device(inputs.fxfycxcy), on_device(inputs.c2w)};
   model::Views out{on_device(targets.images), on_device(targets.fxfycxcy), on_device(targets.c2w)};
-  AutocastGuard guard(device_, amp_enabled(amp));
+  Bf16Autocast guard(device_, amp_enabled(amp));
   auto result = net_->render(in, out, source);
   return {result.render, result.pose_enc};
 }
@@ -94,13 +94,13 @@ render::InterpolationVideo ModelAdapter::render_interpolation(const torch::Tenso
                                                               const torch::Tensor& fxfycxcy, int64_t num_frames,
                                                               int64_t chunk, const std::string& amp) {
   auto net = unposed("render_interpolation");
-  AutocastGuard guard(device_, amp_enabled(amp));
+  Bf16Autocast guard(device_, amp_enabled(amp));
   return render::render_interpolation(net, images, fxfycxcy, num_frames, chunk);
 }
 
 torch::Tensor ModelAdapter::render_camera_path(const data::SceneViews& inputs, const torch::Tensor& poses,
                                                const torch::Tensor& fxfycxcy, int64_t chunk, const std::string& amp) {
-  AutocastGuard guard(device_, amp_enabled(amp));
+  Bf16Autocast guard(device_, amp_enabled(amp));
   return render::render_camera_path(net_, inputs, poses, fxfycxcy, chunk);
 }
 

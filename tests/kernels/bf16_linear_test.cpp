@@ -18,7 +18,7 @@ using namespace uplvsm;
 
 namespace {
 
-bool has_bf16_dot_products() { return kernels::row_simd::cpu_has_avx512_bf16; }
+bool has_bf16_dot_products() { return isa_at_least(Isa::Avx512Bf16); }
 
 // Our weight gradient for a scope, whatever the start-up chose (ATen's on a CPU with AMX-BF16).
 struct OurWeightGradient {
@@ -40,7 +40,7 @@ int64_t off_by_more_than(const torch::Tensor& got, const torch::Tensor& truth, d
 }
 
 TEST(Bf16Linear, WeightGradientIsTheExactProductRoundedOnce) {
-  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   // K: one row, an odd count below the split into parts, above it with an odd tail; O: below a micro-kernel's rows,
   // past one 576-row task with a 24-row tail, a 5-row tail; I: one vector, a 64-column panel plus 16 and 32, a wide
   // one.
@@ -67,7 +67,7 @@ TEST(Bf16Linear, WeightGradientIsTheExactProductRoundedOnce) {
 }
 
 TEST(Bf16Linear, WeightGradientDoesNotDependOnTheThreadCount) {
-  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   auto dy = bf16_randn({40000, 200}, 3), x = bf16_randn({40000, 64}, 4);
   const int threads = at::get_num_threads();
   at::set_num_threads(1);
@@ -128,14 +128,14 @@ void expect_linear_matches_autocast(bool with_bias) {
 }
 
 TEST(Bf16Linear, TrainsAsAutocastsLinearWithAndWithoutBias) {
-  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   OurWeightGradient ours;
   expect_linear_matches_autocast(true);
   expect_linear_matches_autocast(false);
 }
 
 TEST(Bf16Linear, CastOnceLinearTakesItOnlyInAutocastTraining) {
-  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!has_bf16_dot_products()) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   OurWeightGradient ours;
   model::Linear linear(torch::nn::LinearOptions(32, 16).bias(false));
   auto x = torch::randn({5, 32});

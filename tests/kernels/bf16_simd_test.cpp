@@ -57,7 +57,7 @@ int64_t mismatches(const std::vector<uint32_t>& patterns) {
 }
 
 TEST(Bf16Simd, RoundsEveryStrideOfTheFp32PatternsAsC10) {
-  if (!row_simd::cpu_has_avx512()) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!isa_at_least(Isa::Avx512)) GTEST_SKIP() << "no AVX-512 at this ISA level";
   std::vector<uint32_t> patterns;
   // A prime stride walks every exponent, both signs, and low halves of every residue (ties included).
   for (uint64_t u = 0; u <= 0xFFFFFFFFull; u += 251) patterns.push_back(static_cast<uint32_t>(u));
@@ -66,7 +66,7 @@ TEST(Bf16Simd, RoundsEveryStrideOfTheFp32PatternsAsC10) {
 }
 
 TEST(Bf16Simd, RoundsDenormalsNansTiesAndInfinitiesAsC10EvenAmongOrdinaryValues) {
-  if (!row_simd::cpu_has_avx512()) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!isa_at_least(Isa::Avx512)) GTEST_SKIP() << "no AVX-512 at this ISA level";
   const std::vector<uint32_t> special = {
       0x00000000, 0x80000000, 0x00000001, 0x80000001,
       0x00008000, 0x00018000, 0x007FFFFF, 0x807FFFFF,  // zeros, denormals

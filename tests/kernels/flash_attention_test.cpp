@@ -6,10 +6,12 @@
 #include <limits>
 #include <string>
 
+#include "isa_levels.h"
 #include "test_util.h"
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/kernels/flash_attention.h"
-#include "uplvsm/kernels/flash_attention_simd.h"  // internal: the kernels' exp2
+#include "uplvsm/kernels/flash_attention_kernels.h"  // internal: which kernels the level serves
+#include "uplvsm/kernels/flash_attention_simd.h"     // internal: the kernels' exp2
 #include "uplvsm/kernels/ops.h"
 #include "uplvsm/kernels/qk_norm.h"
 #include "uplvsm/model/transformer.h"
@@ -59,7 +61,7 @@ UPLVSM_AVX512 void exp2_16(const float* t, float* out) {
 }  // namespace
 
 TEST(FlashAttention, Bf16KernelsBaseTwoExpIsWithinTwoUlpsAndKeepsNaN) {
-  if (!fused_available(torch::kBFloat16, 64)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!fused_available(torch::kBFloat16, 64)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   // Every exponent the softmax meets (scores minus their max: t <= 0) down to underflow, and a few above 0.
   std::vector<float> t;
   for (double x = -126.0; x <= 4.0; x += 0.0137) t.push_back(static_cast<float>(x));
@@ -81,7 +83,7 @@ TEST(FlashAttention, Bf16KernelsBaseTwoExpIsWithinTwoUlpsAndKeepsNaN) {
 }
 
 TEST(FlashAttention, Fp32MatchesExactAttentionAndGradients) {
-  if (!fused_available(torch::kFloat32, 64)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!fused_available(torch::kFloat32, 64)) GTEST_SKIP() << "no fused fp32 attention below AVX2";
   torch::manual_seed(3);
   // Odd lengths exercise the padded key tiles and the partial micro-kernel rows; Lq != Lk the cross shapes.
   for (auto [B, H, Lq, Lk, D] : std::vector<std::array<int64_t, 5>>{
@@ -94,7 +96,7 @@ TEST(FlashAttention, Fp32MatchesExactAttentionAndGradients) {
 }
 
 TEST(FlashAttention, ReadsStridedHeadViewsWithoutCopies) {
-  if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no fused fp32 attention below AVX2";
   torch::manual_seed(4);
   // The model's layout: q, k, v are head views of one [B, L, 3 * H * D] projection.
   const int64_t B = 2, L = 40, H = 3, D = 32;
@@ -108,7 +110,7 @@ TEST(FlashAttention, ReadsStridedHeadViewsWithoutCopies) {
 }
 
 TEST(FlashAttention, Bf16StaysWithinDocumentedTolerance) {
-  if (!fused_available(torch::kBFloat16, 64)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!fused_available(torch::kBFloat16, 64)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   torch::manual_seed(5);
   // Odd lengths: padded key tiles, a query row without a pair partner.
   auto q = torch::randn({2, 2, 97, 64}).mul(2).to(torch::kBFloat16),
@@ -124,7 +126,7 @@ TEST(FlashAttention, Bf16StaysWithinDocumentedTolerance) {
 }
 
 TEST(FlashAttention, Bf16GradientsAtTheDemoHeadWidthAndSeveralKeyTiles) {
-  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   torch::manual_seed(7);
   // d_head 32 (the demo model) and 16; 1000 keys = a full 768-key forward tile and a tail of 232 (the online
   // softmax rescales), seven 128-key backward tiles and a tail of 104, so the transposed dK / dV stores meet full and
@@ -144,7 +146,7 @@ TEST(FlashAttention, Bf16GradientsAtTheDemoHeadWidthAndSeveralKeyTiles) {
 // aligned) must give exactly what the contiguous copies give, at head widths of one, two and three 16-lane blocks of
 // words' halves (16, 32, 48: a partial block of words in the transposed packing) and odd lengths.
 TEST(FlashAttention, Bf16PackingOfOddStridesEqualsContiguousOperandsBitForBit) {
-  if (!fused_available(torch::kBFloat16, 16)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!fused_available(torch::kBFloat16, 16)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   torch::manual_seed(9);
   const int64_t B = 2, H = 2;
   for (int64_t D : {16, 32, 48})
@@ -202,7 +204,7 @@ QkvGrads qkv_attention(bool fused, const torch::Tensor& qkv_in, int64_t H, const
 // fp32 rounding. Head widths 16 / 32 / 64, odd lengths (several groups of 16 rows and backward key tiles), all
 // queries or a range, and a projection whose rows are an odd number of elements apart.
 TEST(FlashAttention, QKNormOnReadEqualsQKNormThenAttentionBitForBit) {
-  if (!fused_available(torch::kBFloat16, 16)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!fused_available(torch::kBFloat16, 16)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   torch::manual_seed(13);
   const int64_t B = 2, H = 3;
   for (int64_t D : {16, 32, 64})
@@ -228,7 +230,7 @@ TEST(FlashAttention, QKNormOnReadEqualsQKNormThenAttentionBitForBit) {
 // fp32 without gradients (inference): the norm read by the fp32 kernels gives the bits of qk_norm (fp32) then
 // fused_attention; with gradients on it does not apply (the fp32 backward has no norm), and its backward refuses.
 TEST(FlashAttention, QKNormOnReadInFp32InferenceEqualsQKNormThenAttentionBitForBit) {
-  if (!fused_available(torch::kFloat32, 16)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!kernels::flash::qk_norm_on_read_available()) GTEST_SKIP() << "QK-Norm on read needs AVX-512";
   torch::manual_seed(19);
   const int64_t B = 2, H = 3;
   for (int64_t D : {16, 32, 64})
@@ -253,7 +255,7 @@ TEST(FlashAttention, QKNormOnReadInFp32InferenceEqualsQKNormThenAttentionBitForB
 }
 
 TEST(FlashAttention, QKNormOnReadRejectsWhatItCannotServeByName) {
-  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   auto qkv = torch::randn({1, 8, 3 * 2 * 32}).to(torch::kBFloat16);
   auto w = torch::ones({32});
   auto expect_error = [](const std::function<void()>& call, const std::string& part) {
@@ -274,7 +276,7 @@ TEST(FlashAttention, QKNormOnReadRejectsWhatItCannotServeByName) {
 }
 
 TEST(FlashAttention, QKNormOnReadWeightGradientsDoNotDependOnTheThreadCount) {
-  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 on this CPU";
+  if (!fused_available(torch::kBFloat16, 32)) GTEST_SKIP() << "no AVX-512 BF16 at this ISA level";
   torch::manual_seed(17);
   auto qkv = torch::randn({3, 41, 3 * 4 * 32}).to(torch::kBFloat16);
   auto wq = 1 + 0.3 * torch::randn({32}), wk = 1 + 0.3 * torch::randn({32});
@@ -291,7 +293,7 @@ TEST(FlashAttention, QKNormOnReadWeightGradientsDoNotDependOnTheThreadCount) {
 }
 
 TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsewhere) {
-  if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!fused_available(torch::kFloat32, 32)) GTEST_SKIP() << "no fused fp32 attention below AVX2";
   torch::manual_seed(6);
   auto q = torch::randn({1, 2, 20, 32}), k = torch::randn({1, 2, 20, 32}), v = torch::randn({1, 2, 20, 32});
   auto exact = reference_attention(q, k, v);
@@ -314,22 +316,50 @@ TEST(FlashAttention, ModelAttentionUsesFusedKernelUnderAutocastAndFallsBackElsew
   kernels::set_attention_kernel(kernels::AttentionKernel::Fused);
 }
 
-TEST(FlashAttention, NonFiniteInputsGiveNonFiniteOutputsLikeTheReference) {
-  // Training skips a step whose loss is not finite: a NaN inside attention must not be smoothed away.
-  for (auto dtype : {torch::kFloat32, torch::kBFloat16}) {
-    if (!fused_available(dtype, 32)) continue;
+class FlashAttentionAtLevel : public test::AtIsaLevel {};
+UPLVSM_AT_EVERY_ISA_LEVEL(FlashAttentionAtLevel);
+
+// Training skips a step whose loss is not finite: a NaN inside attention must not be smoothed away, on whichever
+// path attention() takes at the level (fused fp32 from AVX2, fused bf16 with AVX-512 BF16, LibTorch below).
+TEST_P(FlashAttentionAtLevel, NonFiniteInputsGiveNonFiniteOutputsLikeTheReference) {
+  for (bool autocast : {false, true}) {
+    SCOPED_TRACE(testing::Message() << (autocast ? "bf16 autocast" : "fp32"));
+    auto attend = [&](const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+      AutocastGuard amp(torch::kCPU, autocast);
+      return kernels::attention(q, k, v).to(torch::kFloat32);
+    };
     auto q = torch::randn({1, 1, 20, 32}), k = torch::randn({1, 1, 20, 32}), v = torch::randn({1, 1, 20, 32});
     q[0][0][3][5] = std::numeric_limits<float>::quiet_NaN();
-    auto o = kernels::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
+    auto o = attend(q, k, v);
     EXPECT_TRUE(torch::isnan(o[0][0][3]).all().item<bool>()) << "the NaN query's row";
     EXPECT_TRUE(torch::isfinite(o[0][0][4]).all().item<bool>()) << "other rows stay finite";
     // A NaN key makes one score of every row NaN: every output row is NaN, as in softmax(q k^T) v.
     q[0][0][3][5] = 0.0f;
     k[0][0][7][3] = std::numeric_limits<float>::quiet_NaN();
-    o = kernels::fused_attention(q.to(dtype), k.to(dtype), v.to(dtype)).to(torch::kFloat32);
-    EXPECT_TRUE(torch::isnan(o).all().item<bool>()) << "a NaN key";
+    EXPECT_TRUE(torch::isnan(attend(q, k, v)).all().item<bool>()) << "a NaN key";
     EXPECT_TRUE(torch::isnan(reference_attention(q, k, v)).all().item<bool>());
   }
+}
+
+// Which kernel serves each dtype at each level: fp32 fused from AVX2 on, bf16 fused only with AVX-512 BF16, QK-Norm
+// on read only with AVX-512; and a level's fused kernel agrees with fp64 attention on the model's layout.
+TEST_P(FlashAttentionAtLevel, EachLevelServesTheDtypesItHasKernelsFor) {
+  EXPECT_EQ(fused_available(torch::kFloat32, 32), GetParam() >= Isa::Avx2);
+  EXPECT_EQ(fused_available(torch::kBFloat16, 32), GetParam() >= Isa::Avx512Bf16);
+  EXPECT_EQ(kernels::flash::qk_norm_on_read_available(), GetParam() >= Isa::Avx512);
+  if (GetParam() < Isa::Avx2) {
+    EXPECT_THROW(kernels::fused_attention(torch::randn({1, 1, 4, 32}), torch::randn({1, 1, 4, 32}),
+                                          torch::randn({1, 1, 4, 32})),
+                 c10::Error);
+    return;
+  }
+  torch::manual_seed(4);
+  const int64_t B = 2, L = 40, H = 3, D = 32;
+  auto qkv = torch::randn({B, L, 3 * H * D});
+  auto heads = [&](int i) { return qkv.chunk(3, -1)[i].view({B, L, H, D}).transpose(1, 2); };
+  auto w = torch::randn({B, H, L, D}, torch::kFloat64);
+  expect_close(run(kernels::fused_attention, heads(0), heads(1), heads(2), w),
+               run(reference_attention, heads(0), heads(1), heads(2), w), 1e-5);
 }
 
 TEST(FlashAttention, RejectsMismatchedShapes) {

@@ -45,7 +45,7 @@ torch::Tensor map_exact(const torch::Tensor& x, double (*f)(double)) {
 
 TEST(Gelu, MatchesLibTorchAndAnExactComputationValuesAndGradients) {
   // The fused kernel needs AVX-512; elsewhere gelu() is LibTorch's (checked by the fallback test below).
-  if (!kernels::gelu_fuses(torch::ones({1}, torch::kBFloat16))) GTEST_SKIP() << "no AVX-512 on this CPU";
+  if (!kernels::gelu_fuses(torch::ones({1}, torch::kBFloat16))) GTEST_SKIP() << "the fused GELU needs AVX-512";
   for (int64_t n : {1, 15, 16, 17, 33, 100003}) {  // the masked tail alone, exact blocks, a tail, several threads
     SCOPED_TRACE(testing::Message() << "n " << n);
     auto x = inputs(n, 7 + n).requires_grad_(true);
@@ -68,8 +68,10 @@ TEST(Gelu, MatchesLibTorchAndAnExactComputationValuesAndGradients) {
   }
 }
 
-// On activations as an MLP sees them (about unit variance) the two agree bit for bit almost everywhere; they part
-// mostly for x < -3, where LibTorch's 1 + erf cancels and this kernel computes the tail directly.
+// On activations as an MLP sees them (about unit variance) every path agrees bit for bit almost everywhere with
+// LibTorch's fp32 GELU rounded once to bf16; the fused kernel parts from it mostly for x < -3, where LibTorch's
+// 1 + erf cancels and the kernel computes the tail directly. (LibTorch 1.13's own bf16 GELU is that on AVX-512 CPUs;
+// on AVX2 ones it rounds intermediates and agrees for 61 % of these inputs only.)
 TEST(Gelu, AgreesWithLibTorchBitForBitOnTypicalActivations) {
   torch::manual_seed(4);
   auto x = torch::randn({200000}).to(torch::kBFloat16).requires_grad_(true);
@@ -77,7 +79,7 @@ TEST(Gelu, AgreesWithLibTorchBitForBitOnTypicalActivations) {
   auto y = kernels::gelu(x);
   y.backward(upstream);
   auto x_ref = x.detach().clone().requires_grad_(true);
-  auto y_ref = torch::gelu(x_ref);
+  auto y_ref = torch::gelu(x_ref.to(torch::kFloat32)).to(torch::kBFloat16);
   y_ref.backward(upstream);
   EXPECT_GT(y.eq(y_ref).to(torch::kFloat64).mean().item<double>(), 0.99) << "share of bit-equal outputs";
   EXPECT_GT(x.grad().eq(x_ref.grad()).to(torch::kFloat64).mean().item<double>(), 0.99)
@@ -88,6 +90,8 @@ TEST(Gelu, AgreesWithLibTorchBitForBitOnTypicalActivations) {
 // finite extremes give LibTorch's values. (PyPI's LibTorch 2.11 returns NaN for +inf in bf16, 1.13 returns +inf, so the
 // non-finite cases are checked against the formula, not against whichever LibTorch is linked.)
 TEST(Gelu, NonFiniteInputsGiveIeeeResultsAndExtremesLibTorchs) {
+  if (!kernels::gelu_fuses(torch::ones({1}, torch::kBFloat16)))
+    GTEST_SKIP() << "the fused GELU needs AVX-512; below it gelu() is LibTorch's, whose +inf depends on its version";
   const float inf = std::numeric_limits<float>::infinity(), nan = std::numeric_limits<float>::quiet_NaN();
   auto x = torch::tensor({0.0f, -0.0f, inf, -inf, nan, 200.0f, -200.0f, 1e-30f, -1e-30f}).to(torch::kBFloat16);
   auto y = kernels::gelu(x).to(torch::kFloat32);
@@ -108,7 +112,8 @@ TEST(Gelu, LeavesFp32ToLibTorchAndComputesStridedInputsContiguously) {
   // every intermediate to bf16, so it is compared with LibTorch on the copy).
   auto strided = inputs(64, 2).view({8, 8}).t();
   EXPECT_TRUE(torch::equal(kernels::gelu(strided), kernels::gelu(strided.contiguous())));
-  expect_within_a_rounding(kernels::gelu(strided), torch::gelu(strided.contiguous()), 2e-6, "strided", -7);
+  expect_within_a_rounding(kernels::gelu(strided), torch::gelu(strided.contiguous().to(torch::kFloat32)), 2e-6,
+                           "strided", -7);
 }
 
 }  // namespace

@@ -5,7 +5,10 @@
 
 #include <ATen/Context.h>
 
+#include <cstdlib>
+
 #include "train_test_util.h"
+#include "uplvsm/core/autocast.h"
 #include "uplvsm/data/loader.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
@@ -55,15 +58,24 @@ TEST(TrainerWiring, AccumulatedRunResumesExactly) {
   EXPECT_EQ(logged(resumed), straight);
 }
 
-// training.amp bf16 reaches the forward: the first update's loss (same weights, same batch) moves under autocast.
+// training.amp bf16 reaches the forward where bf16 pays: the first update's loss (same weights, same batch) moves
+// under autocast. On a CPU without native bf16 dot products the run is fp32 (the same loss), unless
+// UPLVSM_FORCE_BF16=1 asks for bf16 anyway.
 TEST(TrainerWiring, Bf16AutocastChangesTheFirstLoss) {
   auto config = test::micro_config();
   config.training.train_steps = 1;
   const double fp32 = losses_of(config, "wiring_fp32").at(0);
   config.training.amp = Amp::Bf16;
-  const double bf16 = losses_of(config, "wiring_bf16").at(0);
-  EXPECT_NE(bf16, fp32);
-  EXPECT_NEAR(bf16, fp32, 0.05 * fp32);
+  const double asked = losses_of(config, "wiring_bf16").at(0);
+  if (bf16_autocast_pays(torch::kCPU))
+    EXPECT_NE(asked, fp32);
+  else
+    EXPECT_EQ(asked, fp32) << "bf16 does not pay on this CPU: the run is fp32";
+  setenv("UPLVSM_FORCE_BF16", "1", 1);
+  const double forced = losses_of(config, "wiring_bf16_forced").at(0);
+  unsetenv("UPLVSM_FORCE_BF16");
+  EXPECT_NE(forced, fp32);
+  EXPECT_NEAR(forced, fp32, 0.05 * fp32);
 }
 
 // training.tf32 reaches CUDA's switches for a run on a CUDA device (the switches exist without a GPU).

@@ -9,6 +9,7 @@
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/mp4_writer.h"
+#include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/model_factory.h"
 
 namespace uplvsm::cli {
@@ -56,6 +57,7 @@ void add_info_command(CLI::App& app) {
     auto device = parse_device(common->device);
     std::cout << fmt::format("device       {}\n", device.str());
     std::cout << fmt::format("MP4 output   {}\n", mp4_output_description());
+    std::cout << fmt::format("kernels      {}\n", kernels::describe_kernel_paths());
     if (!config->empty()) {
       const auto c = load_config(*config);
       print_model_summary(c);

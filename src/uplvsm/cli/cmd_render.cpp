@@ -97,7 +97,7 @@ void render_one(model::NovelViewModel& net, const data::SceneViews& views, bool 
   check_video_fits(poses.defined() ? poses.size(0) : a.frames, views.images, a.side_by_side);
   torch::Tensor frames, key_poses;
   {
-    AutocastGuard amp(render::model_device(*net), a.amp == Amp::Bf16);
+    Bf16Autocast amp(render::model_device(*net), a.amp == Amp::Bf16);
     if (latent) {
       auto up = model::require_uplvsm(net, "render: a camera path in latent units");
       frames = render::render_latent_path(up, views.images, views.fxfycxcy, poses, intrinsics);
@@ -194,6 +194,7 @@ std::vector<data::Photo> read_render_photos(const RenderArgs& a) {
 
 void run_render(const RenderArgs& a) {
   apply_common_options(a.common);
+  log_kernel_paths();
   if (a.images.empty() == a.source.data.empty())
     throw std::runtime_error("render: give either --data (dataset scenes) or --images A B (two photos)");
   if (a.fov && a.images.empty()) spdlog::warn("render: --fov applies to --images only; the --data scenes keep theirs");

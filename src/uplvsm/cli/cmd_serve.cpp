@@ -114,6 +114,7 @@ void add_serve_command(CLI::App& app) {
       ->capture_default_str();
   cmd->callback([a] {
     apply_common_options(a->common);
+    log_kernel_paths();
     run_viewer(*a);
   });
 }

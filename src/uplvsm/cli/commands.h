@@ -20,6 +20,8 @@ struct CommonOptions {
 };
 void add_common_options(CLI::App* cmd, CommonOptions& opt);
 void apply_common_options(const CommonOptions& opt);
+// Logs which path each kernel takes on this CPU (kernels::describe_kernel_paths).
+void log_kernel_paths();
 
 // --checkpoint (ours or the authors') and --config, which official files need only when their dimensions cannot be
 // inferred as wanted (e.g. to run at 518 px: configs/paper_x518.json).

@@ -4,6 +4,7 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
+#include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/pose_mapper_file.h"
@@ -31,6 +32,8 @@ void apply_common_options(const CommonOptions& opt) {
   init_runtime(opt.threads);
   spdlog::set_pattern("[%H:%M:%S] %^%l%$ %v");
 }
+
+void log_kernel_paths() { spdlog::info("kernels: {}", kernels::describe_kernel_paths()); }
 
 void add_model_options(CLI::App* cmd, ModelSource& src) {
   cmd->add_option("--checkpoint", src.checkpoint,

@@ -3,7 +3,14 @@
 #include <ATen/Context.h>
 #include <ATen/autocast_mode.h>
 
+#include <spdlog/spdlog.h>
+
+#include <cstdlib>
+#include <cstring>
+#include <mutex>
 #include <stdexcept>
+
+#include "uplvsm/core/cpu_isa.h"
 
 namespace uplvsm {
 namespace {
@@ -32,6 +39,23 @@ bool set_cuda_tf32(torch::Device device, bool on) {
   at::globalContext().setAllowTF32CuBLAS(on);
   at::globalContext().setAllowTF32CuDNN(on);
   return true;
+}
+
+bool bf16_autocast_pays(torch::Device device) { return !device.is_cpu() || isa_at_least(Isa::Avx512Bf16); }
+
+bool use_bf16_autocast(bool requested, torch::Device device) {
+  if (!requested || bf16_autocast_pays(device)) return requested;
+  const char* force = std::getenv("UPLVSM_FORCE_BF16");
+  if (force != nullptr && std::strcmp(force, "1") == 0) return true;
+  static std::once_flag said;
+  std::call_once(said, [] {
+    spdlog::warn(
+        "bf16 autocast asked for, running fp32: this CPU's kernels have no native bf16 dot product (need AVX-512 "
+        "BF16; here {}), where LibTorch's bf16 matmuls are many times slower than fp32 and sum in bf16. "
+        "UPLVSM_FORCE_BF16=1 runs bf16 anyway",
+        isa_name(active_isa()));
+  });
+  return false;
 }
 
 bool autocast_active(torch::Device device) { return is_enabled_on(device.is_cuda()); }

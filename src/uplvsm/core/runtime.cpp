@@ -1,12 +1,11 @@
 #include "uplvsm/core/runtime.h"
 
+#include "uplvsm/core/cpu_isa.h"
+
 #include <dlfcn.h>
 #include <link.h>
 #include <malloc.h>
 #include <sched.h>
-#if defined(__x86_64__) || defined(__i386__)
-#include <cpuid.h>
-#endif
 #include <unistd.h>
 
 #include <cctype>
@@ -26,31 +25,17 @@ std::string loaded_openblas_core() {
   auto fn = reinterpret_cast<GetCorename>(dlsym(RTLD_DEFAULT, "openblas_get_corename"));
   return fn ? std::string(fn()) : std::string();
 }
-
-#if defined(__x86_64__) || defined(__i386__)
-// CPUID leaf 7 EDX bit 22 (AMX-BF16), and the OS saving the tile state (XCR0 bits 17, 18). GCC 12's
-// __builtin_cpu_supports("amx-bf16") answers false on a CPU that has it (seen here), hence CPUID directly.
-bool cpu_has_amx_bf16() {
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  if (!__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx) || !((edx >> 22) & 1u)) return false;
-  if (!__get_cpuid(1, &eax, &ebx, &ecx, &edx) || !((ecx >> 27) & 1u)) return false;  // OSXSAVE: xgetbv allowed
-  uint32_t xcr0_low = 0, xcr0_high = 0;
-  __asm__("xgetbv" : "=a"(xcr0_low), "=d"(xcr0_high) : "c"(0));
-  return ((xcr0_low >> 17) & 3u) == 3u;
-}
-#endif
 }  // namespace
 
 CpuFeatures detect_cpu_features() {
+  // The CPU's own levels (core/cpu_isa), whatever cap UPLVSM_MAX_ISA sets on the kernels: OpenBLAS's choice and the
+  // report are about the machine.
+  const Isa isa = detected_isa();
   CpuFeatures cpu;
-#if defined(__x86_64__) || defined(__i386__)
-  __builtin_cpu_init();
-  cpu.avx2_fma = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  cpu.avx512 = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-               __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq");
-  cpu.avx512_bf16 = cpu.avx512 && __builtin_cpu_supports("avx512bf16");
+  cpu.avx2_fma = isa >= Isa::Avx2;
+  cpu.avx512 = isa >= Isa::Avx512;
+  cpu.avx512_bf16 = isa >= Isa::Avx512Bf16;
   cpu.amx_bf16 = cpu_has_amx_bf16();
-#endif
   return cpu;
 }
 

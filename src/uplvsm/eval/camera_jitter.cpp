@@ -65,7 +65,7 @@ PathJitter scene_jitter(model::NovelViewModel& net, const data::ChunkDataset& da
   auto inputs = model::batch_of_one(dataset.load_views(scene, entry.context, prep), opt.device);
   auto path_views = dataset.load_views(scene, frames, prep);
   torch::NoGradGuard no_grad;
-  AutocastGuard amp(opt.device, opt.bf16);
+  Bf16Autocast amp(opt.device, opt.bf16);
   auto render = net->camera_control(inputs);
   auto path = subdivide_path(geometry::camera_control_poses(inputs.c2w, path_views.c2w.unsqueeze(0).to(opt.device)),
                              opt.subdivisions);

@@ -206,7 +206,7 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
     tell_noisy_cameras(scenes, opt, inputs, targets);
   torch::Tensor pred;
   {
-    AutocastGuard amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
+    Bf16Autocast amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
     pred = opt.pose_refinement.steps != 0     // a negative count reaches the refinement's own check
                ? render_at_refined_poses(*model::as_uplvsm(*net), inputs, targets, opt.pose_refinement).render
                : net->render(inputs, targets, opt.target_poses).render;

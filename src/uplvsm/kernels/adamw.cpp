@@ -72,7 +72,7 @@ bool adamw_fusable(const torch::Tensor& t) {
 
 bool adamw_update_fuses(const torch::Tensor& p, const torch::Tensor& grad, const torch::Tensor& exp_avg,
                         const torch::Tensor& exp_avg_sq) {
-  return row_simd::cpu_has_avx512() && adamw_fusable(p) && adamw_fusable(grad) && adamw_fusable(exp_avg) &&
+  return isa_at_least(Isa::Avx512) && adamw_fusable(p) && adamw_fusable(grad) && adamw_fusable(exp_avg) &&
          adamw_fusable(exp_avg_sq) && grad.numel() == p.numel() && exp_avg.numel() == p.numel() &&
          exp_avg_sq.numel() == p.numel();
 }

@@ -141,6 +141,8 @@ torch::Tensor weight_gradient_bf16(const torch::Tensor& grad_output, const torch
               "weight_gradient_bf16: expected contiguous bf16 operands and I a multiple of 16");
   const int64_t K = input.size(0), O = grad_output.size(1), I = input.size(1);
   if (K == 0 || O == 0 || I == 0) return torch::zeros({O, I}, input.options());
+  TORCH_CHECK(isa_at_least(Isa::Avx512Bf16), "weight_gradient_bf16: needs AVX-512 BF16, and the kernels may use ",
+              isa_name(active_isa()), " here (bf16_linear_applies says where it serves)");
   const int64_t parts = parts_for(K), blocks = (O + kOutputBlock - 1) / kOutputBlock;
   auto sums = torch::empty({parts, O, I}, input.options().dtype(torch::kFloat));
   const auto* dy = reinterpret_cast<const uint16_t*>(grad_output.data_ptr<c10::BFloat16>());
@@ -208,7 +210,7 @@ void set_weight_gradient_path(WeightGradientPath path) { path_choice().store(pat
 WeightGradientPath weight_gradient_path() { return path_choice().load(); }
 
 bool bf16_linear_applies(const torch::Tensor& input, const torch::Tensor& weight) {
-  return path_choice().load() == WeightGradientPath::Ours && row_simd::cpu_has_avx512_bf16 && input.device().is_cpu() &&
+  return path_choice().load() == WeightGradientPath::Ours && isa_at_least(Isa::Avx512Bf16) && input.device().is_cpu() &&
          weight.device().is_cpu() && input.scalar_type() == torch::kBFloat16 &&
          weight.scalar_type() == torch::kBFloat16 && weight.dim() == 2 && weight.size(1) % 16 == 0 &&
          weight.numel() <= kMaxWeightElements && input.dim() >= 1 && input.size(-1) == weight.size(1);

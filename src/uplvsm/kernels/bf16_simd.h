@@ -1,12 +1,14 @@
 // Internal to the fused row-wise kernels (qk_norm.cpp, layer_norm_to_bf16.cpp, gelu.cpp) and the one-pass AdamW step
 // (train/optimizer.cpp): AVX-512 loads and stores of 16 fp32 or bf16 features, rounding to bf16 exactly as
-// c10::BFloat16 does, and the runtime CPU check. Files that include it compile their AVX-512 functions with
-// UPLVSM_ROW_AVX512 and call them only when cpu_has_avx512() is true.
+// c10::BFloat16 does. Files that include it compile their AVX-512 functions with UPLVSM_ROW_AVX512 and call them only
+// when isa_at_least(Isa::Avx512) (core/cpu_isa.h).
 #pragma once
 #include <c10/util/BFloat16.h>
 #include <immintrin.h>
 
 #include <type_traits>
+
+#include "uplvsm/core/cpu_isa.h"
 
 // GCC 12's AVX-512 intrinsics (reductions, extracts, shuffles, masked forms) start from _mm512_undefined_*, which
 // -Wmaybe-uninitialized (and, once inlined into loops, -Wuninitialized) misreads in every file using these helpers.
@@ -16,15 +18,6 @@
 #define UPLVSM_ROW_AVX512 __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq")))
 
 namespace uplvsm::kernels::row_simd {
-
-inline bool cpu_has_avx512() {
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-           __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-  }();
-  return has;
-}
 
 // The lanes of a 16-wide block that `remaining` elements fill (all 16 when at least 16 remain).
 UPLVSM_ROW_AVX512 inline __mmask16 tail_mask(int64_t remaining) {
@@ -40,12 +33,6 @@ UPLVSM_ROW_AVX512 inline __m512 load16(const T* p) {
     return _mm512_castsi512_ps(_mm512_slli_epi32(wide, 16));
   }
 }
-
-// Whether this CPU has AVX-512 BF16's vcvtneps2bf16 (one instruction for the rounding below, where it agrees).
-inline const bool cpu_has_avx512_bf16 = [] {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx512bf16") != 0;
-}();
 
 // fp32 -> fp32 bits rounded to bf16's as c10::BFloat16 rounds (to nearest even, NaN to 0x7FC0), low half zero.
 UPLVSM_ROW_AVX512 inline __m512i rounded_bits(__m512 v) {
@@ -69,7 +56,7 @@ UPLVSM_ROW_AVX512 inline __m256i to_bf16_bits_integer(__m512 v) {
 // target into them).
 UPLVSM_ROW_AVX512 inline __m256i to_bf16_bits(__m512 v) {
   constexpr int kNanOrDenormal = 0x01 | 0x20 | 0x80;  // vfpclassps classes: quiet NaN, denormal, signalling NaN
-  if (cpu_has_avx512_bf16 && _mm512_fpclass_ps_mask(v, kNanOrDenormal) == 0) {
+  if (isa_at_least(Isa::Avx512Bf16) && _mm512_fpclass_ps_mask(v, kNanOrDenormal) == 0) {
     __m256i bits;
     asm("vcvtneps2bf16 %g1, %t0" : "=v"(bits) : "v"(v));
     return bits;

@@ -171,7 +171,8 @@ torch::Tensor fused_attention(const torch::Tensor& q, const torch::Tensor& k, co
   TORCH_CHECK(q.device().is_cpu() && (q.scalar_type() == torch::kFloat32 || q.scalar_type() == torch::kBFloat16) &&
                   flash::flash_kernels_available(precision_of(q), q.size(3)),
               "fused_attention: needs CPU fp32/bf16 tensors, d_head a multiple of 16 (got ", q.size(3),
-              ") and a CPU with AVX-512 (bf16: AVX-512 BF16); attention() falls back to LibTorch otherwise");
+              ") and kernels at AVX2 or above (bf16: AVX-512 BF16; core/cpu_isa); attention() falls back to LibTorch "
+              "otherwise");
   return FusedAttentionFunction::apply(q, k, v);
 }
 
@@ -180,6 +181,7 @@ bool fused_qk_norm_attention_applies(const torch::Tensor& qkv, const torch::Tens
   const bool dtype_served = t == torch::kBFloat16 || (t == torch::kFloat32 && !torch::GradMode::is_enabled());
   if (qkv.dim() != 3 || !dtype_served || qkv.stride(-1) != 1 || d_head <= 0) return false;
   if (qkv.size(2) % (3 * d_head) != 0 || !fused_attention_applies(qkv.device(), t, d_head)) return false;
+  if (!flash::qk_norm_on_read_available()) return false;
   return qk_norm_fuses(qkv.narrow(2, 0, d_head), q_weight);
 }
 
@@ -190,7 +192,7 @@ torch::Tensor fused_qk_norm_attention(const torch::Tensor& qkv, int64_t heads, c
   const int64_t d_head = qkv.size(2) / 3 / heads;
   TORCH_CHECK(
       fused_qk_norm_attention_applies(qkv, q_weight, d_head) && qk_norm_fuses(qkv.narrow(2, 0, d_head), k_weight),
-      "fused_qk_norm_attention: needs bf16 qkv on a CPU with AVX-512 BF16 (or fp32 qkv with AVX-512, gradients off), "
+      "fused_qk_norm_attention: needs bf16 qkv with AVX-512 BF16 (or fp32 qkv with AVX-512, gradients off), "
       "d_head a multiple of 16 (got ",
       d_head, ") and fp32 weights of size d_head");
   TORCH_CHECK(q_start >= 0 && q_count > 0 && q_start + q_count <= qkv.size(1), "fused_qk_norm_attention: query rows [",

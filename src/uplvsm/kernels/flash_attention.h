@@ -1,7 +1,7 @@
 // Fused attention for CPU as a LibTorch autograd function: softmax(q k^T / sqrt(d)) v with the flash kernels of
 // flash_attention_kernels.h (O(L) memory, fp32 accumulation), forward and backward. `attention()` in
-// ops.h picks it when it applies; everything else (CUDA, other head sizes, CPUs without AVX-512) keeps the
-// unfused LibTorch path.
+// ops.h picks it when it applies; everything else (CUDA, other head sizes, fp32 below AVX2, bf16 below AVX-512 BF16)
+// keeps the unfused LibTorch path.
 #pragma once
 #include <torch/torch.h>
 

@@ -1,8 +1,11 @@
 #include "uplvsm/kernels/flash_attention_kernels.h"
 
+#include "uplvsm/core/cpu_isa.h"
 #include "uplvsm/kernels/bf16_simd.h"
 #include "uplvsm/kernels/flash_attention_simd.h"
 #include "uplvsm/kernels/qk_norm_rows.h"
+
+#include <stdexcept>
 
 namespace uplvsm::kernels::flash {
 namespace {
@@ -242,40 +245,46 @@ void backward_head_fp32(const Problem& p, int64_t bh, const void* dout, Strides 
   for (int64_t i = 0; i < Lq; ++i) store_row(p, dq, sdq, bh, i, dQ + i * D, p.scale);
 }
 
-bool cpu_has_avx512() {
-  __builtin_cpu_init();
-  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
-         __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq");
-}
-
-bool cpu_has_avx512_bf16() {
-  __builtin_cpu_init();
-  return cpu_has_avx512() && __builtin_cpu_supports("avx512bf16");
-}
-
 }  // namespace
 
 bool flash_kernels_available(Precision precision, int64_t d_head) {
   if (d_head <= 0 || d_head % 16 != 0 || d_head > 256) return false;
-  static const bool avx512 = cpu_has_avx512(), bf16 = cpu_has_avx512_bf16();
-  return precision == Precision::Fp32 ? avx512 : bf16;
+  return isa_at_least(precision == Precision::Fp32 ? Isa::Avx2 : Isa::Avx512Bf16);
 }
+
+bool qk_norm_on_read_available() { return isa_at_least(Isa::Avx512); }
 
 int64_t forward_task_count(const Problem& p) { return p.B * p.H * row_chunks(p); }
 
+namespace {
+// The kernels of one precision and vector width: bf16 (AVX-512 BF16), fp32 with AVX-512, fp32 with AVX2.
+enum class Flavour { Bf16, Fp32Avx512, Fp32Avx2 };
+Flavour flavour_of(const Problem& p) {
+  if (p.precision == Precision::Bf16) return Flavour::Bf16;
+  return isa_at_least(Isa::Avx512) ? Flavour::Fp32Avx512 : Flavour::Fp32Avx2;
+}
+}  // namespace
+
 void forward_tasks(const Problem& p, int64_t begin, int64_t end, void* o, Strides so, float* lse) {
-  const bool bf16 = p.precision == Precision::Bf16;
+  const Flavour flavour = flavour_of(p);
+  const auto pack = flavour == Flavour::Bf16         ? pack_head_bf16
+                    : flavour == Flavour::Fp32Avx512 ? pack_head_fp32
+                                                     : pack_head_fp32_avx2;
+  const auto rows = flavour == Flavour::Bf16         ? forward_rows_bf16
+                    : flavour == Flavour::Fp32Avx512 ? forward_rows_fp32
+                                                     : forward_rows_fp32_avx2;
+  if (flavour == Flavour::Fp32Avx2 && p.norm.active())
+    throw std::logic_error("flash::forward_tasks: the AVX2 kernels do not apply QK-Norm on read");
   const int64_t chunks = row_chunks(p);
   int64_t packed_head = -1;
   for (int64_t t = begin; t < end; ++t) {
     const int64_t bh = t / chunks, chunk = t % chunks;
     if (bh != packed_head) {  // consecutive tasks of one head share its packed K and V
-      bf16 ? pack_head_bf16(p, bh) : pack_head_fp32(p, bh);
+      pack(p, bh);
       packed_head = bh;
     }
     const int64_t row_begin = chunk * kRowsPerTask, row_end = std::min(p.Lq, row_begin + kRowsPerTask);
-    bf16 ? forward_rows_bf16(p, bh, row_begin, row_end, o, so, lse)
-         : forward_rows_fp32(p, bh, row_begin, row_end, o, so, lse);
+    rows(p, bh, row_begin, row_end, o, so, lse);
   }
 }
 
@@ -287,8 +296,8 @@ UPLVSM_AVX512 inline __m512 load16(const Problem& p, const void* base, Strides s
 }
 
 // delta = rowsum(dout * o), accumulated in double (D is a multiple of 16).
-UPLVSM_AVX512 void backward_delta(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo,
-                                  int64_t begin, int64_t end, float* delta) {
+UPLVSM_AVX512 void backward_delta_avx512(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo,
+                                         int64_t begin, int64_t end, float* delta) {
   for (int64_t bh = begin; bh < end; ++bh)
     for (int64_t i = 0; i < p.Lq; ++i) {
       __m512d sum = _mm512_setzero_pd();
@@ -303,14 +312,19 @@ UPLVSM_AVX512 void backward_delta(const Problem& p, const void* o, Strides so, c
     }
 }
 
+void backward_delta(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo, int64_t begin,
+                    int64_t end, float* delta) {
+  if (flavour_of(p) != Flavour::Fp32Avx2) return backward_delta_avx512(p, o, so, dout, sdo, begin, end, delta);
+  for (int64_t bh = begin; bh < end; ++bh) backward_delta_fp32_avx2(p, o, so, dout, sdo, bh, delta);
+}
+
 void backward_tasks(const Problem& p, const void* dout, Strides sdo, const float* lse, const float* delta,
                     int64_t begin, int64_t end, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv) {
-  for (int64_t bh = begin; bh < end; ++bh) {
-    if (p.precision == Precision::Bf16)
-      backward_head_bf16(p, bh, dout, sdo, lse, delta, dq, sdq, dk, sdk, dv, sdv);
-    else
-      backward_head_fp32(p, bh, dout, sdo, lse, delta, dq, sdq, dk, sdk, dv, sdv);
-  }
+  const Flavour flavour = flavour_of(p);
+  const auto head = flavour == Flavour::Bf16         ? backward_head_bf16
+                    : flavour == Flavour::Fp32Avx512 ? backward_head_fp32
+                                                     : backward_head_fp32_avx2;
+  for (int64_t bh = begin; bh < end; ++bh) head(p, bh, dout, sdo, lse, delta, dq, sdq, dk, sdk, dv, sdv);
 }
 
 }  // namespace uplvsm::kernels::flash

@@ -1,6 +1,6 @@
 // CPU kernels of fused (flash-style) attention over raw fp32 / bf16 buffers: tiled, online softmax with fp32
-// accumulation, no L x L matrix in memory (workspace is O(L) per head). AVX-512 only; callers check
-// `flash_kernels_available()` and fall back to the unfused LibTorch path elsewhere. Threading is the caller's
+// accumulation, no L x L matrix in memory (workspace is O(L) per head). fp32 with AVX2 or AVX-512, bf16 with AVX-512
+// BF16; callers check `flash_kernels_available()` and fall back to the unfused LibTorch path elsewhere. Threading is the caller's
 // (each entry point handles a range of tasks), so these files need no LibTorch headers.
 #pragma once
 #include <cstdint>
@@ -38,8 +38,11 @@ struct Problem {
   QKNormOnRead norm;
 };
 
-// True when this CPU runs the kernels (AVX-512F; bf16 additionally needs AVX-512 BF16) and d_head suits them.
+// True when the kernels run at the active ISA level (core/cpu_isa: fp32 needs AVX2, bf16 AVX-512 BF16) and d_head
+// suits them.
 bool flash_kernels_available(Precision precision, int64_t d_head);
+// Whether Problem::norm (QK-Norm applied as q and k are read) is served: the AVX-512 kernels only.
+bool qk_norm_on_read_available();
 
 // Forward over (batch*head, query tile) tasks [begin, end) of forward_task_count(p).
 int64_t forward_task_count(const Problem& p);

@@ -107,4 +107,14 @@ void forward_rows_bf16(const Problem& p, int64_t bh, int64_t row_begin, int64_t 
 void backward_head_bf16(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
                         const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv);
 
+// fp32 kernels for CPUs with AVX2 and no AVX-512 (flash_attention_kernels_avx2.cpp): the fp32 entry points of
+// flash_attention_kernels.cpp with 8-wide vectors (QK-Norm on read not served: Problem::norm must be off).
+void pack_head_fp32_avx2(const Problem& p, int64_t bh);
+void forward_rows_fp32_avx2(const Problem& p, int64_t bh, int64_t row_begin, int64_t row_end, void* o, Strides so,
+                            float* lse);
+void backward_delta_fp32_avx2(const Problem& p, const void* o, Strides so, const void* dout, Strides sdo, int64_t bh,
+                              float* delta);
+void backward_head_fp32_avx2(const Problem& p, int64_t bh, const void* dout, Strides sdo, const float* lse,
+                             const float* delta, void* dq, Strides sdq, void* dk, Strides sdk, void* dv, Strides sdv);
+
 }  // namespace uplvsm::kernels::flash::detail

@@ -9,7 +9,8 @@
 namespace uplvsm::kernels {
 
 // Whether `gelu` runs fused for this input (CPU, bf16, AVX-512); elsewhere — fp32 (whose results must match the
-// official code's to the last bits), CUDA — it is torch::gelu. UPLVSM_GELU=aten forces torch::gelu (benchmarks).
+// official code's to the last bits), CUDA — it is torch::gelu, and bf16 on a CPU below AVX-512 torch::gelu in fp32
+// rounded once. UPLVSM_GELU=aten forces torch::gelu itself (benchmarks).
 bool gelu_fuses(const torch::Tensor& x);
 
 // torch::gelu(x) (approximate = "none"): the same values to within one bf16 rounding, and its gradient, as one

@@ -148,7 +148,7 @@ UPLVSM_ROW_AVX512 void backward_rows_avx512(const float* x, const float* w, cons
   }
 }
 
-bool vectorised(int64_t D) { return D % 16 == 0 && row_simd::cpu_has_avx512(); }
+bool vectorised(int64_t D) { return D % 16 == 0 && isa_at_least(Isa::Avx512); }
 
 // An absent bias travels through the autograd function as an empty tensor (it takes no undefined inputs).
 const float* data_or_null(const torch::Tensor& t) { return t.numel() > 0 ? t.data_ptr<float>() : nullptr; }

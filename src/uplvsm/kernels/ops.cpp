@@ -5,7 +5,10 @@
 #include <cmath>
 
 #include "uplvsm/core/autocast.h"
+#include "uplvsm/core/cpu_isa.h"
+#include "uplvsm/kernels/bf16_linear.h"
 #include "uplvsm/kernels/flash_attention.h"
+#include "uplvsm/kernels/gelu.h"
 #include "uplvsm/kernels/layer_norm_to_bf16.h"
 #include "uplvsm/kernels/qk_norm.h"
 
@@ -39,11 +42,10 @@ torch::ScalarType qk_norm_output_dtype(const torch::Tensor& projected, int64_t d
   return torch::promote_types(projected.scalar_type(), torch::kFloat32);
 }
 
-torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
-  // Under autocast the fused kernel takes bf16 operands (as autocast's matmuls would) and accumulates in fp32.
-  const auto dtype = autocast_active(q.device()) ? torch::kBFloat16 : q.scalar_type();
-  if (q.dim() == 4 && fused_attention_applies(q.device(), dtype, q.size(3)))
-    return fused_attention(q.to(dtype), k.to(dtype), v.to(dtype));
+namespace {
+
+// softmax(q k^T / sqrt(d_head)) v in the operands' dtype, materialising the scores (LibTorch's own ops).
+torch::Tensor attention_reference(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
 #if TORCH_VERSION_MAJOR >= 2
   return at::scaled_dot_product_attention(q, k, v);
 #else
@@ -51,6 +53,29 @@ torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const to
   auto scores = torch::matmul(q, k.transpose(-2, -1)).mul_(scale);
   return torch::matmul(torch::softmax(scores, -1), v);
 #endif
+}
+
+// Attention under CPU autocast where the fused kernel does not run, with the fused kernel's numerics: q, k and v
+// rounded to bf16, every product and sum in fp32, the result rounded once to bf16. Autocast's own matmuls would
+// round the scores and accumulate P v in bf16 (LibTorch 1.13 on CPUs without AVX-512 BF16: 1.2-1.3 % error where one
+// rounding gives at most 0.39 %), and run several times slower there than fp32.
+torch::Tensor attention_bf16_operands_fp32_sums(const torch::Tensor& q, const torch::Tensor& k,
+                                                const torch::Tensor& v) {
+  const c10::impl::ExcludeDispatchKeyGuard no_autocast(c10::DispatchKey::AutocastCPU);
+  auto rounded = [](const torch::Tensor& t) { return t.to(torch::kBFloat16).to(torch::kFloat32); };
+  return attention_reference(rounded(q), rounded(k), rounded(v)).to(torch::kBFloat16);
+}
+
+}  // namespace
+
+torch::Tensor attention(const torch::Tensor& q, const torch::Tensor& k, const torch::Tensor& v) {
+  // Under autocast the fused kernel takes bf16 operands (as autocast's matmuls would) and accumulates in fp32.
+  const bool autocast = autocast_active(q.device());
+  const auto dtype = autocast ? torch::kBFloat16 : q.scalar_type();
+  if (q.dim() == 4 && fused_attention_applies(q.device(), dtype, q.size(3)))
+    return fused_attention(q.to(dtype), k.to(dtype), v.to(dtype));
+  if (autocast && q.device().is_cpu()) return attention_bf16_operands_fp32_sums(q, k, v);
+  return attention_reference(q, k, v);
 }
 
 namespace {
@@ -113,6 +138,38 @@ torch::Tensor run_pre_norm_stack(const std::vector<PreNormBlock>& blocks, torch:
     pending = b.mlp(normed2);
   }
   return stream + pending;
+}
+
+namespace {
+std::string vector_name() { return isa_at_least(Isa::Avx512) ? "AVX-512" : "AVX2"; }
+// The row kernels of QK-Norm and LayerNorm: AVX-512 or scalar loops.
+std::string vector_or_scalar() { return isa_at_least(Isa::Avx512) ? "AVX-512" : "scalar"; }
+}  // namespace
+
+std::string describe_kernel_paths() {
+  const auto cap = max_isa();
+  const torch::Device cpu(torch::kCPU);
+  const auto f32 = torch::TensorOptions().dtype(torch::kFloat32), bf16 = f32.dtype(torch::kBFloat16);
+  const auto row = torch::zeros({1, 64}, f32), weight = torch::ones({64}, f32);
+  const auto bf16_row = torch::zeros({16, 64}, bf16), bf16_weight = torch::zeros({64, 64}, bf16);
+  const bool fused_bf16 = fused_attention_applies(cpu, torch::kBFloat16, 64);
+  std::string s = "ISA " + isa_name(active_isa()) + " (CPU " + isa_name(detected_isa()) +
+                  (cap ? ", UPLVSM_MAX_ISA=" + isa_name(*cap) : std::string()) + "): attention fp32 ";
+  s += fused_attention_applies(cpu, torch::kFloat32, 64) ? "fused " + vector_name() : std::string("LibTorch");
+  s += fused_bf16 ? ", bf16 fused AVX-512 BF16" : ", bf16 LibTorch fp32 sums of bf16 operands";
+  s += "; QK-Norm ";
+  s += qk_norm_fuses(row, weight) ? "fused " + vector_or_scalar() : std::string("LibTorch");
+  s += "; layer norm to bf16 ";
+  s += layer_norm_to_bf16_fuses(row, weight, torch::Tensor()) ? "fused " + vector_or_scalar() : std::string("LibTorch");
+  s += "; GELU bf16 ";
+  s += gelu_fuses(bf16_row) ? "fused AVX-512" : "LibTorch in fp32, rounded once";
+  s += "; linear bf16 weight gradient ";
+  s += bf16_linear_applies(bf16_row, bf16_weight) ? "ours AVX-512 BF16" : "LibTorch";
+  s += "; AdamW ";
+  s += adamw_update_fuses(weight, weight, weight, weight) ? "fused AVX-512" : "LibTorch";
+  s += "; --amp bf16 ";
+  s += bf16_autocast_pays(cpu) ? "bf16" : "runs fp32 (no native bf16 dot product)";
+  return s;
 }
 
 }  // namespace uplvsm::kernels

@@ -8,6 +8,7 @@
 
 #include <functional>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -80,5 +81,9 @@ bool adamw_update_fuses(const torch::Tensor& p, const torch::Tensor& grad, const
                         const torch::Tensor& exp_avg_sq);
 void adamw_update(const torch::Tensor& p, const torch::Tensor& grad, const torch::Tensor& exp_avg,
                   const torch::Tensor& exp_avg_sq, int64_t step, const torch::optim::AdamWOptions& options);
+
+// One line naming the path each op takes on the CPU at the active ISA level (core/cpu_isa) for the model's shapes
+// (head width 64, widths multiples of 16), with the overrides of the environment applied: for logs and `uplvsm info`.
+std::string describe_kernel_paths();
 
 }  // namespace uplvsm::kernels

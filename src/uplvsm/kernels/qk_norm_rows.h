@@ -1,7 +1,7 @@
 // Internal to the fused QK-Norm (qk_norm.cpp) and the attention kernels that apply it as they read q and k
 // (flash_attention_kernels_bf16.cpp): QK-Norm's arithmetic on groups of up to 16 rows with AVX-512, forward and
 // backward, so that both compute the same bits. Callers compile their calling functions with UPLVSM_ROW_AVX512 and
-// check row_simd::cpu_has_avx512(); D is a multiple of 16.
+// check isa_at_least(Isa::Avx512); D is a multiple of 16.
 #pragma once
 #include <immintrin.h>
 

@@ -79,7 +79,7 @@ SceneEncoding ViewerModel::encode(const data::SceneViews& views, bool posed) con
   TORCH_CHECK(views.images.dim() == 4 && views.images.size(0) == 2 && views.images.size(1) == 3,
               "serve: a scene is two views [2, 3, H, W], got ", views.images.sizes());
   torch::NoGradGuard no_grad;
-  AutocastGuard amp(device_, bf16_);
+  Bf16Autocast amp(device_, bf16_);
   SceneEncoding s;
   auto images = views.images.unsqueeze(0).to(device_);
   auto k = views.fxfycxcy.unsqueeze(0).to(device_, torch::kFloat32);
@@ -106,7 +106,7 @@ torch::Tensor ViewerModel::render(const SceneEncoding& scene, const torch::Tenso
   if (space == PoseSpace::Real && !has_mapper())
     throw std::invalid_argument("this checkpoint has no camera mapper: render latent poses (space \"latent\")");
   torch::NoGradGuard no_grad;
-  AutocastGuard amp(device_, bf16_);
+  Bf16Autocast amp(device_, bf16_);
   auto p = poses.to(device_, torch::kFloat32).unsqueeze(0);
   if (space == PoseSpace::Real)
     p = net_->pose_mapper(p, net_->pose_mapper->reads_scene() ? mapper_scene(scene.key_latent) : torch::Tensor());

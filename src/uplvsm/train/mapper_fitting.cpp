@@ -41,7 +41,7 @@ void add_batch(model::UPLVSMImpl& net, const data::TrainingBatch& batch, int64_t
   if (keep.size(0) == 0) return;
   auto dev = [&](const torch::Tensor& t) { return t.index_select(0, keep).to(opt.device); };
   torch::NoGradGuard no_grad;
-  AutocastGuard amp(opt.device, opt.bf16);
+  Bf16Autocast amp(opt.device, opt.bf16);
   auto inputs = dev(batch.input_images(vi));
   auto latents = net.encode_scene(inputs, dev(batch.input_fxfycxcy(vi)));
   auto real = geometry::camera_control_poses(dev(batch.input_c2w(vi)), dev(batch.target_c2w()));  // [b, t, 7]

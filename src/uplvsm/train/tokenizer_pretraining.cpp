@@ -38,7 +38,7 @@ double pretrain_step(model::MaskedImageModelImpl& mim, torch::optim::AdamW& opti
   optimizer.zero_grad();
   torch::Tensor loss;
   {
-    AutocastGuard amp(opt.device, tc.amp == Amp::Bf16);
+    Bf16Autocast amp(opt.device, tc.amp == Amp::Bf16);
     loss = mim.forward(images, mask);
   }
   loss.backward();
