@@ -256,6 +256,16 @@ TEST(Config, CurriculumAndRotationOnlyCameraReadAndCheck) {
   EXPECT_NE(msg.find("training.frame_dist_curriculum_steps must be >= 0"), std::string::npos) << msg;
 }
 
+// Equal frame distances cannot train with the official view selector (it skips every scene): refused when read.
+TEST(Config, EqualMinAndMaxFrameDistIsRefused) {
+  const auto msg = test::error_of([] {
+    config_from_json({{"training", {{"min_frame_dist", 8}, {"max_frame_dist", 8}}}}, "bad.json");
+  });
+  EXPECT_NE(msg.find("bad.json"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("training.max_frame_dist must be greater than min_frame_dist"), std::string::npos) << msg;
+  EXPECT_NO_THROW(config_from_json({{"training", {{"min_frame_dist", 8}, {"max_frame_dist", 9}}}}, "ok.json"));
+}
+
 TEST(Config, DiagnosticModelSwitchesNameWhatTheyNeed) {
   auto message = [](const nlohmann::json& j) { return test::error_of([&] { config_from_json(j, "bad.json"); }); };
   // The LVSM encoder-decoder diagnostic (issue 70) is retired: a checkpoint of it says where its code is.

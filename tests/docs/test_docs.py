@@ -1,7 +1,8 @@
 # The docs still describe the program and the module: every `uplvsm ...` command a page quotes (in code) parses, i.e.
 # its subcommand exists and `uplvsm <subcommand> --help` lists each flag quoted with it; every `uplvsm.x.y` Python
 # name a page quotes exists; the Python and C++ snippets are exactly the example files the tests run; the README's
-# quick start runs as written; every config key is documented once in docs/config.md.
+# quick start runs as written; every config key is documented once in docs/config.md; every test the parity ledger
+# (docs/parity.md) names exists.
 import functools
 import json
 import os
@@ -285,3 +286,62 @@ def test_relative_links_resolve():
             elif anchor and file.suffix == ".md" and anchor not in anchors_of(file):
                 broken.append(f"{page.relative_to(REPO)}: {target} (no such heading)")
     assert not broken, "\n".join(broken)
+
+
+def parity_rows():
+    """(table heading, row cells) of every row of docs/parity.md's tables, header and rule lines left out."""
+    rows, heading, header = [], None, None
+    for line in (REPO / "docs" / "parity.md").read_text().splitlines():
+        if line.startswith("#"):
+            heading, header = line.lstrip("# "), None
+        elif line.startswith("|"):
+            cells = [c.strip() for c in re.split(r"(?<!\\)\|", line.strip())[1:-1]]
+            if header is None:
+                header = cells
+            elif not all(re.fullmatch(r":?-+:?", c) for c in cells):
+                assert len(cells) == len(header), f"docs/parity.md, {heading}: a row of {len(cells)} cells: {line[:80]}"
+                rows.append((heading, dict(zip(header, cells))))
+        else:
+            header = None
+    return rows
+
+
+def test_parity_ledger_names_existing_tests():
+    """docs/parity.md compares us with the official code at a pinned commit, row by row, each row naming the tests
+    that guard it: every `Suite.Name` is a TEST, TEST_F or TEST_P of tests/, every `tests/python/file.py::test_name` a
+    function of that file, and a row no test guards says `none` and is listed under "Rows without a test"."""
+    page = (REPO / "docs" / "parity.md").read_text()
+    intro = page.split("\n## ", 1)[0]
+    assert "`d490397`" in intro, "docs/parity.md does not name the pinned official commit `d490397` before its tables"
+    rows = parity_rows()
+    assert len(rows) > 80 and all("test" in cells for _, cells in rows), "docs/parity.md's tables: parsing broke?"
+    gtests = set()
+    for source in (REPO / "tests").rglob("*.cpp"):
+        gtests |= {f"{suite}.{name}" for suite, name in
+                   re.findall(r"\bTEST(?:_F|_P)?\(\s*(\w+)\s*,\s*(\w+)\s*\)", source.read_text(errors="replace"))}
+    problems, unguarded = [], 0
+    for heading, cells in rows:
+        cell, what = cells["test"], f"{heading}: {cells[next(iter(cells))][:60]}"
+        if cell == "none":
+            unguarded += 1
+            continue
+        names = re.findall(r"`([^`]+)`", cell)
+        rest = re.sub(r"`[^`]+`", "", cell).replace(",", "").strip()
+        if not names or rest:
+            problems.append(f"{what}: test cell is not a list of `names` or `none`: {cell}")
+        for name in names:
+            python = re.fullmatch(r"(tests/[\w/]+\.py)::(test_\w+)", name)
+            if python:
+                file = REPO / python.group(1)
+                if not (file.is_file() and re.search(rf"^\s*def {python.group(2)}\(", file.read_text(), re.M)):
+                    problems.append(f"{what}: no `def {python.group(2)}` in {python.group(1)}")
+            elif not re.fullmatch(r"\w+\.\w+", name):
+                problems.append(f"{what}: `{name}` is neither Suite.Name nor tests/python/file.py::test_name")
+            elif name not in gtests:
+                problems.append(f"{what}: no TEST, TEST_F or TEST_P {name} in tests/")
+    assert not problems, "docs/parity.md:\n" + "\n".join(problems)
+    listed = re.search(r"^## Rows without a test\n(.*?)(?=^## |\Z)", page, re.S | re.M)
+    assert listed, "docs/parity.md has no section '## Rows without a test'"
+    bullets = len(re.findall(r"^- ", listed.group(1), re.M))
+    assert bullets == unguarded, (f"docs/parity.md: {unguarded} rows say `none` but 'Rows without a test' lists "
+                                  f"{bullets}")

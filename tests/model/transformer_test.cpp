@@ -41,21 +41,15 @@ TEST(Transformer, DepthScaledInit) {
   EXPECT_NEAR(w3.std().item<double>(), 0.02 / std::sqrt(8.0), 1e-3);
 }
 
-// The official per-block rule (ptlvsm.py and uplvsm.py's encoder) and UP-LVSM's decoder, whose for-else sets only
-// its last block (nullopt: the default Linear init stays).
+// The official per-block rule (ptlvsm.py; uplvsm.py's encoder and decoder alike at d490397).
 TEST(Transformer, OfficialBlockInitStdsInEveryCombination) {
   const auto both = model::official_block_init_stds(8, true, true);
   ASSERT_EQ(both.size(), 8u);
-  for (size_t i = 0; i < both.size(); ++i) EXPECT_DOUBLE_EQ(*both[i], 0.02 / std::sqrt(2.0 * (i + 1)));
-  for (const auto& s : model::official_block_init_stds(8, true, false)) EXPECT_DOUBLE_EQ(*s, 0.005);
+  for (size_t i = 0; i < both.size(); ++i) EXPECT_DOUBLE_EQ(both[i], 0.02 / std::sqrt(2.0 * (i + 1)));
+  for (double s : model::official_block_init_stds(8, true, false)) EXPECT_DOUBLE_EQ(s, 0.005);
   for (bool depth : {false, true})
-    for (const auto& s : model::official_block_init_stds(8, false, depth)) EXPECT_DOUBLE_EQ(*s, 0.02);
-  const auto decoder = model::official_uplvsm_decoder_init_stds(8, true);
-  ASSERT_EQ(decoder.size(), 8u);
-  for (size_t i = 0; i + 1 < decoder.size(); ++i) EXPECT_FALSE(decoder[i].has_value()) << i;
-  EXPECT_DOUBLE_EQ(*decoder.back(), 0.005);
-  for (const auto& s : model::official_uplvsm_decoder_init_stds(8, false)) EXPECT_DOUBLE_EQ(*s, 0.02);
-  EXPECT_TRUE(model::official_uplvsm_decoder_init_stds(0, true).empty());
+    for (double s : model::official_block_init_stds(8, false, depth)) EXPECT_DOUBLE_EQ(s, 0.02);
+  EXPECT_TRUE(model::official_block_init_stds(0, true, true).empty());
 }
 
 // torch.nn.init.trunc_normal_'s bounds are absolute: [-1, 2] at std 1 cuts both tails (the mean moves to

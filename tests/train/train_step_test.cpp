@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <limits>
 
 #include <nlohmann/json.hpp>
 
@@ -153,6 +154,41 @@ TEST(TrainStep, ReleasesThePreviousStepsGradients) {
     EXPECT_FALSE(ctx.params[i].grad().is_same(held[i])) << i;
     EXPECT_TRUE(held[i].equal(values[i])) << i;
   }
+}
+
+// A non-finite loss skips the update and the schedule (official), and its gradients go with the next step's start:
+// that step's update uses its own gradient only. (The official keeps the NaN gradients, its next backward adds onto
+// them and nan_to_num_ zeroes the sum, so its next update has a zero gradient: docs/parity.md.)
+TEST(TrainStep, ANonFiniteStepIsSkippedAndItsGradientsDoNotReachTheNext) {
+  const TrainingConfig tc = short_schedule();
+  const std::vector<train::MicroBatch> batch{{random_views(2), random_views(2)}};
+  auto bad = batch;
+  bad[0].inputs.images = bad[0].inputs.images.clone();
+  bad[0].inputs.images[0][0][0][0][0] = std::numeric_limits<float>::quiet_NaN();
+  auto run = [&](bool skip_first) {
+    torch::manual_seed(3);
+    model::UPLVSM net(test::micro_model());
+    net->train();
+    std::unique_ptr<torch::optim::AdamW> optimizer;
+    auto ctx = step_context(net, tc, optimizer);
+    train::TrainState state;
+    if (skip_first) {
+      const auto weights = ctx.params[0].detach().clone();
+      const auto r = train::train_step(ctx, state, bad);
+      EXPECT_TRUE(r.skipped);
+      EXPECT_EQ(state.skipped_nonfinite, 1);
+      EXPECT_EQ(state.scheduler_step, 0) << "no schedule step";
+      EXPECT_TRUE(ctx.params[0].detach().equal(weights)) << "no update";
+      state.step = 0;
+    }
+    train::train_step(ctx, state, batch);
+    std::vector<torch::Tensor> grads;
+    for (const auto& p : ctx.params) grads.push_back(p.grad().clone());
+    return grads;
+  };
+  const auto after_skip = run(true), fresh = run(false);
+  ASSERT_EQ(after_skip.size(), fresh.size());
+  for (size_t i = 0; i < fresh.size(); ++i) EXPECT_TRUE(after_skip[i].equal(fresh[i])) << "parameter " << i;
 }
 
 // training.grad_clip_norm 0 is the official "no clipping": the gradients are left as they are, no step is skipped as

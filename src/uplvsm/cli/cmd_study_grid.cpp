@@ -24,6 +24,8 @@
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/study/grid_report.h"
 #include "uplvsm/study/study_grid.h"
+#include "uplvsm/train/run_start.h"
+#include "uplvsm/train/tokenizer_start.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {
@@ -35,7 +37,7 @@ namespace {
 struct GridArgs {
   CommonOptions common;
   std::vector<std::string> configs;
-  std::string data, out, vgg19, lpips_net = "vgg", lpips_backbone, lpips_lin;
+  std::string data, out, vgg19, init, lpips_net = "vgg", lpips_backbone, lpips_lin;
   int64_t steps = -1, eval_scenes = 0;
   std::vector<int64_t> seeds;          // empty: each config's training.seed
   std::vector<std::string> overrides;  // --set, applied to every config
@@ -88,6 +90,10 @@ void add_grid_options(CLI::App* cmd, GridArgs& a) {
       ->check(CLI::ExistingFile)
       ->needs(report_only);
   cmd->add_option("--vgg19", a.vgg19, "VGG19 weights for the perceptual loss (as for `uplvsm train`)")
+      ->check(CLI::ExistingFile);
+  cmd->add_option("--init", a.init,
+                  "starting weights of every run, as for `uplvsm train` (the pretrained DINOv2 the full-size "
+                  "configs' tokenizer needs)")
       ->check(CLI::ExistingFile);
   add_vgg19_input_option(cmd, a.vgg19_input);
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg or alex")
@@ -156,6 +162,7 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   topt.device = device;
   topt.perceptual_weights = a.vgg19;
   topt.perceptual_input = a.vgg19_input;
+  topt.init_weights = a.init;
   if (r.config.training.eval_every > 0)
     topt.periodic_eval = periodic_evaluation(r.config, a.data, dir.string(), device);
   auto trained = train::train(r.config, topt);
@@ -248,9 +255,13 @@ void run_grid(const std::vector<GridRun>& grid, const GridArgs& a, study::GridFi
   if (!a.reference.empty()) fig.reference = study::read_reference_cells(a.reference);
   fig.reference_title = a.reference_title;
   const auto runs = for_each_seed(grid, a.seeds);
-  // Every run's loss checked before the first trains: a later run's missing --vgg19 would otherwise stop the study
-  // hours in.
-  for (const auto& r : runs) train::require_perceptual_weights(r.config, a.vgg19);
+  // Every run's loss and tokenizer checked before the first trains: a later run's missing --vgg19 or --init would
+  // otherwise stop the study hours in.
+  for (const auto& r : runs) {
+    train::require_perceptual_weights(r.config, a.vgg19);
+    const auto dir = (fs::path(a.out) / "runs" / r.dir_name).string();
+    train::require_tokenizer_start(r.config, a.init, train::run_resumes(dir, "auto"));
+  }
   const auto device = parse_device(a.common.device);
   eval::Lpips lpips{nullptr};
   if (!a.lpips_backbone.empty()) {

@@ -12,9 +12,12 @@
 #include "uplvsm/data/subset.h"
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/eval/evaluator.h"
+#include "uplvsm/eval/training_evaluation.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/train/global_batch.h"
 #include "uplvsm/train/run_plan.h"
+#include "uplvsm/train/run_start.h"
+#include "uplvsm/train/tokenizer_start.h"
 #include "uplvsm/train/tokenizer_pretraining.h"
 #include "uplvsm/train/trainer.h"
 
@@ -32,13 +35,9 @@ std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluati
   return [=](model::NovelViewModel& net, int64_t step) {
     data::ChunkDataset dataset(data, "test");
     const auto prep = data::preprocess_options(config);
-    eval::EvalOptions opt;
+    auto opt = eval::training_evaluation_options(
+        config, model::resolve_target_poses(config.training.target_poses, *net), device);
     opt.index_path = index.string();
-    opt.max_scenes = config.eval.max_scenes > 0 ? config.eval.max_scenes : 16;
-    opt.device = device;
-    opt.num_visualised = 2;
-    opt.bf16 = config.training.amp == Amp::Bf16;
-    opt.target_poses = model::resolve_target_poses(config.training.target_poses, *net);
     opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
     auto summary = eval::evaluate(net, dataset, prep, opt);
     const auto& model_row = summary.table.at("model");
@@ -187,16 +186,19 @@ void run_dry(const TrainArgs& a, const Config& config) {
   plan.device = parse_device(a.common.device).str();
   plan.perceptual_weights = a.vgg19;
   plan.init = a.init;
+  plan.resuming = !a.run.empty() && train::run_resumes(a.run, a.resume);
   plan.data_root = a.data;
   if (!a.data.empty()) describe_training_data(config, a.data, plan);
   std::cout << fmt::format("uplvsm train --dry-run --config {} ({} stage)\n", a.config, a.stage);
   for (const auto& line : train::describe_run_plan(plan)) std::cout << "  " << line << "\n";
   train::require_perceptual_weights(config, a.vgg19);
+  train::require_tokenizer_start(config, a.init, plan.resuming);
   std::cout << "checks passed: this run would start\n";
 }
 
 void run_train(const TrainArgs& a) {
   apply_common_options(a.common);
+  log_kernel_paths();
   const auto config = train_config(a);
   if (a.dry_run) return run_dry(a, config);
   if (a.data.empty() || a.run.empty())

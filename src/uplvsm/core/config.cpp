@@ -152,6 +152,7 @@ void training_fields(C& c, F&& f) {
   f("l2_loss_weight", c.l2_loss_weight);
   f("perceptual_loss_weight", c.perceptual_loss_weight);
   f("gradient_difference_weight", c.gradient_difference_weight);
+  f("random_tokenizer", c.random_tokenizer);
   f("checkpoint_every", c.checkpoint_every);
   f("keep_checkpoints", c.keep_checkpoints);
   f("log_every", c.log_every);

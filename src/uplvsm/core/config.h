@@ -107,6 +107,10 @@ struct TrainingConfig {
   double perceptual_loss_weight = 0.0;  // 0.5 in the paper; needs VGG19 weights (TrainOptions::perceptual_weights)
   // Not in the paper: the gradient difference loss (train/gradient_difference_loss.h), against the blur. 0: off.
   double gradient_difference_weight = 0.0;
+  // Ours, an explicit opt-out: true lets a new run of a full-size DINOv2 tokenizer (ViT-B/14, the size of Meta's
+  // released weights) start from random weights. false: such a run needs --init (the official code always loads
+  // dinov2_vitb14_reg4_pretrain.pth); smaller tokenizers (tiny, demo) have no released weights and start random.
+  bool random_tokenizer = false;
   int64_t checkpoint_every = 4000;
   int64_t keep_checkpoints = 3;
   int64_t log_every = 10;

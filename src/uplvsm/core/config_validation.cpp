@@ -68,8 +68,12 @@ void validate_training(const Config& c, const std::string& s) {
   require(tr.allowed_gradnorm_factor > 0 && std::isfinite(tr.allowed_gradnorm_factor), s,
           "training.allowed_gradnorm_factor must be a finite number > 0");
   require(tr.grad_checkpoint_every >= 0, s, "training.grad_checkpoint_every must be >= 0 (0: off)");
-  require(tr.min_frame_dist >= 1 && tr.max_frame_dist >= tr.min_frame_dist, s,
-          "training: need 1 <= min_frame_dist <= max_frame_dist");
+  require(tr.min_frame_dist >= 1, s, "training.min_frame_dist must be >= 1");
+  // The official view selector skips a scene whose largest gap is not above the smallest
+  // (dataset_scene.py:155-158 at d490397): with max == min it skips every scene and cannot train.
+  require(tr.max_frame_dist > tr.min_frame_dist, s,
+          "training.max_frame_dist must be greater than min_frame_dist (the official view selector skips every "
+          "scene when they are equal)");
   require(tr.frame_dist_curriculum_steps >= 0, s, "training.frame_dist_curriculum_steps must be >= 0");
   require(tr.gradient_difference_weight >= 0 && std::isfinite(tr.gradient_difference_weight), s,
           "training.gradient_difference_weight must be a finite number >= 0 (0: off)");

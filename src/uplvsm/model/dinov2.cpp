@@ -67,7 +67,8 @@ Dinov2Impl::Dinov2Impl(const Dinov2Config& c, int64_t patch) : config(c), patch_
   pos_embed =
       register_parameter("pos_embed", c.pos_embed_init == "sincos"
                                           ? sincos_pos_embed(c.pos_grid, D)
-                                          : torch::randn({1, 1 + c.pos_grid * c.pos_grid, D}).clamp_(-2, 2) * 0.02);
+                                          : trunc_normal_(torch::empty({1, 1 + c.pos_grid * c.pos_grid, D}), 0.0, 0.02,
+                                                          -2.0, 2.0));
   if (c.num_register_tokens > 0)
     register_tokens = register_parameter("register_tokens", torch::randn({1, c.num_register_tokens, D}) * 1e-6);
   auto patch_embed = register_module("patch_embed", std::make_shared<torch::nn::Module>());
@@ -76,11 +77,13 @@ Dinov2Impl::Dinov2Impl(const Dinov2Config& c, int64_t patch) : config(c), patch_
   blocks = register_module("blocks", torch::nn::ModuleList());
   for (int64_t i = 0; i < c.depth; ++i) blocks->push_back(DinoBlock(c));
   norm = register_module("norm", LayerNorm(D, 1e-6, true));
-  // timm-style init for the linears (the paper configs start from pretrained weights instead).
+  // The official DINOv2's init (vision_transformer.py:176-181, 343-348 at d490397): pos_embed and every linear
+  // trunc_normal_(std=0.02) with its absolute bounds -2 and 2, which cut nothing; zero biases. The paper's configs
+  // replace it with Meta's pretrained weights (--init).
   torch::NoGradGuard no_grad;
   for (auto& m : blocks->modules()) {
     if (auto* lin = m->as<torch::nn::Linear>()) {
-      lin->weight.normal_(0.0, 0.02).clamp_(-0.04, 0.04);
+      trunc_normal_(lin->weight, 0.0, 0.02, -2.0, 2.0);
       lin->bias.zero_();
     }
   }

@@ -100,18 +100,11 @@ BlockInitStds official_block_init_stds(int64_t n_layer, bool special_init, bool 
   return stds;
 }
 
-BlockInitStds official_uplvsm_decoder_init_stds(int64_t n_layer, bool special_init) {
-  if (!special_init || n_layer <= 0) return official_block_init_stds(n_layer, false, false);
-  BlockInitStds stds(static_cast<size_t>(n_layer), std::nullopt);
-  stds.back() = 0.02 / std::sqrt(2.0 * static_cast<double>(n_layer));
-  return stds;
-}
-
 torch::nn::ModuleList make_transformer_stack(int64_t d, int64_t d_head, double eps, const BlockInitStds& init_stds) {
   torch::nn::ModuleList stack;
-  for (const auto& block_std : init_stds) {
+  for (const double block_std : init_stds) {
     auto block = TransformerBlock(d, d_head, eps);
-    if (block_std) init_linear_weights(*block, *block_std);
+    init_linear_weights(*block, block_std);
     stack->push_back(block);
   }
   return stack;

@@ -5,7 +5,6 @@
 #pragma once
 #include <torch/torch.h>
 
-#include <optional>
 #include <vector>
 
 #include "uplvsm/model/linear.h"
@@ -75,20 +74,14 @@ struct TransformerBlockImpl : torch::nn::Module {
 TORCH_MODULE(TransformerBlock);
 
 // The std of each block's linear weights when a stack is built (official transformer.py `init_weights`: N(0, std),
-// biases zero). nullopt: the block keeps libtorch's default Linear init, kaiming-uniform U(+-1/sqrt(fan_in)), the
-// same as PyTorch's nn.Linear default.
-using BlockInitStds = std::vector<std::optional<double>>;
+// biases zero).
+using BlockInitStds = std::vector<double>;
 
-// The official rule for a stack of n_layer blocks (ptlvsm.py and uplvsm.py's encoder, `_init_transformer`):
-// special_init with depth_init: block i gets 0.02 / sqrt(2 (i + 1)); special_init alone: 0.02 / sqrt(2 n_layer);
-// without special_init: 0.02 (depth_init then does nothing).
+// The official rule for a stack of n_layer blocks, the same for PT-LVSM's stack and UP-LVSM's encoder and decoder
+// (ptlvsm.py; uplvsm.py `_init_transformer`, lines 126-148 at d490397): special_init with depth_init: block i gets
+// 0.02 / sqrt(2 (i + 1)); special_init alone: 0.02 / sqrt(2 n_layer); without special_init: 0.02 (depth_init then does
+// nothing). (The first release, 00411f7, set only the decoder's last block: a for-else typo fixed in f3e23d0.)
 BlockInitStds official_block_init_stds(int64_t n_layer, bool special_init, bool depth_init);
-
-// UP-LVSM's decoder as the official code initialises it (uplvsm.py `_init_transformer`, inherited from LVSM): its
-// decoder loop's `else` is indented as the loop's for-else, so with special_init only the last block is set, to
-// 0.02 / sqrt(2 n_layer) whatever depth_init, and the others keep the default init (nullopt); without special_init
-// every block gets 0.02.
-BlockInitStds official_uplvsm_decoder_init_stds(int64_t n_layer, bool special_init);
 
 // A stack of init_stds.size() blocks in a ModuleList (keys "<name>.<i>.*"), block i's linears drawn by init_stds[i].
 torch::nn::ModuleList make_transformer_stack(int64_t d, int64_t d_head, double qk_norm_eps,

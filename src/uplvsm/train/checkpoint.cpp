@@ -19,8 +19,7 @@ nlohmann::json TrainState::to_json() const {
           {"param_update_step", param_update_step},
           {"skipped_nonfinite", skipped_nonfinite},
           {"skipped_gradnorm", skipped_gradnorm},
-          {"train_seconds", train_seconds},
-          {"best_eval_psnr", best_eval_psnr}};
+          {"train_seconds", train_seconds}};
 }
 
 TrainState TrainState::from_json(const nlohmann::json& j) {
@@ -38,7 +37,6 @@ TrainState TrainState::from_json(const nlohmann::json& j) {
   s.skipped_nonfinite = integer("skipped_nonfinite", false);
   s.skipped_gradnorm = integer("skipped_gradnorm", false);
   s.train_seconds = j.value("train_seconds", 0.0);
-  s.best_eval_psnr = j.value("best_eval_psnr", -1.0);
   return s;
 }
 
@@ -126,14 +124,6 @@ std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::str
       fmt::format("--resume auto: none of the {} checkpoints in {} reads (pass --resume none to "
                   "start over):{}",
                   all.size(), dir, reasons));
-}
-
-std::string save_best_checkpoint(const std::string& dir, const Config& config, const TrainState& state,
-                                 const torch::nn::Module& module) {
-  fs::create_directories(dir);
-  auto path = (fs::path(dir) / "best.safetensors").string();
-  model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), {});
-  return path;
 }
 
 }  // namespace uplvsm::train

@@ -1,6 +1,7 @@
 // Training checkpoints: model + AdamW state + training state in one safetensors file (io/checkpoint_io.h),
-// written atomically as <run>/checkpoints/ckpt_<step:016>.safetensors, the oldest beyond `keep` deleted; plus
-// best.safetensors (model only), the weights of the best periodic evaluation so far.
+// written atomically as <run>/checkpoints/ckpt_<step:016>.safetensors, the oldest beyond `keep` deleted. No "best"
+// checkpoint: the periodic evaluation scores the test split, and weights chosen on it would leak it into the result
+// (the official keeps none either).
 #pragma once
 #include <torch/torch.h>
 
@@ -20,8 +21,7 @@ struct TrainState {
   int64_t scheduler_step = 0;     // drives the learning rate; not advanced on a non-finite loss
   int64_t param_update_step = 0;  // optimiser steps taken
   int64_t skipped_nonfinite = 0, skipped_gradnorm = 0;
-  double train_seconds = 0;    // wall time spent training, over all resumes
-  double best_eval_psnr = -1;  // best held-out PSNR of the periodic evaluations (< 0: none yet)
+  double train_seconds = 0;  // wall time spent training, over all resumes
   nlohmann::json to_json() const;
   static TrainState from_json(const nlohmann::json& j);
 };
@@ -48,10 +48,5 @@ std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::str
 // Writes the checkpoint and prunes old ones; returns its path.
 std::string save_training_checkpoint(const std::string& checkpoint_dir, const Config& config, const TrainState& state,
                                      torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep);
-
-// The weights (no optimiser state) of the best periodic evaluation: <checkpoint_dir>/best.safetensors, atomically.
-// resolve_checkpoint never picks it for a directory (it takes the latest ckpt_*); pass the file to use it.
-std::string save_best_checkpoint(const std::string& checkpoint_dir, const Config& config, const TrainState& state,
-                                 const torch::nn::Module& module);
 
 }  // namespace uplvsm::train

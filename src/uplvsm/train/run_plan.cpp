@@ -4,7 +4,10 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/core/autocast.h"
+#include "uplvsm/core/cpu_isa.h"
 #include "uplvsm/train/memory_estimate.h"
+#include "uplvsm/train/tokenizer_start.h"
 
 namespace uplvsm::train {
 
@@ -30,8 +33,10 @@ std::string schedule_line(const TrainingConfig& t) {
 }
 
 std::string precision_line(const TrainingConfig& t, const std::string& device) {
-  const std::string amp = t.amp == Amp::Bf16 ? "bf16 autocast, fp32 master weights" : "fp32";
   const bool cuda = device.rfind("cuda", 0) == 0;
+  std::string amp = t.amp == Amp::Bf16 ? "bf16 autocast, fp32 master weights" : "fp32";
+  if (t.amp == Amp::Bf16 && !bf16_autocast_pays(cuda ? torch::Device(torch::kCUDA) : torch::Device(torch::kCPU)))
+    amp = fmt::format("fp32 (bf16 asked for: this CPU has no native bf16 dot product, {})", isa_name(active_isa()));
   const std::string tf32 = fmt::format("TF32 {}{}", t.tf32 ? "on" : "off", cuda ? "" : " (CUDA only: no effect here)");
   return line("precision", fmt::format("{}; {}; on {}", amp, tf32, device));
 }
@@ -85,6 +90,7 @@ std::vector<std::string> describe_run_plan(const RunPlan& p) {
   const auto memory = model::training_memory(c);
   return {line("model", fmt::format("{} ({}, {} parameters){}", c.name, to_string(c.model.variant), memory.parameters,
                                     p.init.empty() ? "" : ", starting from " + p.init)),
+          line("tokenizer", describe_tokenizer_start(c, p.init, p.resuming)),
           global_batch_line(t, p.batch),
           schedule_line(t),
           precision_line(t, p.device),

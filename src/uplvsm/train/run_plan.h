@@ -18,6 +18,7 @@ struct RunPlan {
   std::string device = "cpu";
   std::string perceptual_weights;       // the --vgg19 file; empty: none given
   std::string init;                     // --init weights; empty: from scratch (or the checkpoint resumed)
+  bool resuming = false;                // the run goes on from its own checkpoint
   std::string data_root;                // empty: not given (a dry run)
   std::optional<int64_t> scenes;        // training scenes the run draws from, when the data was read
   std::optional<int64_t> split_scenes;  // scenes in the split (or subset) they are the first of

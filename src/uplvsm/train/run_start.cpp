@@ -1,5 +1,6 @@
 #include "uplvsm/train/run_start.h"
 
+#include <filesystem>
 #include <optional>
 
 #include <fmt/format.h>
@@ -95,6 +96,12 @@ ModelStart resume_or_initialise(model::NovelViewModel net, const Config& config,
 }
 
 }  // namespace
+
+bool run_resumes(const std::string& run_dir, const std::string& resume) {
+  if (resume == "none") return false;
+  if (resume != "auto") return true;
+  return !training_checkpoints((std::filesystem::path(run_dir) / "checkpoints").string()).empty();
+}
 
 ModelStart start_model(const Config& config, const TrainOptions& opt, const std::string& checkpoint_dir) {
   torch::manual_seed(static_cast<uint64_t>(config.training.seed));

@@ -23,4 +23,8 @@ struct ModelStart {
 
 ModelStart start_model(const Config& config, const TrainOptions& options, const std::string& checkpoint_dir);
 
+// Whether `train` of run_dir with `resume` ("auto", "none" or a file) goes on from a checkpoint rather than starting a
+// new run (a look at <run>/checkpoints, nothing read).
+bool run_resumes(const std::string& run_dir, const std::string& resume);
+
 }  // namespace uplvsm::train

@@ -29,6 +29,7 @@
 #include "uplvsm/train/perceptual_loss.h"
 #include "uplvsm/train/run_plan.h"
 #include "uplvsm/train/run_start.h"
+#include "uplvsm/train/tokenizer_start.h"
 #include "uplvsm/train/train_step.h"
 
 namespace uplvsm::train {
@@ -74,7 +75,7 @@ StepContext step_context(model::NovelViewModelImpl& net, torch::optim::Optimizer
   ctx.target_poses = model::resolve_target_poses(tc.target_poses, net);
   ctx.perceptual =
       perceptual_loss_for(tc.perceptual_loss_weight, opt.perceptual_weights, opt.device, opt.perceptual_input);
-  ctx.bf16 = tc.amp == Amp::Bf16;
+  ctx.bf16 = use_bf16_autocast(tc.amp == Amp::Bf16, opt.device);
   ctx.comm = opt.comm.get();
   if (set_cuda_tf32(opt.device, tc.tf32)) spdlog::info("TF32 matmuls and convolutions: {}", tc.tf32 ? "on" : "off");
   spdlog::info("{} ({} variant), target poses from {}", net.name(), to_string(config.model.variant),
@@ -130,19 +131,14 @@ void truncate_metrics(const std::string& path, int64_t step) {
   io::write_file_atomic(path, kept.data(), kept.size());
 }
 
-// Held-out evaluation on rank 0; a new best PSNR is recorded in the state and its weights kept as best.safetensors.
-void run_periodic_eval(const TrainOptions& opt, const Config& config, model::NovelViewModel& net, TrainState& state,
-                       bool lead, std::ofstream& metrics, const std::string& ckpt_dir) {
+// Held-out evaluation on rank 0, into metrics.jsonl: a monitor that selects no weights (checkpoint.h).
+void run_periodic_eval(const TrainOptions& opt, model::NovelViewModel& net, const TrainState& state, bool lead,
+                       std::ofstream& metrics) {
   if (lead) {
     json result;
     {
       model::EvalModeGuard mode(*net);
       result = opt.periodic_eval(net, state.step);
-    }
-    if (result.contains("psnr") && result.at("psnr").is_number() &&
-        result.at("psnr").get<double>() > state.best_eval_psnr) {
-      state.best_eval_psnr = result.at("psnr").get<double>();
-      result["best"] = save_best_checkpoint(ckpt_dir, config, state, *net);
     }
     metrics << json{{"step", state.step}, {"eval", result}}.dump() << "\n";
     metrics.flush();
@@ -284,6 +280,7 @@ void announce_training(const Config& config, const TrainOptions& opt, const data
   plan.device = opt.device.str();
   plan.perceptual_weights = opt.perceptual_weights;
   plan.init = step == 0 ? opt.init_weights : "";
+  plan.resuming = step > 0;
   plan.data_root = opt.data_root;
   plan.scenes = tc.max_train_scenes > 0 ? std::min(tc.max_train_scenes, dataset.size()) : dataset.size();
   plan.split_scenes = dataset.size();
@@ -319,15 +316,14 @@ struct TrainedModel {
   torch::optim::AdamW& optimizer;
 };
 
-// The periodic evaluation and the checkpoint when this step is due for them. Evaluation first, so the checkpoint of
-// this step carries its best-so-far record. Returns the checkpoint written, or "".
+// The periodic evaluation and the checkpoint when this step is due for them. Returns the checkpoint written, or "".
 std::string evaluate_and_checkpoint(const TrainOptions& opt, const Config& config, TrainedModel m, TrainState& state,
                                     bool lead, std::ofstream& metrics, const std::string& checkpoint_dir,
                                     bool stop_now) {
   const auto& tc = config.training;
   const bool last = state.step == tc.train_steps;
   if (opt.periodic_eval && tc.eval_every > 0 && (state.step % tc.eval_every == 0 || last))
-    run_periodic_eval(opt, config, m.net, state, lead, metrics, checkpoint_dir);
+    run_periodic_eval(opt, m.net, state, lead, metrics);
   if (!lead || !(state.step % tc.checkpoint_every == 0 || last || stop_now)) return "";
   return save_training_checkpoint(checkpoint_dir, config, state, *m.net, m.optimizer, tc.keep_checkpoints);
 }
@@ -346,6 +342,7 @@ TrainResult train(const Config& config, const TrainOptions& opt) {
   Communicator* comm = opt.comm.get();
   const bool lead = !comm || comm->rank() == 0;                // the rank that writes files and shows progress
   require_perceptual_weights(config, opt.perceptual_weights);  // before anything is read or allocated
+  require_tokenizer_start(config, opt.init_weights, run_resumes(opt.run_dir, opt.resume));
   const auto batch = plan_batch(tc, comm ? comm->world_size() : 1, config.name);
   check_memory_fits(config, opt.device);
   const auto files = prepare_run_dir(config, opt, lead);
