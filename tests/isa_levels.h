@@ -33,8 +33,8 @@ inline std::string isa_test_name(const ::testing::TestParamInfo<Isa>& info) {
 }  // namespace uplvsm::test
 
 // Every level, scalar to AVX-512 BF16, for the suite `suite` (a subclass of uplvsm::test::AtIsaLevel).
-#define UPLVSM_AT_EVERY_ISA_LEVEL(suite)                                                                         \
-  INSTANTIATE_TEST_SUITE_P(Isa, suite,                                                                           \
-                           ::testing::Values(uplvsm::Isa::Scalar, uplvsm::Isa::Avx2, uplvsm::Isa::Avx512,        \
-                                             uplvsm::Isa::Avx512Bf16),                                           \
-                           uplvsm::test::isa_test_name)
+#define UPLVSM_AT_EVERY_ISA_LEVEL(suite)                                                                       \
+  INSTANTIATE_TEST_SUITE_P(                                                                                    \
+      Isa, suite,                                                                                              \
+      ::testing::Values(uplvsm::Isa::Scalar, uplvsm::Isa::Avx2, uplvsm::Isa::Avx512, uplvsm::Isa::Avx512Bf16), \
+      uplvsm::test::isa_test_name)

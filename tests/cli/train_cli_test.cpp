@@ -23,8 +23,9 @@ TEST(TrainCli, DryRunShowsThePapersGlobalBatchOnOneProcessAndOnEight) {
   EXPECT_NE(out.find("128 scenes per update = 16 per micro-batch x 8 accumulated x 1 rank(s)"), std::string::npos)
       << out;
   // bf16 where this CPU has native bf16 dot products; elsewhere the plan says it runs fp32 and why.
-  EXPECT_NE(out.find(bf16_autocast_pays(torch::kCPU) ? "bf16 autocast" : "fp32 (bf16 asked for: this CPU has no native"),
-            std::string::npos)
+  EXPECT_NE(
+      out.find(bf16_autocast_pays(torch::kCPU) ? "bf16 autocast" : "fp32 (bf16 asked for: this CPU has no native"),
+      std::string::npos)
       << out;
   EXPECT_NE(out.find("the whole split, reshuffled each epoch"), std::string::npos) << out;
   ASSERT_EQ(test::run_cli("train --dry-run --ranks 8 --config " + config("paper_x224") + " --vgg19 " + vgg, &out), 0);
@@ -74,8 +75,8 @@ TEST(TrainCli, FullSizeTrainingWithoutPretrainedTokenizerIsRefusedAtOnce) {
                           &out),
             0);
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), 20.0);
-  for (const char* part : {"--init dinov2_vitb14_reg4_pretrain.pth", "dl.fbaipublicfiles.com",
-                           "--set training.random_tokenizer=true"})
+  for (const char* part :
+       {"--init dinov2_vitb14_reg4_pretrain.pth", "dl.fbaipublicfiles.com", "--set training.random_tokenizer=true"})
     EXPECT_NE(out.find(part), std::string::npos) << out;
   EXPECT_FALSE(std::filesystem::exists(run));
   EXPECT_NE(test::run_cli("train --dry-run --config " + config("paper_x224") + no_perceptual, &out), 0);
@@ -86,9 +87,8 @@ TEST(TrainCli, FullSizeTrainingWithoutPretrainedTokenizerIsRefusedAtOnce) {
             0)
       << out;
   EXPECT_NE(out.find("random, by choice"), std::string::npos) << out;
-  ASSERT_EQ(test::run_cli("train --dry-run --config " + config("paper_x224") + no_perceptual + " --init " +
-                              config("tiny"),
-                          &out),
+  ASSERT_EQ(test::run_cli(
+                "train --dry-run --config " + config("paper_x224") + no_perceptual + " --init " + config("tiny"), &out),
             0)
       << out;
   EXPECT_NE(out.find("tokenizer     --init " + config("tiny")), std::string::npos) << out;

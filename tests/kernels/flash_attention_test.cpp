@@ -348,9 +348,9 @@ TEST_P(FlashAttentionAtLevel, EachLevelServesTheDtypesItHasKernelsFor) {
   EXPECT_EQ(fused_available(torch::kBFloat16, 32), GetParam() >= Isa::Avx512Bf16);
   EXPECT_EQ(kernels::flash::qk_norm_on_read_available(), GetParam() >= Isa::Avx512);
   if (GetParam() < Isa::Avx2) {
-    EXPECT_THROW(kernels::fused_attention(torch::randn({1, 1, 4, 32}), torch::randn({1, 1, 4, 32}),
-                                          torch::randn({1, 1, 4, 32})),
-                 c10::Error);
+    EXPECT_THROW(
+        kernels::fused_attention(torch::randn({1, 1, 4, 32}), torch::randn({1, 1, 4, 32}), torch::randn({1, 1, 4, 32})),
+        c10::Error);
     return;
   }
   torch::manual_seed(4);

@@ -17,8 +17,8 @@
 #include "uplvsm/train/global_batch.h"
 #include "uplvsm/train/run_plan.h"
 #include "uplvsm/train/run_start.h"
-#include "uplvsm/train/tokenizer_start.h"
 #include "uplvsm/train/tokenizer_pretraining.h"
+#include "uplvsm/train/tokenizer_start.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {

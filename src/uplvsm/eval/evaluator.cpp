@@ -207,7 +207,7 @@ void run_batch(model::NovelViewModel& net, const std::vector<const Loaded*>& sce
   torch::Tensor pred;
   {
     Bf16Autocast amp(opt.device, opt.bf16);  // only the model: SSIM's filters must not run in bf16
-    pred = opt.pose_refinement.steps != 0     // a negative count reaches the refinement's own check
+    pred = opt.pose_refinement.steps != 0    // a negative count reaches the refinement's own check
                ? render_at_refined_poses(*model::as_uplvsm(*net), inputs, targets, opt.pose_refinement).render
                : net->render(inputs, targets, opt.target_poses).render;
   }

@@ -1,7 +1,7 @@
 // CPU kernels of fused (flash-style) attention over raw fp32 / bf16 buffers: tiled, online softmax with fp32
 // accumulation, no L x L matrix in memory (workspace is O(L) per head). fp32 with AVX2 or AVX-512, bf16 with AVX-512
-// BF16; callers check `flash_kernels_available()` and fall back to the unfused LibTorch path elsewhere. Threading is the caller's
-// (each entry point handles a range of tasks), so these files need no LibTorch headers.
+// BF16; callers check `flash_kernels_available()` and fall back to the unfused LibTorch path elsewhere. Threading is
+// the caller's (each entry point handles a range of tasks), so these files need no LibTorch headers.
 #pragma once
 #include <cstdint>
 

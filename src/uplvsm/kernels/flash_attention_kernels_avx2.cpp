@@ -11,7 +11,7 @@
 namespace uplvsm::kernels::flash::detail {
 namespace {
 
-constexpr int64_t kWidth = 8;  // floats per __m256
+constexpr int64_t kWidth = 8;     // floats per __m256
 constexpr int64_t kAvx2Rows = 6;  // micro-kernel rows: 6 x 2 accumulators + 2 B vectors + 1 broadcast of 16 ymm
 
 // C[R x 8*NV] (+)= A[R x K] B[K x 8*NV]; A element (r, p) at A[r * a_rs + p * a_cs], B rows ldb apart.
@@ -51,8 +51,8 @@ constexpr MicroKernel avx2_kernels_for_rows[kAvx2Rows] = {micro_kernel_avx2<1, N
                                                           micro_kernel_avx2<5, NV>, micro_kernel_avx2<6, NV>};
 
 // C[M x N] (+)= A[M x K] B[K x N] for N a multiple of 8, in 16-column panels.
-void gemm_avx2(int64_t M, int64_t N, int64_t K, const float* A, int64_t a_rs, int64_t a_cs, const float* B,
-               int64_t ldb, float* C, int64_t ldc, bool accumulate) {
+void gemm_avx2(int64_t M, int64_t N, int64_t K, const float* A, int64_t a_rs, int64_t a_cs, const float* B, int64_t ldb,
+               float* C, int64_t ldc, bool accumulate) {
   static const MicroKernel* const table[2] = {avx2_kernels_for_rows<1>, avx2_kernels_for_rows<2>};
   for (int64_t n0 = 0; n0 < N; n0 += 2 * kWidth) {
     const int64_t nv = std::min<int64_t>(2, (N - n0) / kWidth);
@@ -68,8 +68,8 @@ void gemm_avx2(int64_t M, int64_t N, int64_t K, const float* A, int64_t a_rs, in
 UPLVSM_AVX2 inline __m256 exp_avx2(__m256 x) {
   const __m256 underflow = _mm256_cmp_ps(x, _mm256_set1_ps(-87.33f), _CMP_LT_OQ);
   x = _mm256_max_ps(_mm256_set1_ps(-87.33f), x);
-  const __m256 n = _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(kLog2e)), _MM_FROUND_TO_NEAREST_INT |
-                                                                                 _MM_FROUND_NO_EXC);
+  const __m256 n =
+      _mm256_round_ps(_mm256_mul_ps(x, _mm256_set1_ps(kLog2e)), _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC);
   __m256 r = _mm256_fnmadd_ps(n, _mm256_set1_ps(0.693145751953125f), x);
   r = _mm256_fnmadd_ps(n, _mm256_set1_ps(1.428606765330187045e-06f), r);
   __m256 poly = _mm256_set1_ps(1.0f / 5040);
@@ -147,8 +147,8 @@ void load_rows_fp32(const Problem& p, const void* base, Strides s, int64_t bh, i
 }
 
 // Rows [row, row + count) of head bh from a row-major [count x D] matrix, row i times row_mul[i] (null: times mul).
-void store_rows_fp32(const Problem& p, void* base, Strides s, int64_t bh, int64_t row, int64_t count,
-                     const float* src, const float* row_mul, float mul = 1.0f) {
+void store_rows_fp32(const Problem& p, void* base, Strides s, int64_t bh, int64_t row, int64_t count, const float* src,
+                     const float* row_mul, float mul = 1.0f) {
   for (int64_t i = 0; i < count; ++i) {
     float* dst = static_cast<float*>(base) + head_offset(p, s, bh, row + i);
     const float m = row_mul ? row_mul[i] : mul;

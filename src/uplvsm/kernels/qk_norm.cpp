@@ -159,7 +159,8 @@ struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
       using T = std::remove_pointer_t<decltype(in_tag)>;
       using TOut = std::remove_pointer_t<decltype(out_tag)>;
       at::parallel_for(0, rows, 64, [&](int64_t begin, int64_t end) {
-        const auto rows_kernel = D % 16 == 0 && isa_at_least(Isa::Avx512) ? forward_rows_avx512<T, TOut> : forward_rows<T, TOut>;
+        const auto rows_kernel =
+            D % 16 == 0 && isa_at_least(Isa::Avx512) ? forward_rows_avx512<T, TOut> : forward_rows<T, TOut>;
         rows_kernel(x.data_ptr<T>(), RowWalker(x, begin), weight.data_ptr<float>(), static_cast<float>(eps), D, begin,
                     end, out.data_ptr<TOut>(), r.data_ptr<float>());
       });
@@ -180,7 +181,8 @@ struct QKNormFunction : torch::autograd::Function<QKNormFunction> {
     dispatch_types(x.scalar_type(), gout.scalar_type(), [&](auto* in_tag, auto* out_tag) {
       using T = std::remove_pointer_t<decltype(in_tag)>;
       using TOut = std::remove_pointer_t<decltype(out_tag)>;
-      const auto rows_kernel = D % 16 == 0 && isa_at_least(Isa::Avx512) ? backward_rows_avx512<T, TOut> : backward_rows<T, TOut>;
+      const auto rows_kernel =
+          D % 16 == 0 && isa_at_least(Isa::Avx512) ? backward_rows_avx512<T, TOut> : backward_rows<T, TOut>;
       at::parallel_for(0, blocks, 1, [&](int64_t block_begin, int64_t block_end) {
         for (int64_t b = block_begin; b < block_end; ++b)
           rows_kernel(x.data_ptr<T>(), RowWalker(x, b * kRowsPerBlock), weight.data_ptr<float>(), r.data_ptr<float>(),

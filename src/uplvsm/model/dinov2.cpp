@@ -64,11 +64,10 @@ torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
 Dinov2Impl::Dinov2Impl(const Dinov2Config& c, int64_t patch) : config(c), patch_size(patch) {
   const int64_t D = c.embed_dim;
   cls_token = register_parameter("cls_token", torch::randn({1, 1, D}) * 1e-6);
-  pos_embed =
-      register_parameter("pos_embed", c.pos_embed_init == "sincos"
-                                          ? sincos_pos_embed(c.pos_grid, D)
-                                          : trunc_normal_(torch::empty({1, 1 + c.pos_grid * c.pos_grid, D}), 0.0, 0.02,
-                                                          -2.0, 2.0));
+  pos_embed = register_parameter(
+      "pos_embed", c.pos_embed_init == "sincos"
+                       ? sincos_pos_embed(c.pos_grid, D)
+                       : trunc_normal_(torch::empty({1, 1 + c.pos_grid * c.pos_grid, D}), 0.0, 0.02, -2.0, 2.0));
   if (c.num_register_tokens > 0)
     register_tokens = register_parameter("register_tokens", torch::randn({1, c.num_register_tokens, D}) * 1e-6);
   auto patch_embed = register_module("patch_embed", std::make_shared<torch::nn::Module>());

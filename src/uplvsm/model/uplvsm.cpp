@@ -18,10 +18,10 @@ UPLVSMImpl::UPLVSMImpl(const ModelConfig& c) : NovelViewModelImpl(c) {
       "transformer_encoder",
       make_transformer_stack(t.d, t.d_head, t.qk_norm_eps,
                              official_block_init_stds(t.encoder_n_layer, t.special_init, t.depth_init)));
-  transformer_decoder =
-      register_module("transformer_decoder",
-                      make_transformer_stack(t.d, t.d_head, t.qk_norm_eps,
-                                             official_block_init_stds(t.decoder_n_layer, t.special_init, t.depth_init)));
+  transformer_decoder = register_module(
+      "transformer_decoder",
+      make_transformer_stack(t.d, t.d_head, t.qk_norm_eps,
+                             official_block_init_stds(t.decoder_n_layer, t.special_init, t.depth_init)));
   transformer_input_layernorm_decoder =
       register_module("transformer_input_layernorm_decoder", LayerNorm(t.d, 1e-5, false));
   estimator = register_module("estimator", LatentPluckerLearner(t));

@@ -21,7 +21,8 @@ std::string describe_tokenizer_start(const Config& config, const std::string& in
   if (resuming) return "the checkpoint it resumes";
   if (!init_weights.empty()) return fmt::format("--init {}", init_weights);
   if (!tokenizer_has_released_weights(config.model)) return "random (no released DINOv2 weights of this size)";
-  if (config.training.random_tokenizer) return "random, by choice (training.random_tokenizer true; official: pretrained)";
+  if (config.training.random_tokenizer)
+    return "random, by choice (training.random_tokenizer true; official: pretrained)";
   return fmt::format("MISSING: the run refuses to start (--init {})", kDinov2File);
 }
 
