@@ -11,6 +11,8 @@
 
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/image.h"
+#include "uplvsm/study/csv_fields.h"
+#include "uplvsm/study/grid_stats.h"
 
 namespace uplvsm::study {
 
@@ -103,23 +105,6 @@ double training_psnr(const RunCurve& run, double window) {
 
 namespace {
 
-std::vector<std::string> split_fields(const std::string& line) {
-  std::vector<std::string> f;
-  for (size_t start = 0;;) {
-    const size_t comma = line.find(',', start);
-    f.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    if (comma == std::string::npos) return f;
-    start = comma + 1;
-  }
-}
-
-double whole_number(const std::string& text) {  // the whole field, finite ("2000abc" is no number)
-  size_t used = 0;
-  const double v = std::stod(text, &used);
-  if (used != text.size() || !std::isfinite(v)) throw std::invalid_argument(text);
-  return v;
-}
-
 // Cells from a CSV of series,setting,x[,seed],psnr,ssim,lpips (lpips may be empty); `what` names the option in
 // errors, which name the file and the line.
 std::vector<GridCell> read_cells_csv(const std::string& path, bool with_seed, const std::string& what) {
@@ -132,19 +117,19 @@ std::vector<GridCell> read_cells_csv(const std::string& path, bool with_seed, co
   std::vector<GridCell> cells;
   for (int n = 2; std::getline(in, line); ++n) {
     if (line.empty()) continue;
-    const auto f = split_fields(line);
+    const auto f = csv_fields(line);
     GridCell c;
     try {
       if (f.size() != (with_seed ? 7u : 6u)) throw std::invalid_argument("fields");
       const size_t k = with_seed ? 1 : 0;  // the metrics' offset past the seed
-      c.series = f[0], c.setting = f[1], c.x = whole_number(f[2]);
+      c.series = f[0], c.setting = f[1], c.x = csv_number(f[2]);
       if (with_seed) {
-        const double seed = whole_number(f[3]);
+        const double seed = csv_number(f[3]);
         if (seed < 0 || seed > 9e15 || seed != std::floor(seed)) throw std::invalid_argument(f[3]);
         c.seed = static_cast<int64_t>(seed);
       }
-      c.psnr = whole_number(f[3 + k]), c.ssim = whole_number(f[4 + k]);
-      c.lpips = f[5 + k].empty() ? std::nan("") : whole_number(f[5 + k]);
+      c.psnr = csv_number(f[3 + k]), c.ssim = csv_number(f[4 + k]);
+      c.lpips = f[5 + k].empty() ? std::nan("") : csv_number(f[5 + k]);
     } catch (const std::exception&) {
       throw std::runtime_error(fmt::format("{} {} line {}: expected {}, got '{}'", what, path, n, header, line));
     }
@@ -160,7 +145,20 @@ std::vector<GridCell> read_reference_cells(const std::string& path) {
 }
 
 std::vector<GridCell> read_table_cells(const std::string& path) {
-  return read_cells_csv(path, true, "study --from-table");
+  auto cells = read_cells_csv(path, true, "study --from-table");
+  const auto scenes_path = fs::path(path).parent_path() / "scenes.csv";
+  if (!fs::exists(scenes_path)) return cells;
+  for (auto& run : read_study_scenes(scenes_path.string()))
+    for (auto& c : cells)
+      if (c.series == run.series && c.setting == run.setting && c.seed == run.seed)
+        c.scenes = std::make_shared<const SceneScores>(run.scores);
+  return cells;
+}
+
+std::shared_ptr<const SceneScores> run_scene_scores(const std::string& run_dir) {
+  const auto path = fs::path(run_dir) / "eval" / "per_scene.csv";
+  if (!fs::exists(path)) return nullptr;
+  return std::make_shared<const SceneScores>(read_eval_per_scene(path.string()));
 }
 
 Levelling levelling(const io::Series& curve, double window) {
@@ -185,10 +183,18 @@ std::string write_grid_report(const std::vector<GridCell>& runs, const std::vect
   const auto table = grid_markdown(cells, fig.with_gain, runs);
   write_text(out / "table.md", table);
   write_text(out / "table.csv", grid_csv(runs));
+  std::vector<RunScenes> scenes;
+  for (const auto& r : runs)
+    if (r.runs > 0 && r.scenes) scenes.push_back({r.series, r.setting, r.seed, *r.scenes});
+  if (!scenes.empty()) write_text(out / "scenes.csv", study_scenes_csv(scenes));
+  const auto stats = grid_stats(runs, fig.with_gain);
+  write_text(out / "stats.csv", grid_stats_csv(stats));
   std::string readme = "# " + fig.title + "\n\n" + description +
                        "\n\nPSNR / SSIM / LPIPS on the test set (per-scene mean, then mean over scenes; over seeds, "
                        "the mean ± half the range). Every run: table.csv.\n\n" +
-                       table + "\n";
+                       table + "\n" + grid_stats_markdown(stats) +
+                       "\nEvery mean, difference and gain with its interval: stats.csv; each run's score on each test "
+                       "scene: scenes.csv.\n\n";
   bool any_lpips = false;
   for (const auto& c : cells) any_lpips |= !std::isnan(c.lpips);
   for (std::string metric : {"psnr", "ssim", "lpips"}) {

@@ -1,7 +1,10 @@
 // What a grid study (`uplvsm study scaling`, `study pose-noise`) leaves in its folder for a person to read:
-// table.md and table.csv, one plot per metric against the setting, the trained runs' held-out curves (curves.csv,
-// curves.png) and a README.md that shows them all.
+// table.md and table.csv, each run's per-scene scores (scenes.csv) and every statistic with its interval (stats.csv,
+// study/grid_stats.h), one quick-look plot per metric against the setting, the trained runs' held-out curves
+// (curves.csv, curves_<model>.png) and a README.md that shows them all. The figures of docs/research/thesis.md are
+// drawn from these CSVs by tools/thesis/plot_thesis.py.
 #pragma once
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -21,8 +24,12 @@ struct GridFigure {
 // the file and line for anything else.
 std::vector<GridCell> read_reference_cells(const std::string& path);
 // Every run's cell from a study's own table.csv (series,setting,x,seed,psnr,ssim,lpips, as grid_csv writes it), to
-// redraw a study whose run folders are on another machine; throws naming the file and line for anything else.
+// redraw a study whose run folders are on another machine, with its per-scene scores from the scenes.csv beside it
+// where there is one; throws naming the file and line for anything else.
 std::vector<GridCell> read_table_cells(const std::string& path);
+
+// A study run's per-scene scores: <run_dir>/eval/per_scene.csv as the evaluator wrote it; null without the file.
+std::shared_ptr<const SceneScores> run_scene_scores(const std::string& run_dir);
 
 // One trained run's periodic evaluations: its legend label and its metrics.jsonl.
 struct RunCurve {
@@ -50,7 +57,8 @@ struct Levelling {
 Levelling levelling(const io::Series& curve, double window = 2000);
 
 // Writes the files above into out_dir from every run's cell (seeds averaged for the table and plots, each run in
-// table.csv) and the runs' curves (curves.* only where some run has periodic evaluations). Returns the table.
+// table.csv; scenes.csv only where some run has per-scene scores) and the runs' curves (curves.* only where some run
+// has periodic evaluations). Returns the table.
 std::string write_grid_report(const std::vector<GridCell>& runs, const std::vector<RunCurve>& curves,
                               const std::string& out_dir, const GridFigure& fig, const std::string& description);
 

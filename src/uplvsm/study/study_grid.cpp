@@ -8,6 +8,8 @@
 
 #include <fmt/format.h>
 
+#include "uplvsm/study/grid_stats.h"
+
 namespace uplvsm::study {
 
 namespace {
@@ -25,51 +27,37 @@ const GridCell* find_cell(const std::vector<GridCell>& cells, const std::string&
   return nullptr;
 }
 
-double metric_of(const GridCell& c, const std::string& metric) {
-  if (metric == "psnr") return c.psnr;
-  if (metric == "ssim") return c.ssim;
-  if (metric == "lpips") return c.lpips;
-  throw std::invalid_argument("study grid: unknown metric '" + metric + "' (expected psnr, ssim or lpips)");
-}
-
 double spread_of(const GridCell& c, const std::string& metric) {
   return metric == "psnr" ? c.psnr_spread : metric == "ssim" ? c.ssim_spread : c.lpips_spread;
 }
 
-// Half the range of the PSNR gains of the seeds that ran the first and the last setting of `series` (the average
-// gain per step reads only those two, so a second seed costs two runs, not one per setting); NaN with fewer than two.
-double gain_spread(const std::vector<GridCell>& runs, const std::string& series,
-                   const std::vector<std::string>& settings) {
-  auto psnr_at = [&](const std::string& setting, int64_t seed) {
-    for (const auto& r : runs)
-      if (r.series == series && r.setting == setting && r.seed == seed && r.runs > 0) return r.psnr;
-    return std::nan("");
-  };
-  std::vector<int64_t> seeds;
-  for (const auto& r : runs)
-    if (r.series == series && r.runs > 0 && std::find(seeds.begin(), seeds.end(), r.seed) == seeds.end())
-      seeds.push_back(r.seed);
-  std::vector<double> gains;
-  for (int64_t seed : seeds) {
-    const double first = psnr_at(settings.front(), seed), last = psnr_at(settings.back(), seed);
-    if (!std::isnan(first) && !std::isnan(last))
-      gains.push_back((last - first) / static_cast<double>(settings.size() - 1));
+// The gain column's cell: the PSNR gain per 4x with its interval, then SSIM's and LPIPS's (study/scaling_gain.h).
+std::string gain_cell(const std::vector<GridCell>& runs, const std::string& series) {
+  std::string out;
+  for (const std::string metric : {"psnr", "ssim", "lpips"}) {
+    const auto of_series = runs_with_a_slope(runs_of(scored_runs(runs, metric), series));
+    const auto gain = [higher = metric != "lpips"](const std::vector<ScoredRun>& r) { return gain_per_4x(r, higher); };
+    const auto i = metric == "psnr" ? bootstrap_interval(of_series, gain) : Interval{gain(of_series)};
+    if (!out.empty()) out += " / ";
+    if (std::isnan(i.estimate)) {
+      out += "-";
+    } else {
+      out += fmt::format("{:.{}f}", i.estimate, metric == "psnr" ? 2 : 3);
+      if (!std::isnan(i.lo)) out += fmt::format(" [{:.2f}, {:.2f}]", i.lo, i.hi);
+    }
   }
-  if (gains.size() < 2) return std::nan("");
-  const auto [lo, hi] = std::minmax_element(gains.begin(), gains.end());
-  return (*hi - *lo) / 2;
+  return out;
 }
 
 std::string format_lpips(double v) { return std::isnan(v) ? "-" : fmt::format("{:.3f}", v); }
 
 }  // namespace
 
-double average_gain(const std::vector<double>& values, bool higher_is_better) {
-  if (values.size() < 2) return std::numeric_limits<double>::quiet_NaN();
-  for (double v : values)
-    if (std::isnan(v)) return std::numeric_limits<double>::quiet_NaN();
-  const double change = (values.back() - values.front()) / static_cast<double>(values.size() - 1);
-  return higher_is_better ? change : -change;
+double metric_value(const GridCell& c, const std::string& metric) {
+  if (metric == "psnr") return c.psnr;
+  if (metric == "ssim") return c.ssim;
+  if (metric == "lpips") return c.lpips;
+  throw std::invalid_argument("study grid: unknown metric '" + metric + "' (expected psnr, ssim or lpips)");
 }
 
 std::vector<std::string> series_of(const std::vector<GridCell>& cells) {
@@ -119,6 +107,7 @@ std::vector<GridCell> mean_over_seeds(const std::vector<GridCell>& runs) {
         mean.*value = sum / static_cast<double>(group.size());
         mean.*spread = std::isnan(sum) ? sum : (hi - lo) / 2;
       }
+      if (group.size() > 1) mean.scenes = nullptr;  // a seed's scenes are not the mean's
       out.push_back(mean);
     }
   return out;
@@ -135,32 +124,16 @@ std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain, co
   out += "\n";
   for (const auto& name : series) {
     out += "| " + name + " |";
-    std::vector<double> psnr, ssim, lpips;
     for (const auto& s : settings) {
       const auto* c = find_cell(cells, name, s);
       if (!c || c->runs == 0) {
         out += " (not run) |";
-        psnr.push_back(std::nan(""));
-        ssim.push_back(std::nan(""));
-        lpips.push_back(std::nan(""));
         continue;
       }
       const auto spread = c->runs > 1 ? fmt::format(" ±{:.2f}", c->psnr_spread) : std::string();
       out += fmt::format(" {:.2f}{} / {:.3f} / {} |", c->psnr, spread, c->ssim, format_lpips(c->lpips));
-      psnr.push_back(c->psnr);
-      ssim.push_back(c->ssim);
-      lpips.push_back(c->lpips);
     }
-    if (with_gain) {
-      auto gain = [](double v, int digits) {
-        return std::isnan(v) ? std::string("-") : fmt::format("{:.{}f}", v, digits);
-      };
-      const double psnr_gain_spread = gain_spread(runs, name, settings);
-      const auto psnr_gain = gain(average_gain(psnr, true), 2) +
-                             (std::isnan(psnr_gain_spread) ? "" : fmt::format(" ±{:.2f}", psnr_gain_spread));
-      out += fmt::format(" {} / {} / {} |", psnr_gain, gain(average_gain(ssim, true), 3),
-                         gain(average_gain(lpips, false), 3));
-    }
+    if (with_gain) out += " " + gain_cell(runs.empty() ? cells : runs, name) + " |";
     out += "\n";
   }
   return out;
@@ -199,7 +172,7 @@ torch::Tensor grid_plot(const std::vector<GridCell>& cells, const std::string& m
     for (const auto& c : cells) {
       if (c.series != name || c.runs == 0) continue;
       line.x.push_back(plotted(c.x));
-      line.y.push_back(metric_of(c, metric));
+      line.y.push_back(metric_value(c, metric));
       line.y_err.push_back(c.runs > 1 ? spread_of(c, metric) : 0.0);
     }
     lines.push_back(std::move(line));

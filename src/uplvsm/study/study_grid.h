@@ -1,16 +1,18 @@
 // Multi-run studies (the paper's scalability study and pose-noise study): a grid of series (model variants) by
 // settings (training-data subsets, pose-noise levels), each cell one trained and evaluated run. This file turns the
 // cells into the paper-style table (Markdown and CSV), metric-vs-setting plots, and the paper's scalability
-// measure, the average gain per 4x data (Table 3's "Avg. Gain").
+// measure, the average gain per 4x data (Table 3's "Avg. Gain", study/scaling_gain.h).
 #pragma once
 #include <torch/torch.h>
 
 #include <limits>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "uplvsm/io/plot.h"
+#include "uplvsm/study/scene_scores.h"
 
 namespace uplvsm::study {
 
@@ -23,16 +25,16 @@ struct GridCell {
   int64_t seed = 0;                                         // the run's training seed
   int64_t runs = 1;  // seeds averaged into this cell (mean_over_seeds); 0: a planned run not done yet (no metrics)
   double psnr_spread = 0, ssim_spread = 0, lpips_spread = 0;  // half of each metric's range over those seeds
+  // The run's score on each test scene (the evaluator's per_scene.csv, or the study's scenes.csv); null: not kept.
+  std::shared_ptr<const SceneScores> scenes{};
 };
+
+// The cell's "psnr", "ssim" or "lpips"; throws std::invalid_argument for any other name.
+double metric_value(const GridCell& cell, const std::string& metric);
 
 // One cell per (series, setting), in order of first appearance: the mean over its seeds' runs, with their count
 // and spreads.
 std::vector<GridCell> mean_over_seeds(const std::vector<GridCell>& runs);
-
-// Mean change between consecutive settings, signed so that an improvement is positive (PSNR, SSIM up; LPIPS
-// down). With settings 4x apart this is the paper's average gain per 4x data: (last - first) / (settings - 1).
-// NaN with fewer than two values or any NaN value.
-double average_gain(const std::vector<double>& values, bool higher_is_better);
 
 // Series and settings in the order they first appear in `cells`.
 std::vector<std::string> series_of(const std::vector<GridCell>& cells);
@@ -44,9 +46,9 @@ std::string metric_label(const std::string& metric);
 std::vector<std::string> settings_of(const std::vector<GridCell>& cells);
 
 // Rows = series, columns = settings, "PSNR / SSIM / LPIPS" per cell (LPIPS "-" when unavailable; a mean over
-// several seeds shows "PSNR ±half-range"), plus the average-gain column when with_gain. Missing cells read
-// "(not run)". Given the per-seed `runs`, the PSNR gain also shows its spread: half the range of the gains of the
-// seeds that ran the first and the last setting (all the gain reads), where two or more did.
+// several seeds shows "PSNR ±half-range"), plus the average-gain column when with_gain: the paper's gain per 4x data
+// (study/scaling_gain.h) of PSNR with its 95 % interval, of SSIM and of LPIPS, read from the per-seed `runs` (from
+// `cells` without them). Missing cells read "(not run)".
 std::string grid_markdown(const std::vector<GridCell>& cells, bool with_gain, const std::vector<GridCell>& runs = {});
 // One row per cell: series,setting,x,seed,psnr,ssim,lpips (empty when unavailable).
 std::string grid_csv(const std::vector<GridCell>& cells);
