@@ -160,6 +160,7 @@ void run_tokenizer_stage(const TrainArgs& a, const Config& config) {
   opt.data_root = a.data;
   opt.run_dir = a.run;
   opt.device = parse_device(a.common.device);
+  log_kernel_paths();
   const auto r = train::pretrain_tokenizer(config, opt);
   std::cout << fmt::format("tokenizer pretrained for {} steps: masked-patch loss {:.4f} -> {:.4f}; weights {}\n",
                            r.steps, r.first_loss, r.last_loss, r.weights);
@@ -179,6 +180,7 @@ void describe_training_data(const Config& config, const std::string& data, train
 // --dry-run: the run's plan and its pre-flight checks (the global batch divides, the loss has what it needs), then
 // exit; non-zero when the run itself would refuse to start.
 void run_dry(const TrainArgs& a, const Config& config) {
+  log_kernel_paths();
   const int64_t ranks = a.ranks > 0 ? a.ranks : train::distributed_env_from_environment().world_size;
   train::RunPlan plan;
   plan.config = config;
@@ -198,7 +200,6 @@ void run_dry(const TrainArgs& a, const Config& config) {
 
 void run_train(const TrainArgs& a) {
   apply_common_options(a.common);
-  log_kernel_paths();
   const auto config = train_config(a);
   if (a.dry_run) return run_dry(a, config);
   if (a.data.empty() || a.run.empty())

@@ -21,6 +21,7 @@
 #include "uplvsm/data/view_sampler.h"
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/checkpoint_io.h"
+#include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/train/checkpoint.h"
 #include "uplvsm/train/global_batch.h"
@@ -287,6 +288,8 @@ void announce_training(const Config& config, const TrainOptions& opt, const data
   plan.ordered_views = loader_opt.ordered_views;
   spdlog::info("training {}: steps {} -> {}", config.name, step, tc.train_steps);
   for (const auto& line : describe_run_plan(plan)) spdlog::info("  {}", line);
+  // After the pre-flight checks, so that a run refused before it starts says so in one line.
+  spdlog::info("  kernels: {}", kernels::describe_kernel_paths());
 }
 
 // Every rank starts from rank 0's weights.
