@@ -121,11 +121,11 @@ void evaluate_fitted(const FitMapperArgs& a, FitSetup& s) {
   opt.out_dir = a.eval_out.empty() ? a.out + ".eval" : a.eval_out;
   opt.extra = {{"checkpoint", a.model.checkpoint}, {"mapper", a.out}, {"data", a.eval_data}};
   auto summary = eval::evaluate(s.net, dataset, data::preprocess_options(s.config), opt);
-  const auto& m = summary.table.at("model");
+  const auto& m = summary.scores.model;
   std::cout << fmt::format(
       "held-out: {} scenes at real cameras through the mapper: PSNR {:.2f} dB, SSIM {:.4f} "
       "(copy-nearest {:.2f} dB) -> {}/metrics.json\n",
-      summary.scenes, m.at("psnr"), m.at("ssim"), summary.table.at("copy_nearest").at("psnr"), opt.out_dir);
+      summary.scenes, m.psnr, m.ssim, summary.scores.copy_nearest.psnr, opt.out_dir);
 }
 
 void run_fit_mapper(FitMapperArgs& a) {
