@@ -12,7 +12,9 @@ includes core only (its ops sit below the model but need nothing of it); a publi
 cmake/install.cmake installs) includes no private one. The other C++ trees are held to the same rule: tests/<room>/
 as their room (files directly in tests/ as core), bench/, python/src/ and fuzz/ above cli, examples/ above cli but
 public rooms only. A test helper of another test folder ("train/train_test_util.h") counts as an include of that
-room. EXCEPTIONS lists the includes allowed against the order, each with its reason; an exception that matches no
+room. Each file of src/uplvsm/<room>/ declares its code in namespace uplvsm::<room> (core's in uplvsm itself; nested
+namespaces inside it are free), opening another room's namespace only to forward-declare. EXCEPTIONS lists the
+includes allowed against the order, each with its reason; an exception that matches no
 include is an error too, so the list cannot go stale. Exits 1 naming every offending include.
 """
 import fnmatch
@@ -89,6 +91,28 @@ def offence(room, tier, included, relative):
     return None
 
 
+NAMESPACE_BLOCK = re.compile(r"^namespace (uplvsm(?:::\w+)*) \{\n(.*?)^\}  // namespace \1$", re.M | re.S)
+FORWARD_DECLARATION = re.compile(r"^\s*((struct|class) \w+;|//.*)?$")
+
+
+def namespace_offences(root):
+    """Files of src/uplvsm whose code lives in another room's namespace than their folder's."""
+    errors = []
+    for path in sorted((pathlib.Path(root) / "src" / "uplvsm").rglob("*")):
+        relative = path.relative_to(root)
+        if path.suffix not in (".cpp", ".h") or len(relative.parts) < 4:
+            continue
+        room = relative.parts[2]
+        own = "uplvsm" if room == "core" else f"uplvsm::{room}"
+        for match in NAMESPACE_BLOCK.finditer(path.read_text(errors="replace")):
+            name, body = match.groups()
+            nested = name.startswith(own + "::") and (room != "core" or name.split("::")[1] not in TIER)
+            forward_only = all(FORWARD_DECLARATION.match(line) for line in body.splitlines())
+            if name != own and not nested and not forward_only:
+                errors.append(f"{relative}: namespace {name} in {room}/ (its namespace is {own})")
+    return errors
+
+
 def check(root, exceptions=EXCEPTIONS):
     """Every include against the order, as 'file:line: include (why)' lines, then every unused exception."""
     root = pathlib.Path(root)
@@ -112,6 +136,7 @@ def check(root, exceptions=EXCEPTIONS):
                 used.update(allowed)
                 if not allowed:
                     errors.append(f"{relative}:{number}: #include \"{match.group(1)}\" ({why})")
+    errors += namespace_offences(root)
     for i, (files, inc, _) in enumerate(exceptions):
         if i not in used:
             errors.append(f"tools/check_layers.py: exception ({files}, {inc}) matches no include: remove it")
@@ -124,9 +149,10 @@ def main():
     for e in errors:
         print(e)
     if errors:
-        print("check_layers: includes run up the layer order (docs/development.md, \"Layout\")")
+        print("check_layers: includes run up the layer order, or namespaces differ from folders (docs/development.md, "
+              "\"Layout\")")
         return 1
-    print("check_layers: every include runs down the layer order")
+    print("check_layers: every include runs down the layer order, every namespace is its folder's")
     return 0
 
 

@@ -1,6 +1,7 @@
 # tools/check_layers.py (run by `make lint`): the repository's includes run down the layer order, and the checker
 # catches an include that runs up it (in the library, in a test, through a test helper), kernels reaching past core,
-# a public header reaching a private room, and an exception that no longer matches any include.
+# a public header reaching a private room, an exception that no longer matches any include, and a file whose code
+# lives in another room's namespace than its folder's.
 import importlib.util
 import os
 import pathlib
@@ -81,3 +82,34 @@ def test_a_listed_exception_allows_and_a_stale_one_fails(tmp_path):
     assert offences(tmp_path, "tests/model/transformer_test.cpp", "uplvsm/train/trainer.h", [exception]) == []
     errors = check_layers.check(tree(tmp_path / "clean", CLEAN), exceptions=[exception])
     assert len(errors) == 1 and "matches no include" in errors[0]
+
+
+def namespace_errors(tmp_path, path, text):
+    tree(tmp_path, CLEAN)
+    (tmp_path / path).parent.mkdir(parents=True, exist_ok=True)
+    (tmp_path / path).write_text(text)
+    return check_layers.check(tmp_path, exceptions=[])
+
+
+def block(name, body):
+    return f"namespace {name} {{\n{body}\n}}  // namespace {name}\n"
+
+
+def test_a_file_declares_its_code_in_its_folders_namespace(tmp_path):
+    errors = namespace_errors(tmp_path / "a", "src/uplvsm/train/flops.h", block("uplvsm::model", "int flops();"))
+    assert errors == ["src/uplvsm/train/flops.h: namespace uplvsm::model in train/ (its namespace is uplvsm::train)"]
+    assert namespace_errors(tmp_path / "b", "src/uplvsm/train/flops.h", block("uplvsm::train", "int flops();")) == []
+    nested = block("uplvsm::kernels::flash", "int tile();")
+    assert namespace_errors(tmp_path / "c", "src/uplvsm/kernels/flash.h", nested) == []
+
+
+def test_another_rooms_namespace_only_to_forward_declare(tmp_path):
+    text = block("uplvsm::model", "struct UPLVSMImpl;\n// the model") + block("uplvsm::serve", "int serve();")
+    assert namespace_errors(tmp_path, "src/uplvsm/serve/viewer_model.h", text) == []
+
+
+def test_core_lives_in_uplvsm_itself(tmp_path):
+    assert namespace_errors(tmp_path / "a", "src/uplvsm/core/config.h", block("uplvsm", "struct Config {};")) == []
+    assert namespace_errors(tmp_path / "b", "src/uplvsm/core/ssim.h", block("uplvsm::ssim", "int w();")) == []
+    errors = namespace_errors(tmp_path / "c", "src/uplvsm/core/eval_mode.h", block("uplvsm::model", "struct G {};"))
+    assert len(errors) == 1 and "its namespace is uplvsm)" in errors[0]

@@ -25,17 +25,17 @@ TEST(PoseMapperFile, AMapperTravelsApartFromItsModelAndComesBackTheSame) {
     for (auto& p : mapper->parameters()) p.normal_(0, 0.2);
   }
   const auto path = (test::temp_dir("mapper_file") / "m.safetensors").string();
-  model::write_pose_mapper_file(path, *mapper, model::model_fingerprint(*net), {{"steps", 3}});
-  auto file = model::read_pose_mapper_file(path);
+  train::write_pose_mapper_file(path, *mapper, train::model_fingerprint(*net), {{"steps", 3}});
+  auto file = train::read_pose_mapper_file(path);
   EXPECT_EQ(file.fit["steps"], 3);
   EXPECT_EQ(file.mapper->options.hidden, 8);
   EXPECT_FALSE(net->has_camera_control());
-  model::attach_pose_mapper_file(*net, path);
+  train::attach_pose_mapper_file(*net, path);
   ASSERT_TRUE(net->has_camera_control());
   auto poses = torch::randn({1, 3, 7}), scene = torch::randn({1, model::kSceneConditioningDims});
   EXPECT_LT(test::max_abs_diff(net->pose_mapper(poses, scene), mapper(poses, scene)), 1e-6);
   // The model's own fingerprint ignores the mapper it now carries.
-  EXPECT_EQ(model::model_fingerprint(*net), file.model_fingerprint);
+  EXPECT_EQ(train::model_fingerprint(*net), file.model_fingerprint);
 }
 
 TEST(PoseMapperFile, AMapperOfAnotherModelOrAFileThatIsNoMapperIsRefused) {
@@ -43,20 +43,20 @@ TEST(PoseMapperFile, AMapperOfAnotherModelOrAFileThatIsNoMapperIsRefused) {
   const auto dir = test::temp_dir("mapper_file_errors");
   const auto path = (dir / "m.safetensors").string();
   model::PoseMapper mapper;
-  model::write_pose_mapper_file(path, *mapper, model::model_fingerprint(*net), {});
-  const auto error = test::error_of([&] { model::attach_pose_mapper_file(*other, path); });
+  train::write_pose_mapper_file(path, *mapper, train::model_fingerprint(*net), {});
+  const auto error = test::error_of([&] { train::attach_pose_mapper_file(*other, path); });
   EXPECT_NE(error.find("fitted to another model"), std::string::npos) << error;
   EXPECT_FALSE(other->has_camera_control());
 
   const auto weights = (dir / "weights.safetensors").string();
   io::write_safetensors(weights, {{"pose_mapper.A", torch::eye(7)}});
-  EXPECT_NE(test::error_of([&] { model::read_pose_mapper_file(weights); }).find("not a pose mapper file"),
+  EXPECT_NE(test::error_of([&] { train::read_pose_mapper_file(weights); }).find("not a pose mapper file"),
             std::string::npos);
   // An MLP file whose tensors are missing is named, not half-loaded.
   const auto broken = (dir / "broken.safetensors").string();
   io::write_safetensors(
       broken, {{"pose_mapper.A", torch::eye(7)}, {"pose_mapper.b", torch::zeros({7})}},
-      {{"format", model::kPoseMapperFormat}, {"kind", "mlp"}, {"hidden", "8"}, {"model_fingerprint", "0"}});
-  const auto missing = test::error_of([&] { model::read_pose_mapper_file(broken); });
+      {{"format", train::kPoseMapperFormat}, {"kind", "mlp"}, {"hidden", "8"}, {"model_fingerprint", "0"}});
+  const auto missing = test::error_of([&] { train::read_pose_mapper_file(broken); });
   EXPECT_NE(missing.find("mlp.0.weight"), std::string::npos) << missing;
 }

@@ -116,7 +116,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
     opt.lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
     opt.lpips->to(device);
   }
-  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)},
+  opt.extra = {{"checkpoint", io::resolve_checkpoint(a.model.checkpoint)},
                {"mapper", a.model.mapper},
                {"data", a.scenes.data},
                {"split", a.scenes.split},

@@ -139,7 +139,7 @@ void run_fit_mapper(FitMapperArgs& a) {
   fit["kind"] = a.kind;
   fit["data"] = a.data;
   fit["checkpoint"] = a.model.checkpoint;
-  model::write_pose_mapper_file(a.out, *mapper, model::model_fingerprint(*s.up), fit);
+  train::write_pose_mapper_file(a.out, *mapper, train::model_fingerprint(*s.up), fit);
   std::cout << fmt::format(
       "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
       "the least-squares linear map's {:.4f}) -> {}\n",

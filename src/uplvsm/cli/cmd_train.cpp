@@ -138,7 +138,7 @@ train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
   opt.data_root = a.data;
   opt.run_dir = a.run;
   opt.resume = a.resume;
-  opt.init_weights = std::filesystem::is_directory(a.init) ? model::resolve_checkpoint(a.init) : a.init;
+  opt.init_weights = std::filesystem::is_directory(a.init) ? io::resolve_checkpoint(a.init) : a.init;
   opt.perceptual_weights = a.vgg19;
   opt.perceptual_input = a.vgg19_input;
   // torchrun / SLURM launch variables make this process one rank of a data-parallel run.

@@ -317,7 +317,7 @@ static void merge_shards(const EvalOptions& opt, RunState& state) {
 // while one runs.
 static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const std::vector<Job>& jobs, const EvalOptions& opt, RunState& state) {
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   torch::NoGradGuard no_grad;
   ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
   const auto batches = make_batches(jobs, opt.batch_size);

@@ -33,7 +33,7 @@ ViewerModel ViewerModel::load(const std::string& checkpoint, const std::string& 
   auto net = model::load_model_with_config_file(checkpoint, config_hint, device, &config);
   // The viewer starts from unposed photos: only UP-LVSM renders those (the posed models need input cameras).
   auto up = model::require_uplvsm(net, "serve (the viewer starts from unposed photos)");
-  if (!mapper.empty()) model::attach_pose_mapper_file(*up, mapper);
+  if (!mapper.empty()) train::attach_pose_mapper_file(*up, mapper);
   return ViewerModel(up.ptr(), config, bf16);
 }
 

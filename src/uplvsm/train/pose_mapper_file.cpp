@@ -8,7 +8,7 @@
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/state_dict.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 namespace {
 
@@ -41,7 +41,7 @@ std::string meta(const std::map<std::string, std::string>& m, const std::string&
 
 }  // namespace
 
-std::string model_fingerprint(UPLVSMImpl& net) {
+std::string model_fingerprint(model::UPLVSMImpl& net) {
   Fnv64 fnv;
   for (const auto& item : net.named_parameters(true)) {
     if (item.key().rfind(kPrefix, 0) == 0) continue;
@@ -52,10 +52,10 @@ std::string model_fingerprint(UPLVSMImpl& net) {
   return fmt::format("{:016x}", fnv.h);
 }
 
-void write_pose_mapper_file(const std::string& path, PoseMapperImpl& mapper, const std::string& fingerprint,
+void write_pose_mapper_file(const std::string& path, model::PoseMapperImpl& mapper, const std::string& fingerprint,
                             const nlohmann::json& fit) {
   io::TensorMap tensors;
-  for (const auto& [name, t] : state_dict(mapper)) tensors[kPrefix + name] = t.to(torch::kFloat32);
+  for (const auto& [name, t] : io::state_dict(mapper)) tensors[kPrefix + name] = t.to(torch::kFloat32);
   io::write_safetensors(path, tensors,
                         {{"format", kPoseMapperFormat},
                          {"kind", to_string(mapper.options.kind)},
@@ -70,9 +70,9 @@ PoseMapperFile read_pose_mapper_file(const std::string& path) {
   if (format != kPoseMapperFormat)
     throw std::runtime_error(
         fmt::format("{}: pose mapper format '{}', expected '{}'", path, format, kPoseMapperFormat));
-  PoseMapperOptions options;
+  model::PoseMapperOptions options;
   try {
-    options.kind = parse_pose_mapper_kind(meta(file.metadata, "kind", path));
+    options.kind = model::parse_pose_mapper_kind(meta(file.metadata, "kind", path));
     options.hidden = std::stoll(meta(file.metadata, "hidden", path));
   } catch (const std::logic_error& e) {
     throw std::runtime_error(fmt::format("{}: metadata kind/hidden: {}", path, e.what()));
@@ -80,18 +80,18 @@ PoseMapperFile read_pose_mapper_file(const std::string& path) {
   if (options.hidden < 1 || options.hidden > 4096)
     throw std::runtime_error(fmt::format("{}: metadata hidden {} is outside 1..4096", path, options.hidden));
   PoseMapperFile out;
-  out.mapper = PoseMapper(options);
-  NamedTensors tensors;
+  out.mapper = model::PoseMapper(options);
+  io::NamedTensors tensors;
   for (const auto& [name, t] : file.tensors)
     tensors[name.rfind(kPrefix, 0) == 0 ? name.substr(std::strlen(kPrefix)) : name] = t;
-  load_state_dict(*out.mapper, tensors, path);  // strict: names and shapes must match the kind
+  io::load_state_dict(*out.mapper, tensors, path);  // strict: names and shapes must match the kind
   out.model_fingerprint = meta(file.metadata, "model_fingerprint", path);
   out.fit = nlohmann::json::parse(file.metadata.count("fit") ? file.metadata.at("fit") : "{}", nullptr, false);
   if (out.fit.is_discarded()) out.fit = nlohmann::json::object();
   return out;
 }
 
-void attach_pose_mapper_file(UPLVSMImpl& net, const std::string& path) {
+void attach_pose_mapper_file(model::UPLVSMImpl& net, const std::string& path) {
   auto file = read_pose_mapper_file(path);
   const auto mine = model_fingerprint(net);
   if (file.model_fingerprint != mine)
@@ -102,4 +102,4 @@ void attach_pose_mapper_file(UPLVSMImpl& net, const std::string& path) {
   net.attach_pose_mapper(file.mapper);
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

@@ -11,25 +11,25 @@
 #include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/uplvsm.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 inline constexpr const char* kPoseMapperFormat = "uplvsm-pose-mapper-v1";
 
 struct PoseMapperFile {
-  PoseMapper mapper{nullptr};
+  model::PoseMapper mapper{nullptr};
   std::string model_fingerprint;  // of the model the mapper was fitted to
   nlohmann::json fit;             // what fit-mapper recorded (scenes, steps, losses, seconds)
 };
 
 // A digest of the model's weights without its pose mapper (names and float32 values), the same for a model loaded
 // from the authors' .pt, its safetensors conversion or our checkpoint of the same weights.
-std::string model_fingerprint(UPLVSMImpl& net);
+std::string model_fingerprint(model::UPLVSMImpl& net);
 
-void write_pose_mapper_file(const std::string& path, PoseMapperImpl& mapper, const std::string& fingerprint,
+void write_pose_mapper_file(const std::string& path, model::PoseMapperImpl& mapper, const std::string& fingerprint,
                             const nlohmann::json& fit);
 // Throws naming the file and what is wrong: not a mapper file, unknown kind, missing or mis-shaped tensors.
 PoseMapperFile read_pose_mapper_file(const std::string& path);
 // Reads `path` and gives its mapper to `net`; an error when it was fitted to another model (fingerprints differ).
-void attach_pose_mapper_file(UPLVSMImpl& net, const std::string& path);
+void attach_pose_mapper_file(model::UPLVSMImpl& net, const std::string& path);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train
