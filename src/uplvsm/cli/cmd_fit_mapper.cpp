@@ -11,10 +11,10 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/study/mapper_scenes.h"
 #include "uplvsm/train/mapper_fitting.h"
-#include "uplvsm/train/pose_mapper_file.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {
@@ -139,7 +139,7 @@ void run_fit_mapper(FitMapperArgs& a) {
   fit["kind"] = a.kind;
   fit["data"] = a.data;
   fit["checkpoint"] = a.model.checkpoint;
-  train::write_pose_mapper_file(a.out, *mapper, train::model_fingerprint(*s.up), fit);
+  model::save_pose_mapper(a.out, *mapper, model::model_fingerprint(*s.up), fit);
   std::cout << fmt::format(
       "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
       "the least-squares linear map's {:.4f}) -> {}\n",

@@ -6,8 +6,8 @@
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
-#include "uplvsm/train/pose_mapper_file.h"
 
 namespace uplvsm::cli {
 
@@ -56,7 +56,7 @@ void add_mapper_option(CLI::App* cmd, ModelSource& src) {
 model::NovelViewModel load_model_from_source(const ModelSource& src, torch::Device device, Config* config_out) {
   auto net = model::load_model_with_config_file(src.checkpoint, src.config, device, config_out);
   if (!src.mapper.empty()) {
-    train::attach_pose_mapper_file(*model::require_uplvsm(net, "--mapper (camera control through latent poses)"),
+    model::attach_pose_mapper_file(*model::require_uplvsm(net, "--mapper (camera control through latent poses)"),
                                    src.mapper);
     if (config_out) config_out->model.pose_mapper = true;
   }

@@ -7,8 +7,8 @@
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pose_mapper.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
-#include "uplvsm/train/pose_mapper_file.h"
 
 namespace uplvsm::serve {
 
@@ -33,7 +33,7 @@ ViewerModel ViewerModel::load(const std::string& checkpoint, const std::string& 
   auto net = model::load_model_with_config_file(checkpoint, config_hint, device, &config);
   // The viewer starts from unposed photos: only UP-LVSM renders those (the posed models need input cameras).
   auto up = model::require_uplvsm(net, "serve (the viewer starts from unposed photos)");
-  if (!mapper.empty()) train::attach_pose_mapper_file(*up, mapper);
+  if (!mapper.empty()) model::attach_pose_mapper_file(*up, mapper);
   return ViewerModel(up.ptr(), config, bf16);
 }
 
