@@ -218,5 +218,6 @@ lint:
 	@$(CLANG_FORMAT) --dry-run -Werror $(FORMATTED_SOURCES)
 	@echo "lint: $(words $(FORMATTED_SOURCES)) files formatted as .clang-format says"
 	@python3 tools/check_fuzz_sources.py
+	@python3 tools/check_layers.py
 	@! grep -rn --include='*.cpp' --include='*.h' 'remove_all(' src tests | grep -v 'tests/test_util.h' || \
 	  { echo "lint: use test::remove_tree (tests/test_util.h): std::filesystem::remove_all crashes under PyPI's LibTorch 2.11"; exit 1; }

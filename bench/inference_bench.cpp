@@ -65,7 +65,7 @@ void BM_Inference(benchmark::State& state, const std::string& config_name) {
   for (auto _ : state) benchmark::DoNotOptimize(run().data_ptr());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const double iterations = static_cast<double>(state.iterations());
-  bench::set_flop_counters(state, model::forward_flops(setup.config.model, 1, kInputViews, kTargetViews).total(),
+  bench::set_flop_counters(state, train::forward_flops(setup.config.model, 1, kInputViews, kTargetViews).total(),
                            seconds, bf16);
   state.counters["s_per_view"] = seconds / iterations / kTargetViews;
   state.counters["peak_RSS_GiB"] = bench::peak_rss_gib();

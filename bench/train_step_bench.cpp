@@ -96,7 +96,7 @@ void run_train_step(benchmark::State& state, const std::string& config_name, Tra
   const auto t0 = std::chrono::steady_clock::now();
   for (auto _ : state) benchmark::DoNotOptimize(step());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const double step_flops = 3.0 * model::forward_flops(config.model, B, kTrainInputViews, shape.target_views).total();
+  const double step_flops = 3.0 * train::forward_flops(config.model, B, kTrainInputViews, shape.target_views).total();
   state.SetItemsProcessed(state.iterations() * B);  // scenes/s
   state.counters["TFLOP/s"] =
       benchmark::Counter(step_flops * 1e-12 * static_cast<double>(state.iterations()), benchmark::Counter::kIsRate);

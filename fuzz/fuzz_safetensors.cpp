@@ -13,7 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     uplvsm::io::read_safetensors_header(path);
     uplvsm::io::read_safetensors(path);
-    uplvsm::model::read_checkpoint(path);
+    uplvsm::io::read_checkpoint(path);
   } catch (const std::exception&) {
   }
   return 0;

@@ -108,7 +108,7 @@ TEST(Cli, ConvertMarksTheOfficialVgg19AsMatConvNetInput) {
   using namespace uplvsm;
   auto dir = test::temp_dir("cli_convert_vgg");
   auto tensors = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
-  for (const auto& [k, v] : model::state_dict(*train::PerceptualLoss()->vgg))
+  for (const auto& [k, v] : io::state_dict(*train::PerceptualLoss()->vgg))
     tensors["loss_computer.perceptual_loss_module.vgg." + k] = v;
   const auto input = (dir / "with_vgg.safetensors").string(), out = (dir / "converted.safetensors").string();
   io::write_safetensors(input, tensors);

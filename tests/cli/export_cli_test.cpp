@@ -22,7 +22,7 @@ TEST(ExportCli, WritesTheWeightsWithoutOptimiserState) {
   std::string out;
   ASSERT_EQ(test::run_cli("export --checkpoint " + run + " --out " + file, &out), 0);
   EXPECT_NE(out.find("optimiser tensors left out"), std::string::npos) << out;
-  const auto exported = model::read_checkpoint(file), source = model::read_checkpoint(run);
+  const auto exported = io::read_checkpoint(file), source = io::read_checkpoint(run);
   EXPECT_TRUE(exported.optimizer.empty());
   EXPECT_FALSE(source.optimizer.empty());
   ASSERT_EQ(exported.model.size(), source.model.size());

@@ -108,18 +108,17 @@ TEST(RetiredKeys, CheckpointsWrittenBeforeLoadUnlessALeverWasOn) {
   const auto dir = test::temp_dir("retired_keys");
   auto write = [&](const std::string& name, const nlohmann::json& config) {
     const auto path = (dir / name).string();
-    io::write_safetensors(
-        path, {{"w", torch::zeros({2})}},
-        {{"format", model::kCheckpointFormat}, {"config", config.dump()}, {"state", "{\"step\": 3}"}});
+    io::write_safetensors(path, {{"w", torch::zeros({2})}},
+                          {{"format", io::kCheckpointFormat}, {"config", config.dump()}, {"state", "{\"step\": 3}"}});
     return path;
   };
-  const auto old = model::read_checkpoint(write("old.safetensors", config_as_written_by_d3badc2()));
+  const auto old = io::read_checkpoint(write("old.safetensors", config_as_written_by_d3badc2()));
   EXPECT_EQ(config_to_json(old.config), config_to_json(Config()));
   EXPECT_EQ(old.state["step"], 3);
   auto with_ema = config_as_written_by_d3badc2();
   with_ema["training"]["ema_decay"] = 0.99;
   const auto path = write("ema.safetensors", with_ema);
-  const auto msg = test::error_of([&] { model::read_checkpoint(path); });
+  const auto msg = test::error_of([&] { io::read_checkpoint(path); });
   EXPECT_NE(msg.find(path + " (embedded config): training: 'ema_decay' is 0.99"), std::string::npos) << msg;
   EXPECT_NE(msg.find("training.ema_decay was retired"), std::string::npos) << msg;
   EXPECT_NE(msg.find("commit d3badc2"), std::string::npos) << msg;
@@ -135,6 +134,6 @@ TEST(RetiredKeys, TheShippedModelsCarryRetiredKeysAndLoad) {
     const auto embedded = nlohmann::json::parse(metadata.at("config"));
     EXPECT_TRUE(embedded["training"].contains("turned_view_weight"));
     EXPECT_TRUE(embedded["eval"].contains("num_target_views"));
-    EXPECT_NO_THROW(model::read_checkpoint(path));
+    EXPECT_NO_THROW(io::read_checkpoint(path));
   }
 }

@@ -71,7 +71,7 @@ void expect_baselines_recomputed(const data::ChunkDataset& dataset, const EvalSu
     EXPECT_TRUE(r.views[t].model.grad_ratio > 0 && std::isfinite(r.views[t].model.grad_ratio))
         << r.views[t].model.grad_ratio;
   }
-  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("grad_ratio"), r.copy_nearest.grad_ratio);
+  EXPECT_DOUBLE_EQ(s.scores.copy_nearest.grad_ratio, r.copy_nearest.grad_ratio);
 }
 
 // metrics.json, the CSVs and the grid the evaluation wrote.
@@ -119,8 +119,8 @@ TEST(Evaluator, TinyModelOnFixtureDataset) {
     EXPECT_TRUE(v.model.ssim > -1 && v.model.ssim <= 1);
   }
   EXPECT_NEAR(r.model.psnr, (r.views[0].model.psnr + r.views[1].model.psnr + r.views[2].model.psnr) / 3, 1e-12);
-  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), r.model.psnr);
-  EXPECT_DOUBLE_EQ(s.buckets.at("large").at("copy_nearest").at("ssim"), r.copy_nearest.ssim);
+  EXPECT_DOUBLE_EQ(s.scores.model.psnr, r.model.psnr);
+  EXPECT_DOUBLE_EQ(s.buckets.at("large").copy_nearest.ssim, r.copy_nearest.ssim);
   EXPECT_EQ(s.bucket_scenes.at("large"), 1);
   EXPECT_EQ(s.buckets.count("small"), 0u);
   for (const auto& v : r.views) EXPECT_FALSE(v.extrapolated);  // targets 4, 8, 11 lie between frames 1 and 13
@@ -193,7 +193,7 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
   auto without = evaluate(net, dataset, tiny_prep(), opt);
   ASSERT_EQ(without.scenes, 1);
   EXPECT_TRUE(std::isnan(without.per_scene[0].views[0].model.lpips));
-  EXPECT_TRUE(std::isnan(without.table.at("model").at("lpips")));
+  EXPECT_TRUE(std::isnan(without.scores.model.lpips));
   {
     std::ifstream f(out / "metrics.json");
     auto j = nlohmann::json::parse(f);
@@ -225,8 +225,8 @@ TEST(Evaluator, LpipsOnlyWithItsWeights) {
     EXPECT_TRUE(r.views[t].model.lpips >= 0 && std::isfinite(r.views[t].model.lpips));
     sum += r.views[t].model.lpips;
   }
-  EXPECT_NEAR(with.table.at("model").at("lpips"), sum / 3, 1e-12);
-  EXPECT_DOUBLE_EQ(with.table.at("model").at("psnr"), without.table.at("model").at("psnr"));
+  EXPECT_NEAR(with.scores.model.lpips, sum / 3, 1e-12);
+  EXPECT_DOUBLE_EQ(with.scores.model.psnr, without.scores.model.psnr);
   std::ifstream f(out / "metrics.json");
   auto j = nlohmann::json::parse(f);
   EXPECT_TRUE(j["lpips"]["available"].get<bool>());
@@ -245,10 +245,10 @@ TEST(Evaluator, Bf16ForwardCloseToFp32) {
   opt.bf16 = true;
   auto bf16 = evaluate(net, dataset, tiny_prep(), opt);
   ASSERT_EQ(bf16.scenes, 1);
-  EXPECT_NEAR(bf16.table.at("model").at("psnr"), fp32.table.at("model").at("psnr"), 0.2);
-  EXPECT_NEAR(bf16.table.at("model").at("ssim"), fp32.table.at("model").at("ssim"), 0.01);
+  EXPECT_NEAR(bf16.scores.model.psnr, fp32.scores.model.psnr, 0.2);
+  EXPECT_NEAR(bf16.scores.model.ssim, fp32.scores.model.ssim, 0.01);
   // The baselines never pass through the model: identical.
-  EXPECT_DOUBLE_EQ(bf16.table.at("copy_nearest").at("ssim"), fp32.table.at("copy_nearest").at("ssim"));
+  EXPECT_DOUBLE_EQ(bf16.scores.copy_nearest.ssim, fp32.scores.copy_nearest.ssim);
 }
 
 TEST(Evaluator, CountsMissingKeysAndCapsScenes) {
@@ -289,8 +289,8 @@ TEST(Evaluator, RunsOnCuda) {
   opt.device = torch::kCUDA;
   auto gpu = evaluate(net, dataset, tiny_prep(), opt);
   ASSERT_EQ(gpu.scenes, 1);
-  EXPECT_NEAR(gpu.table.at("model").at("psnr"), cpu.table.at("model").at("psnr"), 1e-3);
-  EXPECT_NEAR(gpu.table.at("copy_nearest").at("ssim"), cpu.table.at("copy_nearest").at("ssim"), 1e-9);
+  EXPECT_NEAR(gpu.scores.model.psnr, cpu.scores.model.psnr, 1e-3);
+  EXPECT_NEAR(gpu.scores.copy_nearest.ssim, cpu.scores.copy_nearest.ssim, 1e-9);
 }
 
 using test::fake_scene;
@@ -300,16 +300,16 @@ TEST(Evaluator, AveragesPerSceneThenOverScenes) {
   auto s = summarise(
       {fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30, 30, 30}), fake_scene("c", std::nullopt, {10, 20})});
   EXPECT_EQ(s.scenes, 3);
-  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), (20.0 + 30.0 + 15.0) / 3);
-  EXPECT_DOUBLE_EQ(s.table.at("copy_nearest").at("psnr"), (15.0 + 25.0 + 10.0) / 3);
-  EXPECT_DOUBLE_EQ(s.table.at("mean_colour").at("ssim"), 0.01);
-  EXPECT_DOUBLE_EQ(s.buckets.at("large").at("model").at("psnr"), 20.0);
-  EXPECT_DOUBLE_EQ(s.buckets.at("small").at("model").at("psnr"), 30.0);
+  EXPECT_DOUBLE_EQ(s.scores.model.psnr, (20.0 + 30.0 + 15.0) / 3);
+  EXPECT_DOUBLE_EQ(s.scores.copy_nearest.psnr, (15.0 + 25.0 + 10.0) / 3);
+  EXPECT_DOUBLE_EQ(s.scores.mean_colour.ssim, 0.01);
+  EXPECT_DOUBLE_EQ(s.buckets.at("large").model.psnr, 20.0);
+  EXPECT_DOUBLE_EQ(s.buckets.at("small").model.psnr, 30.0);
   EXPECT_EQ(s.buckets.count("none"), 0u);
   EXPECT_EQ(s.bucket_scenes.at("small"), 1);
   auto empty = summarise({});
   EXPECT_EQ(empty.scenes, 0);
-  EXPECT_TRUE(std::isnan(empty.table.at("model").at("psnr")));
+  EXPECT_TRUE(std::isnan(empty.scores.model.psnr));
 }
 
 TEST(Evaluator, SceneResultsRoundTripThroughJsonForShardMerging) {
@@ -344,9 +344,9 @@ TEST(Evaluator, InterpolationAndExtrapolationSpans) {
   auto s = summarise({a, b});
   EXPECT_EQ(s.span_scenes.at("interpolation"), 2);
   EXPECT_EQ(s.span_scenes.at("extrapolation"), 1);
-  EXPECT_DOUBLE_EQ(s.spans.at("interpolation").at("model").at("psnr"), (20.0 + 35.0) / 2);
-  EXPECT_DOUBLE_EQ(s.spans.at("extrapolation").at("model").at("psnr"), 10.0);
-  EXPECT_DOUBLE_EQ(s.table.at("model").at("psnr"), (15.0 + 35.0) / 2);  // the full table is unchanged
+  EXPECT_DOUBLE_EQ(s.spans.at("interpolation").model.psnr, (20.0 + 35.0) / 2);
+  EXPECT_DOUBLE_EQ(s.spans.at("extrapolation").model.psnr, 10.0);
+  EXPECT_DOUBLE_EQ(s.scores.model.psnr, (15.0 + 35.0) / 2);  // the full table is unchanged
 }
 
 TEST(Evaluator, ErrorHeatmapAndGrid) {

@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <string>
 #include <vector>
 
 #include "fake_scene.h"
@@ -32,6 +33,23 @@ TEST(ResultFiles, SummaryJsonCountsViewsAndWritesNaNAsNull) {
   EXPECT_EQ(summary_to_json(s)["views"], 6);
   // Without scenes the table is NaN, which JSON carries as null.
   EXPECT_TRUE(nlohmann::json::parse(summary_to_json(summarise({})).dump())["table"]["model"]["psnr"].is_null());
+}
+
+// The typed summary writes the tables metrics.json has always had, byte for byte: predictor -> score (names sorted),
+// a bucket's or span's table alike, NaN as null, doubles in nlohmann's shortest form.
+TEST(ResultFiles, SummaryTablesKeepTheirJsonBytes) {
+  const auto j = summary_to_json(summarise({fake_scene("a", 0.7, {20}), fake_scene("b", 0.2, {30})}));
+  const auto table = [](const std::string& model, const std::string& copy) {
+    return "{\"copy_nearest\":{\"grad_ratio\":0.0,\"lpips\":null,\"psnr\":" + copy +
+           ",\"ssim\":0.25},\"mean_colour\":{\"grad_ratio\":0.0,\"lpips\":null,\"psnr\":10.0,\"ssim\":0.01},"
+           "\"model\":{\"grad_ratio\":0.0,\"lpips\":null,\"psnr\":" +
+           model + ",\"ssim\":0.5}}";
+  };
+  EXPECT_EQ(j["table"].dump(), table("25.0", "20.0"));
+  EXPECT_EQ(j["buckets"].dump(), "{\"large\":" + table("20.0", "15.0") + ",\"small\":" + table("30.0", "25.0") + "}");
+  EXPECT_EQ(j["bucket_scenes"].dump(), "{\"large\":1,\"small\":1}");
+  EXPECT_EQ(j["spans"].dump(), "{\"interpolation\":" + table("25.0", "20.0") + "}");
+  EXPECT_EQ(summary_to_json(summarise({}))["buckets"].dump(), "{}");
 }
 
 TEST(ResultFiles, SummaryJsonHasSpans) {

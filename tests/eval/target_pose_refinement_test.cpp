@@ -110,7 +110,7 @@ TEST(TargetPoseRefinement, TheEvaluatorScoresRefinedPosesAndRefusesItWithoutAnEs
     for (size_t v = 0; v < plain.per_scene[i].views.size(); ++v)
       EXPECT_GE(refined.per_scene[i].views[v].model.psnr, plain.per_scene[i].views[v].model.psnr - 1e-9)
           << i << " " << v;
-  EXPECT_GT(refined.table.at("model").at("psnr"), plain.table.at("model").at("psnr"));
+  EXPECT_GT(refined.scores.model.psnr, plain.scores.model.psnr);
 
   opt.target_poses = model::TargetPoses::Dataset;
   try {

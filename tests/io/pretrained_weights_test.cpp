@@ -29,23 +29,23 @@ void expect_meta_tokens(model::Dinov2Impl& vit, const std::string& what) {
 TEST(PretrainedWeights, Dinov2FromAllThreeFiles) {
   UPLVSM_NEEDS_FIXTURES();
   for (std::string file : {"weights.pth", "weights.safetensors", "weights_hf.safetensors"}) {
-    auto w = model::read_pretrained_weights(test::fixture("dinov2/" + file));
-    EXPECT_EQ(w.source, file == "weights_hf.safetensors" ? model::WeightSource::Dinov2HuggingFace
-                                                         : model::WeightSource::Dinov2Meta)
+    auto w = io::read_pretrained_weights(test::fixture("dinov2/" + file));
+    EXPECT_EQ(w.source,
+              file == "weights_hf.safetensors" ? io::WeightSource::Dinov2HuggingFace : io::WeightSource::Dinov2Meta)
         << file;
     model::Dinov2 vit(test::meta_fixture_dinov2(), 14);
-    model::LoadOptions opt;
+    io::LoadOptions opt;
     opt.skip_prefixes = {"mask_token"};
-    auto report = model::load_state_dict(*vit, w.tensors, file, opt);
+    auto report = io::load_state_dict(*vit, w.tensors, file, opt);
     EXPECT_EQ(report.loaded, 2 + 2 + 2 * 14 + 2) << file;
     expect_meta_tokens(*vit, file);
   }
 }
 
 TEST(PretrainedWeights, HuggingFaceUnknownKeyIsAnError) {
-  model::NamedTensors hf = {{"embeddings.cls_token", torch::zeros({1, 1, 4})},
-                            {"encoder.layer.0.mlp.weights_in.weight", torch::zeros({4, 4})}};
-  auto msg = test::error_of([&] { model::dinov2_from_huggingface(hf, "x.safetensors"); });
+  io::NamedTensors hf = {{"embeddings.cls_token", torch::zeros({1, 1, 4})},
+                         {"encoder.layer.0.mlp.weights_in.weight", torch::zeros({4, 4})}};
+  auto msg = test::error_of([&] { io::dinov2_from_huggingface(hf, "x.safetensors"); });
   EXPECT_NE(msg.find("encoder.layer.0.mlp.weights_in.weight"), std::string::npos) << msg;
 }
 
@@ -64,7 +64,7 @@ TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
     c.dinov2.qk_norm = qk_norm;
     c.dinov2.imagenet_normalize = false;  // the fixture input is already normalised
     model::UPLVSM net(c);
-    auto w = model::read_pretrained_weights(test::fixture("dinov2/weights.pth"));
+    auto w = io::read_pretrained_weights(test::fixture("dinov2/weights.pth"));
     auto report = model::load_dinov2_into_tokenizer(*net, w.tensors, "weights.pth");
     EXPECT_TRUE(report.ok());
     EXPECT_EQ(report.defaulted.size(), qk_norm ? 4u : 0u);
@@ -78,8 +78,8 @@ TEST(PretrainedWeights, Dinov2IntoUplvsmTokenizer) {
 
 TEST(PretrainedWeights, InferConfigFromOfficialCheckpoint) {
   UPLVSM_NEEDS_FIXTURES();
-  auto w = model::read_pretrained_weights(test::fixture("official_uplvsm/checkpoint.pt"));
-  EXPECT_EQ(w.source, model::WeightSource::Uplvsm);
+  auto w = io::read_pretrained_weights(test::fixture("official_uplvsm/checkpoint.pt"));
+  EXPECT_EQ(w.source, io::WeightSource::Uplvsm);
   EXPECT_EQ(w.container, "torch zip");
   EXPECT_EQ(w.found_at, "model");
   auto c = model::infer_model_config(w.tensors, ModelConfig{});

@@ -14,9 +14,9 @@ namespace {
 model::Dinov2 fixture_dinov2() {
   model::Dinov2 vit(test::meta_fixture_dinov2(), 14);
   auto weights = io::read_safetensors(test::fixture("dinov2/weights.safetensors")).tensors;
-  model::LoadOptions opt;
+  io::LoadOptions opt;
   opt.skip_prefixes = {"mask_token"};  // only used for masked-image pretraining
-  auto report = model::load_state_dict(*vit, weights, "dinov2/weights.safetensors", opt);
+  auto report = io::load_state_dict(*vit, weights, "dinov2/weights.safetensors", opt);
   EXPECT_EQ(report.loaded, 2 + 2 + 2 * 14 + 2);  // cls+pos, patch embed, 14 per block, final norm
   vit->eval();
   return vit;

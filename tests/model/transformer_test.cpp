@@ -22,7 +22,7 @@ TEST(Transformer, MatchesLvsmFixture) {
   torch::nn::Module holder;
   holder.register_module("transformer_blocks", stack);
   auto weights = io::read_safetensors(test::fixture("lvsm/transformer_weights.safetensors")).tensors;
-  auto report = model::load_state_dict(holder, weights, "lvsm/transformer_weights.safetensors");
+  auto report = io::load_state_dict(holder, weights, "lvsm/transformer_weights.safetensors");
   EXPECT_EQ(report.loaded, 16);
   auto io = io::read_safetensors(test::fixture("lvsm/transformer_io.safetensors")).tensors;
   torch::NoGradGuard no_grad;
@@ -182,13 +182,13 @@ TEST(StateDict, StrictLoadNamesMissingUnexpectedAndMisshapedKeys) {
   auto stack = model::make_transformer_stack(1, 64, 32, 1e-3, true);
   torch::nn::Module holder;
   holder.register_module("blocks", stack);
-  auto sd = model::state_dict(holder);
+  auto sd = io::state_dict(holder);
   sd.erase("blocks.0.norm1.weight");
   sd["blocks.0.extra.weight"] = torch::zeros({3});
   sd["blocks.0.attn.fc.weight"] = torch::zeros({64, 32});
   sd["loss_computer.perceptual_loss_module.vgg.features.0.weight"] = torch::zeros({1});
   try {
-    model::load_state_dict(holder, sd, "bad.safetensors");
+    io::load_state_dict(holder, sd, "bad.safetensors");
     FAIL() << "expected an error";
   } catch (const std::runtime_error& e) {
     std::string msg = e.what();

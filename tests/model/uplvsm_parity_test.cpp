@@ -15,7 +15,7 @@ TEST(OfficialParity, ForwardMatchesOfficialUplvsm) {
   UPLVSM_NEEDS_FIXTURES();
   model::UPLVSM net(test::official_fixture_model_config());
   auto weights = io::read_safetensors(test::fixture("official_uplvsm/model.safetensors")).tensors;
-  auto report = model::load_state_dict(*net, weights, "official_uplvsm/model.safetensors");
+  auto report = io::load_state_dict(*net, weights, "official_uplvsm/model.safetensors");
   EXPECT_EQ(report.loaded, 93);
   net->eval();
   auto f = io::read_safetensors(test::fixture("official_uplvsm/io.safetensors")).tensors;

@@ -83,7 +83,7 @@ TEST(Variants, TheFactoryBuildsOneClassPerModel) {
 
 TEST(Variants, PosedVariantsHaveTheOfficialPosedTargetLvsmKeys) {
   auto net = model::make_model(small_config("ptlvsm"));
-  auto sd = model::state_dict(*net);
+  auto sd = io::state_dict(*net);
   EXPECT_TRUE(sd.count("transformer_blocks.1.attn.q_norm.weight"));
   EXPECT_TRUE(sd.count("transformer_input_layernorm.weight"));
   EXPECT_TRUE(sd.count("canonical_pose_tokenizer.1.weight"));
@@ -177,7 +177,7 @@ TEST(Variants, KeepImageTokensExtendsTheSceneLatentsWithTheEncodersImageTokens) 
   model::UPLVSM plain(config);
   config.keep_image_tokens = true;
   model::UPLVSM kept(config);
-  model::load_state_dict(*kept, model::state_dict(*plain), "plain");  // the same weights: no new parameter
+  io::load_state_dict(*kept, io::state_dict(*plain), "plain");  // the same weights: no new parameter
   plain->eval(), kept->eval();
   torch::NoGradGuard no_grad;
   auto s = random_scene(2, 2, 3);
@@ -190,8 +190,8 @@ TEST(Variants, KeepImageTokensExtendsTheSceneLatentsWithTheEncodersImageTokens) 
   EXPECT_EQ(out.render.sizes(), (std::vector<int64_t>{2, 3, 3, 32, 32}));
   EXPECT_GT(test::max_abs_diff(out.render, plain->render(s.inputs, s.targets, model::TargetPoses::Estimator).render),
             1e-6);  // the decoder now attends to the image tokens too
-  auto plain_flops = model::forward_flops(small_config("uplvsm"), 1, 2, 3);
-  auto kept_flops = model::forward_flops(config, 1, 2, 3);
+  auto plain_flops = train::forward_flops(small_config("uplvsm"), 1, 2, 3);
+  auto kept_flops = train::forward_flops(config, 1, 2, 3);
   EXPECT_GT(kept_flops.encoder, plain_flops.encoder);  // the plain encoder's last block skips the image-token rows
   EXPECT_GT(kept_flops.decoder, plain_flops.decoder);
 }
@@ -205,7 +205,7 @@ TEST(Variants, EncoderLatentCamerasGiveTheEncoderTheInputsLatentPoses) {
   model::UPLVSM plain(config);
   config.encoder_latent_cameras = true;
   model::UPLVSM two_pass(config);
-  model::load_state_dict(*two_pass, model::state_dict(*plain), "plain");  // no new parameter
+  io::load_state_dict(*two_pass, io::state_dict(*plain), "plain");  // no new parameter
   plain->eval(), two_pass->eval();
   auto s = random_scene(2, 3, 2);
   const auto& images = s.inputs.images;
@@ -238,10 +238,10 @@ TEST(Variants, EncoderLatentCamerasGiveTheEncoderTheInputsLatentPoses) {
                                plain->encode_scene(images.narrow(1, 0, 1), s.inputs.fxfycxcy.narrow(1, 0, 1))),
             0.0);
   // The FLOP count has the second pass and the inputs' poses.
-  auto once = model::forward_flops(small_config("uplvsm"), 1, 3, 2);
+  auto once = train::forward_flops(small_config("uplvsm"), 1, 3, 2);
   auto two_pass_config = small_config("uplvsm");
   two_pass_config.encoder_latent_cameras = true;
-  auto twice = model::forward_flops(two_pass_config, 1, 3, 2);
+  auto twice = train::forward_flops(two_pass_config, 1, 3, 2);
   EXPECT_DOUBLE_EQ(twice.encoder, 2 * once.encoder);
   EXPECT_DOUBLE_EQ(twice.estimator, 2 * once.estimator);  // 2 targets, then the 2 posed inputs
   EXPECT_GT(twice.other, once.other);
@@ -282,19 +282,19 @@ TEST(Variants, UplvsmTargetPoseSourcesAreOneSeam) {
 
 TEST(Variants, FlopCountsFollowTheArchitecture) {
   // One block: projections 2 s 4 d^2, MLP 2 s 2 d h, attention 4 s^2 d.
-  EXPECT_DOUBLE_EQ(model::transformer_block_flops(10, 4, 16),
+  EXPECT_DOUBLE_EQ(train::transformer_block_flops(10, 4, 16),
                    2.0 * 10 * 4 * 16 + 2.0 * 10 * 2 * 4 * 16 + 4.0 * 100 * 4);
   // A stack whose last block keeps 3 of 10 rows: q, k, v over all 10 there, the rest over 3.
-  EXPECT_DOUBLE_EQ(model::transformer_stack_flops(2, 10, 3, 4, 16), model::transformer_block_flops(10, 4, 16) +
+  EXPECT_DOUBLE_EQ(train::transformer_stack_flops(2, 10, 3, 4, 16), train::transformer_block_flops(10, 4, 16) +
                                                                         2.0 * 10 * 3 * 16 + 2.0 * 3 * 16 +
                                                                         2.0 * 3 * 2 * 4 * 16 + 4.0 * 3 * 10 * 4);
-  EXPECT_DOUBLE_EQ(model::transformer_stack_flops(3, 10, 10, 4, 16), 3 * model::transformer_block_flops(10, 4, 16));
-  auto up = model::forward_flops(small_config("uplvsm"), 1, 2, 3);
-  auto pt = model::forward_flops(small_config("ptlvsm"), 1, 2, 3);
+  EXPECT_DOUBLE_EQ(train::transformer_stack_flops(3, 10, 10, 4, 16), 3 * train::transformer_block_flops(10, 4, 16));
+  auto up = train::forward_flops(small_config("uplvsm"), 1, 2, 3);
+  auto pt = train::forward_flops(small_config("ptlvsm"), 1, 2, 3);
   EXPECT_GT(up.estimator, 0);
   EXPECT_EQ(pt.estimator, 0);
   EXPECT_EQ(pt.encoder, 0);
   EXPECT_LT(pt.dinov2, up.dinov2);  // no target images through DINOv2 without the estimator
-  EXPECT_GT(model::forward_flops(small_config("lvsm"), 1, 2, 3).other, pt.other);  // rays on both input views
-  EXPECT_DOUBLE_EQ(model::forward_flops(small_config("uplvsm"), 2, 2, 3).total(), 2 * up.total());
+  EXPECT_GT(train::forward_flops(small_config("lvsm"), 1, 2, 3).other, pt.other);  // rays on both input views
+  EXPECT_DOUBLE_EQ(train::forward_flops(small_config("uplvsm"), 2, 2, 3).total(), 2 * up.total());
 }

@@ -42,7 +42,7 @@ TEST(IdentityTrajectory, ReproducesTheFirstInputBetterThanItsMeanColour) {
   config.training.lr = 5e-4;
   config.training.warmup = 0;
   opt.run_dir = test::temp_dir("identity_mapper").string();
-  opt.init_weights = model::resolve_checkpoint(base);
+  opt.init_weights = io::resolve_checkpoint(base);
   train::train(config, opt);
 
   data::ChunkDataset dataset(test::micro_dataset(), "train");

@@ -53,7 +53,7 @@ TEST(ViewerModel, PosedModelsAreRefused) {
   const auto dir = temp_dir("viewer_posed");
   const auto path = (dir / "ptlvsm.safetensors").string();
   auto net = model::make_model(c.model);
-  model::write_checkpoint(path, c, {{"step", 0}}, model::state_dict(*net), {});
+  io::write_checkpoint(path, c, {{"step", 0}}, io::state_dict(*net), {});
   auto message = error_of([&] { serve::ViewerModel::load(path, "", torch::kCPU, false); });
   EXPECT_NE(message.find("PT-LVSM"), std::string::npos) << message;
   remove_tree(dir);

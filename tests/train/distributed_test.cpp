@@ -145,8 +145,7 @@ TEST(Distributed, TwoGlooRanksMatchOneProcessWithTheCombinedBatch) {
   ASSERT_EQ(dp.size(), 4u);
   ASSERT_EQ(single.size(), 4u);
   for (size_t i = 0; i < dp.size(); ++i) EXPECT_NEAR(dp[i], single[i], 1e-5 * single[i]) << "step " << i + 1;
-  auto a = model::read_checkpoint((dir / "dp").string()).model,
-       b = model::read_checkpoint((dir / "single").string()).model;
+  auto a = io::read_checkpoint((dir / "dp").string()).model, b = io::read_checkpoint((dir / "single").string()).model;
   ASSERT_EQ(a.size(), b.size());
   double diff = 0, norm = 0;
   for (const auto& [k, v] : a) {

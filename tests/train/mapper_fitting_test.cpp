@@ -54,7 +54,7 @@ std::string dataset_without_baselines() {
 
 TEST(MapperFitting, TheMlpFitsCloserThanTheLinearMapAndTheModelIsUnchanged) {
   auto net = micro_uplvsm();
-  const auto before = model::state_dict(*net);
+  const auto before = io::state_dict(*net);
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   model::PoseMapper linear, mlp(model::PoseMapperOptions{model::PoseMapperKind::Mlp, 16});
   auto lr = train::fit_mapper_to_model(*net, *linear, dataset, micro_fit(300));
@@ -68,7 +68,7 @@ TEST(MapperFitting, TheMlpFitsCloserThanTheLinearMapAndTheModelIsUnchanged) {
   EXPECT_LT(mr.fit_rms, 0.9 * mr.least_squares_rms);
   EXPECT_TRUE(std::isfinite(mr.held_out_rms));  // every tenth of 24 samples held out
   EXPECT_TRUE(std::isnan(lr.held_out_rms));
-  for (const auto& [name, t] : model::state_dict(*net)) EXPECT_TRUE(torch::equal(t, before.at(name))) << name;
+  for (const auto& [name, t] : io::state_dict(*net)) EXPECT_TRUE(torch::equal(t, before.at(name))) << name;
   // Deterministic: the same data and options give the same mapper.
   model::PoseMapper again;
   train::fit_mapper_to_model(*net, *again, dataset, micro_fit(0));

@@ -10,18 +10,18 @@ using namespace uplvsm;
 
 TEST(MaskedImageModeling, RandomMaskHidesExactlyTheRatioPerImageAndVaries) {
   torch::manual_seed(0);
-  auto mask = model::random_patch_mask(5, 36, 0.6);
+  auto mask = train::random_patch_mask(5, 36, 0.6);
   ASSERT_EQ(mask.sizes(), (std::vector<int64_t>{5, 36}));
   ASSERT_EQ(mask.scalar_type(), torch::kBool);
   for (int64_t i = 0; i < 5; ++i) EXPECT_EQ(mask[i].sum().item<int64_t>(), 22) << i;  // round(0.6 * 36)
   EXPECT_FALSE(torch::equal(mask[0], mask[1]));
-  EXPECT_NE(test::error_of([] { model::random_patch_mask(1, 4, 1.0); }).find("mask ratio"), std::string::npos);
+  EXPECT_NE(test::error_of([] { train::random_patch_mask(1, 4, 1.0); }).find("mask ratio"), std::string::npos);
 }
 
 TEST(MaskedImageModeling, NormalizedPatchesMatchAPatchByPatchComputation) {
   torch::manual_seed(1);
   auto images = torch::rand({2, 3, 16, 24});
-  auto got = model::normalized_patches(images, 8);
+  auto got = train::normalized_patches(images, 8);
   ASSERT_EQ(got.sizes(), (std::vector<int64_t>{2, 6, 192}));
   for (int64_t n = 0; n < 2; ++n)
     for (int64_t r = 0; r < 2; ++r)
@@ -35,7 +35,7 @@ TEST(MaskedImageModeling, NormalizedPatchesMatchAPatchByPatchComputation) {
 
 TEST(MaskedImageModeling, MaskedTokenizerReplacesOnlyTheHiddenPatchEmbeddings) {
   torch::manual_seed(2);
-  model::MaskedImageModel mim(test::micro_model());
+  train::MaskedImageModel mim(test::micro_model());
   mim->eval();
   auto images = torch::rand({2, 3, 32, 32});
   const int64_t n = 16;
@@ -61,11 +61,11 @@ TEST(MaskedImageModeling, MaskedTokenizerReplacesOnlyTheHiddenPatchEmbeddings) {
 
 TEST(MaskedImageModeling, LossIsTheMeanSquaredErrorOverHiddenPatchesOnly) {
   torch::manual_seed(3);
-  model::MaskedImageModel mim(test::micro_model());
+  train::MaskedImageModel mim(test::micro_model());
   auto images = torch::rand({3, 3, 32, 32});
-  auto mask = model::random_patch_mask(3, 16, 0.5);
+  auto mask = train::random_patch_mask(3, 16, 0.5);
   auto pred = mim->predict(images, mask);
-  auto target = model::normalized_patches(images, 8);
+  auto target = train::normalized_patches(images, 8);
   double sum = 0;
   int64_t count = 0;
   for (int64_t i = 0; i < 3; ++i)

@@ -132,11 +132,11 @@ TEST(PerceptualLoss, LoadsVgg19Weights) {
   const auto dir = test::temp_dir("perceptual_weights");
   const auto path = (dir / "vgg19.safetensors").string();
   io::TensorMap tensors;
-  for (const auto& [k, v] : model::state_dict(*source->vgg)) tensors[k] = v;
+  for (const auto& [k, v] : io::state_dict(*source->vgg)) tensors[k] = v;
   tensors["classifier.0.weight"] = torch::zeros({4, 4});  // torchvision files carry the classifier too
   io::write_safetensors(path, tensors);
   auto loaded = train::load_perceptual_loss(path, train::VggInput::TorchVision);
-  for (const auto& [k, v] : model::state_dict(*loaded->vgg)) EXPECT_TRUE(torch::equal(v, tensors.at(k))) << k;
+  for (const auto& [k, v] : io::state_dict(*loaded->vgg)) EXPECT_TRUE(torch::equal(v, tensors.at(k))) << k;
   EXPECT_FALSE(loaded->is_training());
   EXPECT_EQ(loaded->input, train::VggInput::TorchVision);
   test::remove_tree(dir);
@@ -147,7 +147,7 @@ TEST(PerceptualLoss, LoadsVgg19Weights) {
 TEST(PerceptualLoss, InputPreparationComesFromTheFileOrTheCaller) {
   const auto dir = test::temp_dir("perceptual_input");
   io::TensorMap tensors;
-  for (const auto& [k, v] : model::state_dict(*train::PerceptualLoss()->vgg)) tensors[k] = v;
+  for (const auto& [k, v] : io::state_dict(*train::PerceptualLoss()->vgg)) tensors[k] = v;
   const auto marked = (dir / "marked.safetensors").string(), unmarked = (dir / "plain.safetensors").string();
   io::write_safetensors(marked, tensors, {{train::kVggInputMetadataKey, "matconvnet"}});
   io::write_safetensors(unmarked, tensors);

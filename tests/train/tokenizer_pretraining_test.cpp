@@ -52,7 +52,7 @@ TEST(TokenizerPretraining, LossFallsDeterministicallyAndInitLoadsTheTokenizer) {
   topt.progress = false;
   config.training.lr = 0;  // the one step leaves the weights as loaded
   train::train(config, topt);
-  auto trained = model::state_dict(*model::load_model(topt.run_dir, torch::kCPU));
+  auto trained = io::state_dict(*model::load_model(topt.run_dir, torch::kCPU));
   int64_t compared = 0;
   for (const auto& [k, v] : a) {
     if (k == "mask_token") continue;

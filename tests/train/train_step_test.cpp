@@ -46,12 +46,12 @@ TrainingConfig official_training_config(const nlohmann::json& t) {
   return tc;
 }
 
-model::Views fixture_views(const model::NamedTensors& steps, int k, const std::string& which) {
+model::Views fixture_views(const io::NamedTensors& steps, int k, const std::string& which) {
   const std::string prefix = "step" + std::to_string(k) + "." + which + ".";
   return {steps.at(prefix + "images"), steps.at(prefix + "fxfycxcy"), {}};
 }
 
-double scalar(const model::NamedTensors& steps, int k, const std::string& name) {
+double scalar(const io::NamedTensors& steps, int k, const std::string& name) {
   return steps.at("step" + std::to_string(k) + "." + name).to(torch::kFloat64).item<double>();
 }
 
@@ -90,7 +90,7 @@ TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
   ModelConfig base;
   base.image_size = params.at("model").at("image_tokenizer").at("image_size");
   model::UPLVSM net(model::infer_model_config(initial, base));
-  model::load_state_dict(*net, initial, "official_uplvsm/model.safetensors");
+  io::load_state_dict(*net, initial, "official_uplvsm/model.safetensors");
   net->train();
 
   const auto tc = official_training_config(params.at("training"));
@@ -117,7 +117,7 @@ TEST(TrainStep, ReplaysTheOfficialTrainingLoop) {
 
   const auto final_weights =
       io::read_safetensors(test::fixture("official_uplvsm_train/final_model.safetensors")).tensors;
-  const auto ours = model::state_dict(*net);
+  const auto ours = io::state_dict(*net);
   int64_t elements = 0, close = 0;
   for (const auto& [name, expected] : final_weights) {
     ASSERT_TRUE(ours.count(name)) << name;

@@ -47,10 +47,10 @@ TEST(Trainer, LossFallsAndCheckpointRoundTrips) {
   Config loaded_config;
   auto net = model::load_model(run, torch::kCPU, &loaded_config);
   EXPECT_EQ(config_to_json(loaded_config), config_to_json(config));
-  auto ckpt = model::read_checkpoint(run);
+  auto ckpt = io::read_checkpoint(run);
   EXPECT_EQ(ckpt.state.at("step").get<int64_t>(), 40);
   EXPECT_FALSE(ckpt.optimizer.empty());
-  auto sd = model::state_dict(*net);
+  auto sd = io::state_dict(*net);
   ASSERT_EQ(sd.size(), ckpt.model.size());
   for (const auto& [k, v] : sd) EXPECT_TRUE(torch::equal(v, ckpt.model.at(k))) << k;
 }
@@ -69,7 +69,7 @@ TEST(Trainer, ResumeReproducesTheUninterruptedRunExactly) {
 
   // Bitwise: same data per step (step-keyed loader), same optimiser state, same schedule.
   EXPECT_EQ(logged_losses(straight), logged_losses(resumed));
-  auto a = model::read_checkpoint(straight), b = model::read_checkpoint(resumed);
+  auto a = io::read_checkpoint(straight), b = io::read_checkpoint(resumed);
   for (const auto& [k, v] : a.model) EXPECT_TRUE(torch::equal(v, b.model.at(k))) << k;
   for (const auto& [k, v] : a.optimizer) EXPECT_TRUE(torch::equal(v, b.optimizer.at(k))) << k;
 }
@@ -147,7 +147,7 @@ TEST(Trainer, PerceptualLossNeedsVgg19WeightsOrAnExplicitZero) {
   torch::manual_seed(1);
   train::PerceptualLoss vgg;
   io::TensorMap weights;
-  for (const auto& [k, v] : model::state_dict(*vgg->vgg)) weights[k] = v;
+  for (const auto& [k, v] : io::state_dict(*vgg->vgg)) weights[k] = v;
   auto run = test::temp_dir("train_perceptual").string();
   const auto vgg_path = run + "/vgg19.safetensors";
   io::write_safetensors(vgg_path, weights, {{train::kVggInputMetadataKey, "matconvnet"}});
@@ -168,7 +168,7 @@ TEST(Trainer, Bf16AutocastKeepsFp32MasterWeights) {
   auto result = train::train(config, test::micro_run_options(run));
   EXPECT_EQ(result.step, 3);
   for (double loss : logged(run)) EXPECT_TRUE(std::isfinite(loss) && loss > 0) << loss;
-  auto ckpt = model::read_checkpoint(run);
+  auto ckpt = io::read_checkpoint(run);
   for (const auto& [k, v] : ckpt.model) EXPECT_EQ(v.scalar_type(), torch::kFloat32) << k;
 }
 
@@ -197,7 +197,7 @@ TEST(Trainer, PeriodicEvaluationIsLoggedBesideTheLoss) {
   // The evaluation scores the test split, so it selects no weights: no "best" checkpoint beside the rotating ones,
   // and the training state keeps no best score.
   EXPECT_FALSE(fs::exists(fs::path(run) / "checkpoints/best.safetensors"));
-  auto latest = model::read_checkpoint(run);
+  auto latest = io::read_checkpoint(run);
   EXPECT_EQ(latest.state.at("step"), 6);
   EXPECT_FALSE(latest.state.contains("best_eval_psnr"));
 }
@@ -213,9 +213,9 @@ TEST(Trainer, MapperStageFitsTheMapperToTheEstimatorThenTrainsThroughIt) {
   config.training.train_steps = 3;
   auto run = test::temp_dir("train_mapper").string();
   auto opt = test::micro_run_options(run);
-  opt.init_weights = model::resolve_checkpoint(base);
+  opt.init_weights = io::resolve_checkpoint(base);
   train::train(config, opt);
-  auto ckpt = model::read_checkpoint(run);
+  auto ckpt = io::read_checkpoint(run);
   ASSERT_TRUE(ckpt.model.count("pose_mapper.A"));
   // The least-squares start moved A away from the identity, and the fine-tune trained it further.
   EXPECT_GT((ckpt.model.at("pose_mapper.A") - torch::eye(7)).abs().max().item<double>(), 1e-3);
@@ -230,7 +230,7 @@ TEST(Trainer, InitIntoADeeperModelFailsNamingTheBlocksTheFileLacks) {
   train::train(config, test::micro_run_options(base));
   config.model.transformer.decoder_n_layer = 2;
   auto opt = test::micro_run_options(test::temp_dir("train_deepen_deep").string());
-  opt.init_weights = model::resolve_checkpoint(base);
+  opt.init_weights = io::resolve_checkpoint(base);
   EXPECT_NE(test::error_of([&] { train::train(config, opt); }).find("transformer_decoder.1."), std::string::npos);
 }
 

@@ -4,7 +4,7 @@
 
 #include "uplvsm/io/pretrained_weights.h"
 
-namespace uplvsm::model {
+namespace uplvsm::backbones {
 
 namespace {
 namespace nn = torch::nn;
@@ -67,8 +67,8 @@ torch::Tensor VggFeaturesImpl::run(torch::Tensor x, int64_t begin, int64_t end) 
   return x;
 }
 
-LoadReport load_backbone(VggFeaturesImpl& backbone, const std::string& path) {
-  NamedTensors all = read_weight_file(path), features;
+io::LoadReport load_backbone(VggFeaturesImpl& backbone, const std::string& path) {
+  io::NamedTensors all = io::read_weight_file(path), features;
   int64_t ignored = 0;
   for (auto& [k, v] : all) {
     if (k.rfind("features.", 0) == 0)
@@ -81,11 +81,11 @@ LoadReport load_backbone(VggFeaturesImpl& backbone, const std::string& path) {
         fmt::format("{}: no `features.N.weight/bias` tensors (a torchvision-format backbone "
                     "file is expected)",
                     path));
-  auto report = load_state_dict(backbone, features, path);
+  auto report = io::load_state_dict(backbone, features, path);
   for (int64_t i = 0; i < ignored; ++i) report.skipped.push_back("(non-features key)");
   for (auto& p : backbone.parameters()) p.set_requires_grad(false);
   backbone.eval();
   return report;
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::backbones

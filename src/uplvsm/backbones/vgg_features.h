@@ -9,7 +9,7 @@
 
 #include "uplvsm/io/state_dict.h"
 
-namespace uplvsm::model {
+namespace uplvsm::backbones {
 
 enum class Backbone { AlexNet, Vgg16, Vgg19 };
 
@@ -28,6 +28,6 @@ TORCH_MODULE(VggFeatures);
 
 // Loads `features.*` tensors of a weight file (safetensors / .pth / .pt; other keys such as `classifier.*` are
 // ignored and counted) strictly into the backbone, freezes it and puts it in eval mode.
-LoadReport load_backbone(VggFeaturesImpl& backbone, const std::string& path);
+io::LoadReport load_backbone(VggFeaturesImpl& backbone, const std::string& path);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::backbones

@@ -27,7 +27,7 @@ struct ConvertArgs {
   bool verify = false;
 };
 
-void print_summary(const model::NovelViewModelImpl& net, const model::PretrainedWeights& w) {
+void print_summary(const model::NovelViewModelImpl& net, const io::PretrainedWeights& w) {
   std::map<std::string, int64_t> per_module;
   for (const auto& item : net.named_parameters(true)) {
     const auto& key = item.key();
@@ -38,7 +38,7 @@ void print_summary(const model::NovelViewModelImpl& net, const model::Pretrained
   for (const auto& [k, v] : w.tensors) dtypes.insert(std::string(c10::toString(v.scalar_type())));
   std::cout << fmt::format("read {} ({}{}): {} tensors, {} weights, dtype {}\n", w.path, w.container,
                            w.found_at.empty() ? "" : ", under '" + w.found_at + "'", w.tensors.size(),
-                           model::to_string(w.source), fmt::join(dtypes, "/"));
+                           io::to_string(w.source), fmt::join(dtypes, "/"));
   for (const auto& [name, count] : per_module) std::cout << fmt::format("  {:<40} {:>14} parameters\n", name, count);
   std::cout << fmt::format("  {:<40} {:>14} parameters\n", "total", net.parameter_count());
 }
@@ -46,7 +46,7 @@ void print_summary(const model::NovelViewModelImpl& net, const model::Pretrained
 // The known extras of official checkpoints: the perceptual loss's VGG19 (MatConvNet ImageNet weights). Its conv
 // layers are saved under torchvision's `features.N` names, the format the perceptual loss reads; the untrained
 // classifier and the aliased `blocks.*` keys are left out.
-void write_vgg19_extras(const model::PretrainedWeights& w, const std::string& output) {
+void write_vgg19_extras(const io::PretrainedWeights& w, const std::string& output) {
   io::TensorMap vgg;
   const std::string prefix = "loss_computer.perceptual_loss_module.vgg.";
   for (const auto& [k, v] : w.tensors)
@@ -65,8 +65,8 @@ void write_vgg19_extras(const model::PretrainedWeights& w, const std::string& ou
 void verify(const std::string& output, const model::NovelViewModelImpl& converted, const torch::Device& device) {
   Config config;
   auto net = model::load_model(output, device, &config);
-  auto expected = model::state_dict(converted);
-  for (const auto& [k, v] : model::state_dict(*net))
+  auto expected = io::state_dict(converted);
+  for (const auto& [k, v] : io::state_dict(*net))
     if (!torch::equal(v, expected.at(k)))
       throw std::runtime_error("verify: tensor " + k + " changed in the round trip");
   torch::NoGradGuard no_grad;
@@ -95,26 +95,26 @@ void verify(const std::string& output, const model::NovelViewModelImpl& converte
 
 void run_convert(const ConvertArgs& a) {
   apply_common_options(a.common);
-  auto w = model::read_pretrained_weights(a.input);
+  auto w = io::read_pretrained_weights(a.input);
   Config config;
   if (!a.config.empty()) config = load_config(a.config);
-  nlohmann::json state = {{"step", 0}, {"converted_from", a.input}, {"source", model::to_string(w.source)}};
+  nlohmann::json state = {{"step", 0}, {"converted_from", a.input}, {"source", io::to_string(w.source)}};
   model::NovelViewModel net{nullptr};
-  if (w.source == model::WeightSource::Uplvsm) {
+  if (w.source == io::WeightSource::Uplvsm) {
     if (a.config.empty()) {
       config.name = fs::path(a.input).stem().string();
       config.model = model::infer_model_config(w.tensors, config.model);
     }
     validate_config(config, a.config.empty() ? a.input + " (inferred config)" : a.config);
     net = model::make_model(config.model);
-    auto report = model::load_state_dict(*net, w.tensors, a.input);
+    auto report = io::load_state_dict(*net, w.tensors, a.input);
     std::cout << report.summary(a.input) << "\n";
   } else {
     if (a.config.empty())
       throw std::runtime_error(
           fmt::format("convert: {} holds {} weights; give --config (e.g. configs/paper_x224.json) "
                       "for the UP-LVSM model to initialise around them",
-                      a.input, model::to_string(w.source)));
+                      a.input, io::to_string(w.source)));
     validate_config(config, a.config);
     torch::manual_seed(static_cast<uint64_t>(config.training.seed));
     net = model::make_model(config.model);
@@ -123,7 +123,7 @@ void run_convert(const ConvertArgs& a) {
               << config.training.seed << ")\n";
   }
   print_summary(*net, w);
-  model::write_checkpoint(a.output, config, state, model::state_dict(*net), {});
+  io::write_checkpoint(a.output, config, state, io::state_dict(*net), {});
   std::cout << fmt::format("wrote {} ({})\n", a.output, config.name);
   write_vgg19_extras(w, a.output);
   if (a.verify) verify(a.output, *net, parse_device(a.common.device));

@@ -116,7 +116,7 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
     opt.lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
     opt.lpips->to(device);
   }
-  opt.extra = {{"checkpoint", model::resolve_checkpoint(a.model.checkpoint)},
+  opt.extra = {{"checkpoint", io::resolve_checkpoint(a.model.checkpoint)},
                {"mapper", a.model.mapper},
                {"data", a.scenes.data},
                {"split", a.scenes.split},
@@ -129,19 +129,17 @@ eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::N
 
 void print_eval_summary(const EvalArgs& a, const Config& config, const eval::EvalOptions& opt,
                         const eval::EvalSummary& summary) {
-  const auto& t = summary.table;
-  auto line = [&](const std::string& name, const std::string& row) {
-    const auto& r = t.at(row);
-    const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.at("lpips")) : std::string("unavailable");
-    return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.at("psnr"), r.at("ssim"),
-                       r.at("grad_ratio"), lpips);
+  auto line = [&](const std::string& name, const eval::Scores& r) {
+    const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.lpips) : std::string("unavailable");
+    return fmt::format("  {:<20} PSNR {:6.2f}  SSIM {:.4f}  edges {:.3f}  LPIPS {}\n", name, r.psnr, r.ssim,
+                       r.grad_ratio, lpips);
   };
   std::cout << fmt::format("evaluated {} scenes in {:.1f} s -> {}/metrics.json\n", summary.scenes, summary.seconds,
                            a.out)
             << line(to_string(config.model.variant) + " (" + uplvsm::to_string(opt.target_poses) +
                         (a.refinement.steps > 0 ? ", refined" : "") + ")",
-                    "model")
-            << line("copy nearest", "copy_nearest") << line("mean colour", "mean_colour");
+                    summary.scores.model)
+            << line("copy nearest", summary.scores.copy_nearest) << line("mean colour", summary.scores.mean_colour);
   if (!opt.lpips) std::cout << "  (LPIPS unavailable: pass --lpips-backbone and --lpips-lin to score it)\n";
   const auto& noise = summary.pose_noise;
   std::cout << (opt.pose_noise_std > 0 ? fmt::format("  pose noise sd {} (seed {}): {}\n", opt.pose_noise_std, a.seed,

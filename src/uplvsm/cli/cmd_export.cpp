@@ -24,14 +24,14 @@ void add_export_command(CLI::App& app) {
       ->check(CLI::ExistingPath);
   cmd->add_option("--out", a->out, "weights file to write (.safetensors)")->required();
   cmd->callback([a] {
-    const auto path = model::resolve_checkpoint(a->checkpoint);
-    auto ck = model::read_checkpoint(path);
+    const auto path = io::resolve_checkpoint(a->checkpoint);
+    auto ck = io::read_checkpoint(path);
     auto state = ck.state;
     state["exported_from"] = std::filesystem::path(path).filename().string();
     state.erase("best");  // a training-run pointer, meaningless beside the exported file
     if (std::filesystem::path(a->out).has_parent_path())
       std::filesystem::create_directories(std::filesystem::path(a->out).parent_path());
-    model::write_checkpoint(a->out, ck.config, state, ck.model, {});
+    io::write_checkpoint(a->out, ck.config, state, ck.model, {});
     int64_t params = 0;
     for (const auto& [name, tensor] : ck.model) params += tensor.numel();
     std::cout << fmt::format(

@@ -11,10 +11,10 @@
 #include "uplvsm/data/chunk_dataset.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
 #include "uplvsm/study/mapper_scenes.h"
 #include "uplvsm/train/mapper_fitting.h"
-#include "uplvsm/train/pose_mapper_file.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {
@@ -121,11 +121,11 @@ void evaluate_fitted(const FitMapperArgs& a, FitSetup& s) {
   opt.out_dir = a.eval_out.empty() ? a.out + ".eval" : a.eval_out;
   opt.extra = {{"checkpoint", a.model.checkpoint}, {"mapper", a.out}, {"data", a.eval_data}};
   auto summary = eval::evaluate(s.net, dataset, data::preprocess_options(s.config), opt);
-  const auto& m = summary.table.at("model");
+  const auto& m = summary.scores.model;
   std::cout << fmt::format(
       "held-out: {} scenes at real cameras through the mapper: PSNR {:.2f} dB, SSIM {:.4f} "
       "(copy-nearest {:.2f} dB) -> {}/metrics.json\n",
-      summary.scenes, m.at("psnr"), m.at("ssim"), summary.table.at("copy_nearest").at("psnr"), opt.out_dir);
+      summary.scenes, m.psnr, m.ssim, summary.scores.copy_nearest.psnr, opt.out_dir);
 }
 
 void run_fit_mapper(FitMapperArgs& a) {
@@ -139,7 +139,7 @@ void run_fit_mapper(FitMapperArgs& a) {
   fit["kind"] = a.kind;
   fit["data"] = a.data;
   fit["checkpoint"] = a.model.checkpoint;
-  model::write_pose_mapper_file(a.out, *mapper, model::model_fingerprint(*s.up), fit);
+  model::save_pose_mapper(a.out, *mapper, model::model_fingerprint(*s.up), fit);
   std::cout << fmt::format(
       "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
       "the least-squares linear map's {:.4f}) -> {}\n",

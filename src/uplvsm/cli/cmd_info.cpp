@@ -65,7 +65,7 @@ void add_info_command(CLI::App& app) {
       std::cout << "resolved config:\n" << config_to_json(c).dump(2) << "\n";
     }
     if (!checkpoint->empty()) {
-      auto ckpt = model::read_checkpoint(*checkpoint);
+      auto ckpt = io::read_checkpoint(*checkpoint);
       std::cout << fmt::format("checkpoint   {} (state {})\n", ckpt.path, ckpt.state.dump());
       print_model_summary(ckpt.config);
     }

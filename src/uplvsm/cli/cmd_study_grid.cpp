@@ -183,18 +183,18 @@ study::GridCell run_cell(const GridRun& r, const GridArgs& a, torch::Device devi
   eopt.lpips = lpips;
   eopt.extra = {{"checkpoint", trained.last_checkpoint}, {"series", r.series}, {"setting", r.setting}};
   auto summary = eval::evaluate(net, test, prep, eopt);
-  const auto& row = summary.table.at("model");
+  const auto& row = summary.scores.model;
   auto finite_or_null = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
   nlohmann::json j = {{"series", r.series},
                       {"setting", r.setting},
                       {"x", r.x},
                       {"seed", r.config.training.seed},
-                      {"psnr", row.at("psnr")},
-                      {"ssim", row.at("ssim")},
-                      {"lpips", finite_or_null(row.at("lpips"))},
+                      {"psnr", row.psnr},
+                      {"ssim", row.ssim},
+                      {"lpips", finite_or_null(row.lpips)},
                       {"steps", trained.step},
                       {"scenes", summary.scenes},
-                      {"copy_nearest_psnr", summary.table.at("copy_nearest").at("psnr")}};
+                      {"copy_nearest_psnr", summary.scores.copy_nearest.psnr}};
   const auto text = j.dump(2);
   io::write_file_atomic(result_path.string(), text.data(), text.size());
   auto c = cell_from_json(j);

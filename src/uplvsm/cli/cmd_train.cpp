@@ -40,15 +40,15 @@ std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluati
     opt.index_path = index.string();
     opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
     auto summary = eval::evaluate(net, dataset, prep, opt);
-    const auto& model_row = summary.table.at("model");
+    const auto& model_row = summary.scores.model;
     spdlog::info("step {}: held-out PSNR {:.2f} dB, SSIM {:.4f}, edges {:.3f} on {} scenes (copy-nearest {:.2f} dB)",
-                 step, model_row.at("psnr"), model_row.at("ssim"), model_row.at("grad_ratio"), summary.scenes,
-                 summary.table.at("copy_nearest").at("psnr"));
-    return nlohmann::json{{"psnr", model_row.at("psnr")},
-                          {"ssim", model_row.at("ssim")},
-                          {"grad_ratio", model_row.at("grad_ratio")},
+                 step, model_row.psnr, model_row.ssim, model_row.grad_ratio, summary.scenes,
+                 summary.scores.copy_nearest.psnr);
+    return nlohmann::json{{"psnr", model_row.psnr},
+                          {"ssim", model_row.ssim},
+                          {"grad_ratio", model_row.grad_ratio},
                           {"scenes", summary.scenes},
-                          {"copy_nearest_psnr", summary.table.at("copy_nearest").at("psnr")},
+                          {"copy_nearest_psnr", summary.scores.copy_nearest.psnr},
                           {"dir", opt.out_dir}};
   };
 }
@@ -138,7 +138,7 @@ train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
   opt.data_root = a.data;
   opt.run_dir = a.run;
   opt.resume = a.resume;
-  opt.init_weights = std::filesystem::is_directory(a.init) ? model::resolve_checkpoint(a.init) : a.init;
+  opt.init_weights = std::filesystem::is_directory(a.init) ? io::resolve_checkpoint(a.init) : a.init;
   opt.perceptual_weights = a.vgg19;
   opt.perceptual_input = a.vgg19_input;
   // torchrun / SLURM launch variables make this process one rank of a data-parallel run.

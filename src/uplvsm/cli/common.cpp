@@ -6,8 +6,8 @@
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/kernels/ops.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
-#include "uplvsm/train/pose_mapper_file.h"
 
 namespace uplvsm::cli {
 

@@ -3,7 +3,7 @@
 #pragma once
 #include <torch/torch.h>
 
-namespace uplvsm::model {
+namespace uplvsm {
 
 class EvalModeGuard {
  public:
@@ -19,4 +19,4 @@ class EvalModeGuard {
   bool was_training_;
 };
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm

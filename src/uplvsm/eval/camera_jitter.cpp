@@ -89,7 +89,7 @@ JitterSummary measure_jitter(model::NovelViewModel& net, const data::ChunkDatase
   const auto index = opt.index_path.empty() ? (std::filesystem::path(dataset.root()) / "evaluation_index.json").string()
                                             : opt.index_path;
   auto entries = data::read_eval_index(index);
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   JitterSummary out;
   const int64_t wanted = opt.max_scenes > 0 ? std::min<int64_t>(opt.max_scenes, entries.size()) : entries.size();
   ProgressBar bar("jitter", wanted, "scene");

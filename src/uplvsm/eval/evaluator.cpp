@@ -245,14 +245,6 @@ void run_loaded(model::NovelViewModel& net, const std::vector<Loaded>& loaded, c
   for (const auto& [size, group] : by_size) run_batch(net, group, opt, state);
 }
 
-std::map<std::string, std::map<std::string, double>> mean_table(const std::vector<const SceneResult*>& scenes) {
-  const PredictorScores mean = mean_scores(scenes);
-  std::map<std::string, std::map<std::string, double>> table;
-  for (const auto& p : kPredictors)
-    for (const auto& [name, field] : kScoreFields) table[p.name][name] = mean.*p.field.*field;
-  return table;
-}
-
 }  // namespace
 
 void finalise_scene(SceneResult& r) {
@@ -270,9 +262,9 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
     all.push_back(&r);
     if (r.bucket != "none") by_bucket[r.bucket].push_back(&r);
   }
-  s.table = mean_table(all);  // NaN (null in JSON) without scenes, so every row/column is always present
+  s.scores = mean_scores(all);  // NaN (null in JSON) without scenes, so every predictor and score is present
   for (const auto& [bucket, members] : by_bucket) {
-    s.buckets[bucket] = mean_table(members);
+    s.buckets[bucket] = mean_scores(members);
     s.bucket_scenes[bucket] = static_cast<int64_t>(members.size());
   }
   // Each scene restricted to its interpolated / extrapolated targets.
@@ -291,7 +283,7 @@ EvalSummary summarise(std::vector<SceneResult> scenes) {
   for (const auto& [span, members] : parts) {
     std::vector<const SceneResult*> ptrs;
     for (const auto& m : members) ptrs.push_back(&m);
-    s.spans[span] = mean_table(ptrs);
+    s.spans[span] = mean_scores(ptrs);
     s.span_scenes[span] = static_cast<int64_t>(members.size());
   }
   return s;
@@ -325,7 +317,7 @@ static void merge_shards(const EvalOptions& opt, RunState& state) {
 // while one runs.
 static void run_jobs(model::NovelViewModel& net, const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
                      const std::vector<Job>& jobs, const EvalOptions& opt, RunState& state) {
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   torch::NoGradGuard no_grad;
   ProgressBar bar("eval", static_cast<int64_t>(jobs.size()), "scene");
   const auto batches = make_batches(jobs, opt.batch_size);
@@ -403,10 +395,9 @@ EvalSummary evaluate(model::NovelViewModel& net, const data::ChunkDataset& datas
     spdlog::info(
         "eval: {} scenes in {}: PSNR {:.3f} SSIM {:.4f} edges {:.3f} LPIPS {} | copy nearest {:.3f} / {:.4f} "
         "| mean colour {:.3f} / {:.4f}",
-        s.scenes, format_duration(s.seconds), s.table["model"]["psnr"], s.table["model"]["ssim"],
-        s.table["model"]["grad_ratio"], opt.lpips ? fmt::format("{:.4f}", s.table["model"]["lpips"]) : "unavailable",
-        s.table["copy_nearest"]["psnr"], s.table["copy_nearest"]["ssim"], s.table["mean_colour"]["psnr"],
-        s.table["mean_colour"]["ssim"]);
+        s.scenes, format_duration(s.seconds), s.scores.model.psnr, s.scores.model.ssim, s.scores.model.grad_ratio,
+        opt.lpips ? fmt::format("{:.4f}", s.scores.model.lpips) : "unavailable", s.scores.copy_nearest.psnr,
+        s.scores.copy_nearest.ssim, s.scores.mean_colour.psnr, s.scores.mean_colour.ssim);
   }
   if (!opt.out_dir.empty() && opt.shard_rank == 0) write_results(opt.out_dir, s, opt.extra);
   return s;

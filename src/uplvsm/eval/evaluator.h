@@ -117,15 +117,16 @@ PredictorScores mean_scores(const Items& items) {
 
 struct EvalSummary {
   int64_t scenes = 0;
-  // row: "model", "copy_nearest", "mean_colour" x column: "psnr", "ssim", "lpips", "grad_ratio" (mean over scenes of
-  // per-scene means; NaN when no scene was evaluated, and LPIPS NaN when it was unavailable).
-  std::map<std::string, std::map<std::string, double>> table;
-  // bucket ("small", "medium", "large", "ignore"; scenes without overlap are in no bucket) -> row -> metric.
-  std::map<std::string, std::map<std::string, std::map<std::string, double>>> buckets;
+  // Each predictor's mean over scenes of per-scene means (NaN when no scene was evaluated, and LPIPS NaN when it
+  // was unavailable); metrics.json's "table".
+  PredictorScores scores;
+  // bucket ("small", "medium", "large", "ignore"; scenes without overlap are in no bucket) -> the same means over
+  // its scenes.
+  std::map<std::string, PredictorScores> buckets;
   std::map<std::string, int64_t> bucket_scenes;  // scenes per bucket
-  // "interpolation" / "extrapolation" -> row -> metric: per scene, the mean over its targets of that kind, then
-  // the mean over the scenes that have such targets (the paper's appendix table; latentSplat's split).
-  std::map<std::string, std::map<std::string, std::map<std::string, double>>> spans;
+  // "interpolation" / "extrapolation" -> per scene, the mean over its targets of that kind, then the mean over the
+  // scenes that have such targets (the paper's appendix table; latentSplat's split).
+  std::map<std::string, PredictorScores> spans;
   std::map<std::string, int64_t> span_scenes;
   std::vector<SceneResult> per_scene;  // index (key) order
   double seconds = 0;

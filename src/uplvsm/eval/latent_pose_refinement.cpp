@@ -1,6 +1,6 @@
 #include "uplvsm/eval/latent_pose_refinement.h"
 
-namespace uplvsm::model {
+namespace uplvsm::eval {
 
 torch::Tensor per_view_mse(const torch::Tensor& render, const torch::Tensor& target) {
   TORCH_CHECK(render.sizes() == target.sizes() && render.dim() == 5,
@@ -11,8 +11,9 @@ torch::Tensor per_view_mse(const torch::Tensor& render, const torch::Tensor& tar
 
 // Each view's error depends on its own pose only, so the summed error gives every pose its own gradient.
 // torch::autograd::grad, not backward(), so the frozen weights collect no gradient.
-torch::Tensor refine_latent_poses(UPLVSMImpl& model, const torch::Tensor& scene_latents, const torch::Tensor& start,
-                                  const Views& targets, const PoseRefinement& refinement) {
+torch::Tensor refine_latent_poses(model::UPLVSMImpl& model, const torch::Tensor& scene_latents,
+                                  const torch::Tensor& start, const model::Views& targets,
+                                  const PoseRefinement& refinement) {
   TORCH_CHECK(refinement.steps >= 0 && refinement.lr > 0,
               "pose refinement: steps must be >= 0 and the learning rate > 0, got steps ", refinement.steps, ", lr ",
               refinement.lr);
@@ -30,4 +31,4 @@ torch::Tensor refine_latent_poses(UPLVSMImpl& model, const torch::Tensor& scene_
   return poses.detach();
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::eval

@@ -9,7 +9,7 @@
 
 #include "uplvsm/model/uplvsm.h"
 
-namespace uplvsm::model {
+namespace uplvsm::eval {
 
 struct PoseRefinement {
   int64_t steps = 0;  // Adam steps per batch of targets; 0: the poses as they are
@@ -21,7 +21,8 @@ torch::Tensor per_view_mse(const torch::Tensor& render, const torch::Tensor& tar
 
 // `start` [b, v_t, 7] refined for `targets` (their images and intrinsics) over `scene_latents`; returned detached, in
 // fp32. Gradients are taken for the poses only (no weight collects one), under the caller's autocast.
-torch::Tensor refine_latent_poses(UPLVSMImpl& model, const torch::Tensor& scene_latents, const torch::Tensor& start,
-                                  const Views& targets, const PoseRefinement& refinement);
+torch::Tensor refine_latent_poses(model::UPLVSMImpl& model, const torch::Tensor& scene_latents,
+                                  const torch::Tensor& start, const model::Views& targets,
+                                  const PoseRefinement& refinement);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::eval

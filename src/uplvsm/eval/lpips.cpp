@@ -16,7 +16,8 @@ LpipsNet parse_lpips_net(const std::string& name) {
 
 LpipsImpl::LpipsImpl(LpipsNet n) : net(n) {
   const bool vgg = n == LpipsNet::Vgg;
-  backbone = register_module("net", model::VggFeatures(vgg ? model::Backbone::Vgg16 : model::Backbone::AlexNet));
+  backbone =
+      register_module("net", backbones::VggFeatures(vgg ? backbones::Backbone::Vgg16 : backbones::Backbone::AlexNet));
   // Official pretrained_networks.py slicing: relu1_2..relu5_3 for vgg16, relu1..relu5 for alexnet.
   slice_ends = vgg ? std::vector<int64_t>{4, 9, 16, 23, 30} : std::vector<int64_t>{2, 5, 8, 10, 12};
   const std::vector<int64_t> channels =
@@ -69,8 +70,8 @@ torch::Tensor LpipsImpl::forward(const torch::Tensor& in0, const torch::Tensor& 
 
 Lpips load_lpips(LpipsNet net, const std::string& backbone_path, const std::string& lin_path) {
   Lpips lpips(net);
-  model::load_backbone(*lpips->backbone, backbone_path);
-  auto weights = model::read_weight_file(lin_path);
+  backbones::load_backbone(*lpips->backbone, backbone_path);
+  auto weights = io::read_weight_file(lin_path);
   torch::NoGradGuard no_grad;
   for (size_t k = 0; k < lpips->lin.size(); ++k) {
     const std::string official = fmt::format("lin{}.model.1.weight", k), plain = fmt::format("lin{}", k);

@@ -29,7 +29,7 @@ struct LpipsImpl : torch::nn::Module {
   torch::Tensor forward(const torch::Tensor& in0, const torch::Tensor& in1);
 
   LpipsNet net;
-  model::VggFeatures backbone{nullptr};
+  backbones::VggFeatures backbone{nullptr};
   std::vector<int64_t> slice_ends;  // layer index after each of the 5 slices
   std::vector<torch::Tensor> lin;   // [1, C_k, 1, 1] buffers lin0..lin4
 };

@@ -4,6 +4,8 @@
 
 #include <cmath>
 #include <filesystem>
+#include <map>
+#include <string>
 #include <utility>
 
 #include "uplvsm/io/atomic_file.h"
@@ -59,6 +61,21 @@ std::string per_view_csv(const EvalSummary& s) {
   return out;
 }
 
+// Each predictor's scores under their names: predictor -> score -> value (NaN, unavailable LPIPS, dumps as null).
+nlohmann::json table_json(const PredictorScores& scores) {
+  nlohmann::json table = nlohmann::json::object();
+  for (const auto& p : kPredictors)
+    for (const auto& [name, field] : kScoreFields) table[p.name][name] = scores.*p.field.*field;
+  return table;
+}
+
+// group (bucket, span) -> its table.
+nlohmann::json tables_json(const std::map<std::string, PredictorScores>& groups) {
+  nlohmann::json tables = nlohmann::json::object();
+  for (const auto& [group, scores] : groups) tables[group] = table_json(scores);
+  return tables;
+}
+
 }  // namespace
 
 nlohmann::json summary_to_json(const EvalSummary& s) {
@@ -70,10 +87,10 @@ nlohmann::json summary_to_json(const EvalSummary& s) {
   j["skipped"] = {
       {"null_entries", s.skipped_null}, {"missing_keys", s.skipped_missing}, {"bad_frames", s.skipped_bad_frames}};
   j["resized_frames"] = s.resized_frames;  // scored, each resized from its own size as the official dataset does
-  j["table"] = s.table;
-  j["buckets"] = s.buckets;
+  j["table"] = table_json(s.scores);
+  j["buckets"] = tables_json(s.buckets);
   j["bucket_scenes"] = s.bucket_scenes;
-  j["spans"] = s.spans;
+  j["spans"] = tables_json(s.spans);
   j["span_scenes"] = s.span_scenes;
   j["lpips"] = s.lpips;
   j["pose_noise"] = s.pose_noise;  // which cameras were scored: clean, or with the official evaluation's noise

@@ -9,7 +9,7 @@ model::Rendered render_at_refined_poses(model::UPLVSMImpl& model, const model::V
               refinement.lr);
   auto latents = model.encode_scene(inputs.images, inputs.fxfycxcy);
   auto poses = model.target_latent_poses(inputs, targets, latents, model::TargetPoses::Estimator);
-  if (refinement.steps > 0) poses = model::refine_latent_poses(model, latents, poses, targets, refinement);
+  if (refinement.steps > 0) poses = refine_latent_poses(model, latents, poses, targets, refinement);
   auto render = model.render_views(latents, poses, targets.fxfycxcy, targets.images.size(3), targets.images.size(4));
   return {render, poses, latents};
 }

@@ -1,6 +1,6 @@
 // Target-pose refinement, an evaluation protocol beside the paper's: the latent pose the estimator reads from each
 // target is refined, the model frozen, by gradient descent on its render's photometric error against that target
-// (model/latent_pose_refinement). Pose-free view-synthesis evaluations align their target cameras this way (NoPoSplat,
+// (eval/latent_pose_refinement). Pose-free view-synthesis evaluations align their target cameras this way (NoPoSplat,
 // Ye et al. 2025); here it separates what the decoder can draw from how well the estimator places the camera.
 #pragma once
 #include <torch/torch.h>
@@ -9,9 +9,6 @@
 #include "uplvsm/model/uplvsm.h"
 
 namespace uplvsm::eval {
-
-using model::per_view_mse;
-using model::PoseRefinement;
 
 // The targets rendered at their refined latent poses. With steps 0 the same as
 // model.render(inputs, targets, TargetPoses::Estimator). Runs under the caller's grad mode for the scene and the

@@ -8,7 +8,7 @@
 
 #include "uplvsm/io/safetensors.h"
 
-namespace uplvsm::model {
+namespace uplvsm::io {
 
 namespace fs = std::filesystem;
 
@@ -68,4 +68,4 @@ void write_checkpoint(const std::string& path, const Config& config, const nlohm
       path, all, {{"format", kCheckpointFormat}, {"config", config_to_json(config).dump()}, {"state", state.dump()}});
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::io

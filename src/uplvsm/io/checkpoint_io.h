@@ -10,7 +10,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/io/state_dict.h"
 
-namespace uplvsm::model {
+namespace uplvsm::io {
 
 inline constexpr const char* kOptimizerPrefix = "__optimizer__/";
 inline constexpr const char* kCheckpointFormat = "uplvsm-checkpoint-v1";
@@ -31,4 +31,4 @@ CheckpointFile read_checkpoint(const std::string& path);
 void write_checkpoint(const std::string& path, const Config& config, const nlohmann::json& state,
                       const NamedTensors& model, const NamedTensors& optimizer);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::io

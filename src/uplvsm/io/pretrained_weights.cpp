@@ -10,7 +10,7 @@
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/io/torch_file.h"
 
-namespace uplvsm::model {
+namespace uplvsm::io {
 
 std::string to_string(WeightSource source) {
   switch (source) {
@@ -136,4 +136,4 @@ PretrainedWeights read_pretrained_weights(const std::string& path) {
   return w;
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::io

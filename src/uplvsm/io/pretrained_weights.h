@@ -11,7 +11,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/io/state_dict.h"
 
-namespace uplvsm::model {
+namespace uplvsm::io {
 
 enum class WeightSource { Uplvsm, Dinov2Meta, Dinov2HuggingFace };
 std::string to_string(WeightSource source);
@@ -37,4 +37,4 @@ PretrainedWeights read_pretrained_weights(const std::string& path);
 // HuggingFace Dinov2Model names -> Meta names. Unknown keys are an error listing them.
 NamedTensors dinov2_from_huggingface(const NamedTensors& hf, const std::string& source);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::io

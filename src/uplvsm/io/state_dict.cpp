@@ -4,7 +4,7 @@
 
 #include <fmt/format.h>
 
-namespace uplvsm::model {
+namespace uplvsm::io {
 
 namespace {
 std::string shape_str(at::IntArrayRef s) { return fmt::format("[{}]", fmt::join(s, ", ")); }
@@ -96,4 +96,4 @@ int64_t count_indexed(const NamedTensors& t, const std::string& prefix) {
   return n;
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::io

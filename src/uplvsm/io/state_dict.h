@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-namespace uplvsm::model {
+namespace uplvsm::io {
 
 using NamedTensors = std::map<std::string, torch::Tensor>;
 
@@ -43,4 +43,4 @@ bool has_key(const NamedTensors& tensors, const std::string& key);
 bool any_prefix(const NamedTensors& tensors, const std::string& prefix);
 int64_t count_indexed(const NamedTensors& tensors, const std::string& prefix);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::io

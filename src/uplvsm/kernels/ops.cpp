@@ -117,29 +117,6 @@ torch::Tensor qk_norm_attention(const torch::Tensor& qkv, int64_t heads, const t
   return o.transpose(1, 2).reshape({B, row_count, heads * d_head});
 }
 
-torch::Tensor run_pre_norm_stack(const std::vector<PreNormBlock>& blocks, torch::Tensor x, int64_t row_start,
-                                 int64_t row_count) {
-  const bool all_rows = row_count < 0 || (row_start == 0 && row_count == x.size(1));
-  if (blocks.empty()) return all_rows ? x : x.narrow(1, row_start, row_count);
-  torch::Tensor stream = std::move(x), pending;  // the residual stream is stream + pending (the last MLP output)
-  for (size_t i = 0; i < blocks.size(); ++i) {
-    const auto& b = blocks[i];
-    const bool rows_only = i + 1 == blocks.size() && !all_rows;
-    const int64_t start = rows_only ? row_start : 0, count = rows_only ? row_count : -1;
-    torch::Tensor normed1;
-    if (pending.defined())
-      std::tie(stream, normed1) = add_layer_norm(stream, pending, b.norm1_weight, b.norm1_bias, b.norm1_eps, true);
-    else
-      normed1 = layer_norm(stream, b.norm1_weight, b.norm1_bias, b.norm1_eps, true);
-    const auto kept = rows_only ? stream.narrow(1, start, count) : stream;
-    auto [h, normed2] =
-        add_layer_norm(kept, b.attention(normed1, start, count), b.norm2_weight, b.norm2_bias, b.norm2_eps, true);
-    stream = std::move(h);
-    pending = b.mlp(normed2);
-  }
-  return stream + pending;
-}
-
 namespace {
 std::string vector_name() { return isa_at_least(Isa::Avx512) ? "AVX-512" : "AVX2"; }
 // The row kernels of QK-Norm and LayerNorm: AVX-512 or scalar loops.

@@ -6,11 +6,9 @@
 #pragma once
 #include <torch/torch.h>
 
-#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
-#include <vector>
 
 namespace uplvsm::kernels {
 
@@ -51,28 +49,6 @@ class LinearWeightCache;
 std::shared_ptr<LinearWeightCache> make_linear_weight_cache();
 torch::Tensor linear(const torch::Tensor& x, const torch::Tensor& weight, const torch::Tensor& bias,
                      LinearWeightCache& cache);
-
-// A stack of pre-norm residual blocks, x = x + attention(norm1(x)); x = x + mlp(norm2(x)), as a stack runner: each
-// block's closing add is deferred into the next block's first norm (one fused pass under bf16 autocast on the CPU)
-// and the last block computes only the rows [row_start, row_start + row_count) (row_count < 0: all). The result is
-// what the blocks' plain forwards give, one after the other.
-struct PreNormBlock {
-  torch::Tensor norm1_weight, norm1_bias, norm2_weight, norm2_bias;  // biases may be undefined
-  double norm1_eps = 1e-5, norm2_eps = 1e-5;
-  // The attention branch on the normalised stream, for query rows (start, count < 0: all); the MLP branch.
-  std::function<torch::Tensor(const torch::Tensor& normed, int64_t row_start, int64_t row_count)> attention;
-  std::function<torch::Tensor(const torch::Tensor& normed)> mlp;
-};
-// A block's two norms (any layer-norm module with weight, bias and eps), its branches left to the caller.
-template <class Norm>
-PreNormBlock pre_norm_block(const Norm& norm1, const Norm& norm2) {
-  PreNormBlock b;
-  b.norm1_weight = norm1.weight, b.norm1_bias = norm1.bias, b.norm1_eps = norm1.eps;
-  b.norm2_weight = norm2.weight, b.norm2_bias = norm2.bias, b.norm2_eps = norm2.eps;
-  return b;
-}
-torch::Tensor run_pre_norm_stack(const std::vector<PreNormBlock>& blocks, torch::Tensor x, int64_t row_start = 0,
-                                 int64_t row_count = -1);
 
 // AdamW's update of one parameter at (1-based) step `step`, in place: exactly what torch::optim::AdamW::step does to
 // it (every intermediate rounded to fp32 as its tensor ops round), in one pass. Only where adamw_update_fuses: fp32

@@ -1,9 +1,9 @@
 #include "uplvsm/model/dinov2.h"
 
-#include "uplvsm/kernels/ops.h"
-#include "uplvsm/model/gradient_checkpoint.h"
-
 #include <cmath>
+#include <utility>
+
+#include "uplvsm/kernels/ops.h"
 
 namespace uplvsm::model {
 
@@ -47,6 +47,17 @@ DinoBlockImpl::DinoBlockImpl(const Dinov2Config& c) {
 torch::Tensor DinoBlockImpl::forward(const torch::Tensor& x) {
   const auto h = x + ls1(attn(norm1->forward_into_linear(x)));
   return h + ls2(mlp(norm2->forward_into_linear(h)));
+}
+
+BlockLayers DinoBlockImpl::layers() {
+  BlockLayers l;
+  l.block = shared_from_this();
+  l.norm1 = norm1.ptr(), l.norm2 = norm2.ptr();
+  l.qkv = attn->qkv.ptr(), l.proj = attn->proj.ptr(), l.heads = attn->heads;
+  if (attn->q_norm) l.q_norm = attn->q_norm.ptr(), l.k_norm = attn->k_norm.ptr();
+  l.fc1 = mlp->fc1.ptr(), l.fc2 = mlp->fc2.ptr();
+  l.ls1 = ls1->gamma, l.ls2 = ls2->gamma;
+  return l;
 }
 
 torch::Tensor sincos_pos_embed(int64_t grid, int64_t dim) {
@@ -112,30 +123,10 @@ torch::Tensor Dinov2Impl::interpolate_pos_encoding(int64_t height, int64_t width
   return torch::cat({cls_pe, patches}, 1).to(pos_embed.scalar_type());
 }
 
-namespace {
-
-// A block as the kernels' stack runner takes it (kernels/ops.h): its norms and its two branches, LayerScale included.
-kernels::PreNormBlock dino_pre_norm_block(const std::shared_ptr<DinoBlockImpl>& block) {
-  auto b = kernels::pre_norm_block(*block->norm1, *block->norm2);
-  b.attention = [attn = block->attn.ptr(), ls1 = block->ls1.ptr()](const torch::Tensor& normed, int64_t, int64_t) {
-    return ls1->forward(attn->forward(normed));
-  };
-  b.mlp = [mlp = block->mlp.ptr(), ls2 = block->ls2.ptr()](const torch::Tensor& normed) {
-    return ls2->forward(mlp->forward(normed));
-  };
-  return b;
-}
-
-}  // namespace
-
 torch::Tensor Dinov2Impl::run_blocks(torch::Tensor t) {
-  std::vector<kernels::PreNormBlock> list;
-  for (size_t i = 0; i < blocks->size(); ++i) list.push_back(dino_pre_norm_block(blocks->ptr<DinoBlockImpl>(i)));
-  if (grad_checkpoint_every <= 0 || !torch::GradMode::is_enabled() || list.empty())
-    return kernels::run_pre_norm_stack(list, std::move(t));
-  return run_checkpointed_stack(blocks, t, grad_checkpoint_every, [list](size_t i, const torch::Tensor& x) {
-    return kernels::run_pre_norm_stack({list[i]}, x);
-  });
+  std::vector<BlockLayers> layers;
+  for (size_t i = 0; i < blocks->size(); ++i) layers.push_back(blocks->ptr<DinoBlockImpl>(i)->layers());
+  return run_layers(layers, std::move(t), grad_checkpoint_every);
 }
 
 DinoFeatures Dinov2Impl::forward_features(const torch::Tensor& x, const torch::Tensor& mask,

@@ -35,8 +35,10 @@ TORCH_MODULE(LayerScale);
 
 struct DinoBlockImpl : torch::nn::Module {
   DinoBlockImpl(const Dinov2Config& c);
-  // x = x + ls1(attn(norm1(x))); x = x + ls2(mlp(norm2(x))).
+  // x = x + ls1(attn(norm1(x))); x = x + ls2(mlp(norm2(x))). The reference; Dinov2 runs its blocks through the
+  // layer loop (layer_loop.h), which reads a block as layers().
   torch::Tensor forward(const torch::Tensor& x);
+  BlockLayers layers();
   LayerNorm norm1{nullptr}, norm2{nullptr};
   DinoAttention attn{nullptr};
   LayerScale ls1{nullptr}, ls2{nullptr};
@@ -73,7 +75,7 @@ struct Dinov2Impl : torch::nn::Module {
   LayerNorm norm{nullptr};
   int64_t grad_checkpoint_every = 0;  // blocks per checkpointed group when training (0: off)
 
- private:
+  // The blocks in order, through the layer loop.
   torch::Tensor run_blocks(torch::Tensor tokens);
 };
 TORCH_MODULE(Dinov2);

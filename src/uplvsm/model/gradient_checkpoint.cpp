@@ -67,24 +67,4 @@ torch::Tensor checkpointed(LayerGroupFn fn, const torch::Tensor& x, const std::v
   return CheckpointFunction::apply(x, at::TensorList(params), c10::IValue::make_capsule(holder));
 }
 
-torch::Tensor run_checkpointed_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t every,
-                                     const StackModuleFn& run_module) {
-  const size_t n = stack->size();
-  auto run_range = [stack, run_module](size_t begin, size_t end, torch::Tensor t) {
-    for (size_t i = begin; i < end; ++i) t = run_module(i, t);
-    return t;
-  };
-  if (every <= 0) return run_range(0, n, x);
-  for (size_t begin = 0; begin < n; begin += static_cast<size_t>(every)) {
-    const size_t end = std::min(n, begin + static_cast<size_t>(every));
-    std::vector<torch::Tensor> params;
-    for (size_t i = begin; i < end; ++i) {
-      auto p = stack->ptr(i)->parameters();
-      params.insert(params.end(), p.begin(), p.end());
-    }
-    x = checkpointed([run_range, begin, end](const torch::Tensor& t) { return run_range(begin, end, t); }, x, params);
-  }
-  return x;
-}
-
 }  // namespace uplvsm::model

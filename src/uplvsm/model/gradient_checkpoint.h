@@ -16,10 +16,4 @@ using LayerGroupFn = std::function<torch::Tensor(const torch::Tensor&)>;
 // Outside grad mode, or when nothing requires grad, it is a plain call.
 torch::Tensor checkpointed(LayerGroupFn fn, const torch::Tensor& x, const std::vector<torch::Tensor>& params);
 
-// Runs module i of `stack` as run_module(i, x), in order. every > 0: each group of that many modules is
-// checkpointed (the official `grad_checkpoint_every`); 0 keeps every activation.
-using StackModuleFn = std::function<torch::Tensor(size_t, const torch::Tensor&)>;
-torch::Tensor run_checkpointed_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t every,
-                                     const StackModuleFn& run_module);
-
 }  // namespace uplvsm::model

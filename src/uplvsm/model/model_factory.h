@@ -20,7 +20,7 @@ NovelViewModel make_model(const ModelConfig& config);
 // without a pose mapper; d, layer counts, latents, patch size, DINOv2 width/depth/heads/registers/QK-norm/pos grid.
 // Fields the shapes cannot tell (image_size, eps, interpolation mode) come from `base`. Throws naming the key when
 // a required tensor is missing.
-ModelConfig infer_model_config(const NamedTensors& weights, ModelConfig base);
+ModelConfig infer_model_config(const io::NamedTensors& weights, ModelConfig base);
 
 // A ready model (eval mode, on `device`) from any weight file: our checkpoint (its embedded config), or an official
 // UP-LVSM / PT-LVSM .pt/.pth/.safetensors — then the model section of `config_hint` when given (it must fit the
@@ -35,6 +35,7 @@ NovelViewModel load_model_with_config_file(const std::string& path, const std::s
 // Loads Meta-named DINOv2 weights (io/pretrained_weights.h) into a model's image tokenizer (strict over the ViT):
 // mask_token is dropped (the official model deletes it) and the QK-norm weights that Meta's files lack stay at ones —
 // the report lists them so the user is told.
-LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const NamedTensors& meta, const std::string& source);
+io::LoadReport load_dinov2_into_tokenizer(NovelViewModelImpl& net, const io::NamedTensors& meta,
+                                          const std::string& source);
 
 }  // namespace uplvsm::model

@@ -1,31 +1,12 @@
 #include "uplvsm/model/transformer.h"
 
-#include "uplvsm/kernels/ops.h"
-#include "uplvsm/model/gradient_checkpoint.h"
-
 #include <algorithm>
 #include <cmath>
+#include <utility>
+
+#include "uplvsm/kernels/ops.h"
 
 namespace uplvsm::model {
-
-LayerNormImpl::LayerNormImpl(int64_t dim_, double eps_, bool with_bias) : dim(dim_), eps(eps_) {
-  weight = register_parameter("weight", torch::ones({dim}));
-  if (with_bias) bias = register_parameter("bias", torch::zeros({dim}));
-}
-
-torch::Tensor LayerNormImpl::forward(const torch::Tensor& x) { return torch::layer_norm(x, {dim}, weight, bias, eps); }
-
-torch::Tensor LayerNormImpl::forward_into_linear(const torch::Tensor& x) {
-  return kernels::layer_norm(x, weight, bias, eps, /*into_linear=*/true);
-}
-
-RMSNormImpl::RMSNormImpl(int64_t dim, double eps_) : eps(eps_) {
-  weight = register_parameter("weight", torch::ones({dim}));
-}
-
-torch::Tensor RMSNormImpl::forward(const torch::Tensor& x) {
-  return kernels::rms_norm(x, weight, eps, torch::promote_types(x.scalar_type(), weight.scalar_type()));
-}
 
 QKNormAttentionImpl::QKNormAttentionImpl(int64_t d, int64_t d_head_, double eps) : heads(d / d_head_), d_head(d_head_) {
   to_qkv = register_module("to_qkv", Linear(torch::nn::LinearOptions(d, 3 * d).bias(false)));
@@ -71,6 +52,16 @@ torch::Tensor TransformerBlockImpl::forward(const torch::Tensor& x, OutputRows r
   return h + mlp(norm2->forward_into_linear(h));
 }
 
+BlockLayers TransformerBlockImpl::layers() {
+  BlockLayers l;
+  l.block = shared_from_this();
+  l.norm1 = norm1.ptr(), l.norm2 = norm2.ptr();
+  l.qkv = attn->to_qkv.ptr(), l.proj = attn->fc.ptr(), l.heads = attn->heads;
+  l.q_norm = attn->q_norm.ptr(), l.k_norm = attn->k_norm.ptr();
+  l.fc1 = mlp->mlp->ptr<LinearImpl>(0), l.fc2 = mlp->mlp->ptr<LinearImpl>(2);  // 1 is the GELU
+  return l;
+}
+
 void init_linear_weights(torch::nn::Module& module, double std) {
   torch::NoGradGuard no_grad;
   for (auto& m : module.modules()) {
@@ -114,36 +105,12 @@ torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t
   return make_transformer_stack(d, d_head, eps, official_block_init_stds(n_layer, depth_init, depth_init));
 }
 
-namespace {
-
-// A block as the kernels' stack runner takes it: its norms' weights and its two branches.
-kernels::PreNormBlock pre_norm_block(const std::shared_ptr<TransformerBlockImpl>& block) {
-  auto b = kernels::pre_norm_block(*block->norm1, *block->norm2);
-  b.attention = [attn = block->attn.ptr()](const torch::Tensor& normed, int64_t start, int64_t count) {
-    return attn->forward(normed, count < 0 ? OutputRows{} : OutputRows{start, count});
-  };
-  b.mlp = [mlp = block->mlp.ptr()](const torch::Tensor& normed) { return mlp->forward(normed); };
-  return b;
-}
-
-}  // namespace
-
 torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every, const char* span,
                         OutputRows rows) {
   RECORD_FUNCTION(span, std::vector<c10::IValue>());
-  TORCH_CHECK(rows.all(x.size(1)) || (rows.start >= 0 && rows.count > 0 && rows.start + rows.count <= x.size(1)),
-              "run_stack: output rows [", rows.start, ", ", rows.start + rows.count, ") outside a sequence of ",
-              x.size(1));
-  const int64_t start = rows.all(x.size(1)) ? 0 : rows.start, count = rows.all(x.size(1)) ? -1 : rows.count;
-  std::vector<kernels::PreNormBlock> blocks;
-  for (size_t i = 0; i < stack->size(); ++i) blocks.push_back(pre_norm_block(stack->ptr<TransformerBlockImpl>(i)));
-  if (checkpoint_every <= 0 || !torch::GradMode::is_enabled() || blocks.empty())
-    return kernels::run_pre_norm_stack(blocks, std::move(x), start, count);
-  const size_t last = blocks.size() - 1;
-  return run_checkpointed_stack(
-      stack, std::move(x), checkpoint_every, [blocks, last, start, count](size_t i, const torch::Tensor& t) {
-        return kernels::run_pre_norm_stack({blocks[i]}, t, i == last ? start : 0, i == last ? count : -1);
-      });
+  std::vector<BlockLayers> blocks;
+  for (size_t i = 0; i < stack->size(); ++i) blocks.push_back(stack->ptr<TransformerBlockImpl>(i)->layers());
+  return run_layers(blocks, std::move(x), checkpoint_every, rows);
 }
 
 }  // namespace uplvsm::model

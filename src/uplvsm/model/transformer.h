@@ -7,40 +7,11 @@
 
 #include <vector>
 
+#include "uplvsm/model/layer_loop.h"
 #include "uplvsm/model/linear.h"
+#include "uplvsm/model/norm.h"
 
 namespace uplvsm::model {
-
-// LayerNorm with an optional bias (torch >= 2.1's LayerNorm(bias=False) keeps only `weight`).
-struct LayerNormImpl : torch::nn::Module {
-  LayerNormImpl(int64_t dim, double eps, bool bias);
-  torch::Tensor forward(const torch::Tensor& x);
-  // For a norm whose result only feeds linear layers: under bf16 autocast it may come out in bf16, the dtype those
-  // layers cast to (kernels/ops.h: layer_norm's into_linear).
-  torch::Tensor forward_into_linear(const torch::Tensor& x);
-  torch::Tensor weight, bias;
-  int64_t dim;
-  double eps;
-};
-TORCH_MODULE(LayerNorm);
-
-// y = x_fp32 * rsqrt(mean(x_fp32^2) + eps), cast back, times weight (official RMSNorm).
-struct RMSNormImpl : torch::nn::Module {
-  RMSNormImpl(int64_t dim, double eps);
-  torch::Tensor forward(const torch::Tensor& x);
-  torch::Tensor weight;
-  double eps;
-};
-TORCH_MODULE(RMSNorm);
-
-// The rows [start, start + count) of a token sequence that a caller reads from a stack's output (count < 0: all).
-// The last block then computes only those rows' queries, attention outputs and MLP: a stack whose caller keeps the
-// scene latents or the target tokens skips the rest of the sequence in its last block (every row still serves as
-// a key and value there).
-struct OutputRows {
-  int64_t start = 0, count = -1;
-  bool all(int64_t length) const { return count < 0 || (start == 0 && count == length); }
-};
 
 // softmax(rms(q) rms(k)^T / sqrt(d_head)) v per head, q | k | v = to_qkv(x), heads merged and projected by fc.
 struct QKNormAttentionImpl : torch::nn::Module {
@@ -63,10 +34,12 @@ struct MLPImpl : torch::nn::Module {
 TORCH_MODULE(MLP);
 
 // The pre-norm block: x = x + attn(norm1(x)); x = x + mlp(norm2(x)). `rows`: only those rows' queries, attention
-// outputs and MLP (every row still serves as a key and value).
+// outputs and MLP (every row still serves as a key and value). forward is the reference; stacks run through the
+// layer loop (layer_loop.h), which reads the block as layers().
 struct TransformerBlockImpl : torch::nn::Module {
   TransformerBlockImpl(int64_t d, int64_t d_head, double qk_norm_eps);
   torch::Tensor forward(const torch::Tensor& x, OutputRows rows = {});
+  BlockLayers layers();
   LayerNorm norm1{nullptr}, norm2{nullptr};
   QKNormAttention attn{nullptr};
   MLP mlp{nullptr};
@@ -90,10 +63,11 @@ torch::nn::ModuleList make_transformer_stack(int64_t d, int64_t d_head, double q
 // false: 0.02 for every block).
 torch::nn::ModuleList make_transformer_stack(int64_t n_layer, int64_t d, int64_t d_head, double qk_norm_eps,
                                              bool depth_init);
-// Runs the blocks in order, each as its forward (through the kernels' stack runner, which defers each residual add
-// into the next norm: kernels/ops.h). checkpoint_every > 0: each group of that many blocks is gradient-checkpointed
-// (the official `grad_checkpoint_every`); 0 keeps every activation. `span` names the stack in profiler traces
-// (UPLVSM_PROFILE), so the forwards that call it need no profiling code of their own. Returns `rows` of the output.
+// Runs the blocks in order through the layer loop (layer_loop.h: the blocks' forwards, each closing residual add
+// fused into the next block's first norm). checkpoint_every > 0: each group of that many blocks is
+// gradient-checkpointed (the official `grad_checkpoint_every`); 0 keeps every activation. `span` names the stack in
+// profiler traces (UPLVSM_PROFILE), so the forwards that call it need no profiling code of their own. Returns `rows` of
+// the output.
 torch::Tensor run_stack(const torch::nn::ModuleList& stack, torch::Tensor x, int64_t checkpoint_every = 0,
                         const char* span = "uplvsm::transformer_stack", OutputRows rows = {});
 

@@ -7,8 +7,8 @@
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pose_mapper.h"
+#include "uplvsm/model/pose_mapper_file.h"
 #include "uplvsm/model/uplvsm.h"
-#include "uplvsm/train/pose_mapper_file.h"
 
 namespace uplvsm::serve {
 

@@ -19,7 +19,7 @@ CrossViewAttention cross_view_attention(model::UPLVSM& net, const torch::Tensor&
   TORCH_CHECK(row >= 0 && row < gh && col >= 0 && col < gw, "study attention: patch (", row, ", ", col,
               ") is outside view 1's ", gh, "x", gw, " patch grid");
   torch::NoGradGuard no_grad;
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   model::ForwardTrace trace;
   net->encode_scene(images.unsqueeze(0), fxfycxcy.unsqueeze(0), &trace);
   // Replay the encoder up to its last block, whose attention probabilities are the figure's.

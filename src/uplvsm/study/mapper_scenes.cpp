@@ -37,9 +37,9 @@ MapperScenesRow fit_and_score(model::NovelViewModel& net, const data::ChunkDatas
   eo.num_visualised = 0;
   eo.target_poses = model::TargetPoses::Mapper;
   auto summary = eval::evaluate(net, held_out, prep, eo);
-  row.psnr = summary.table.at("model").at("psnr");
-  row.ssim = summary.table.at("model").at("ssim");
-  row.copy_nearest_psnr = summary.table.at("copy_nearest").at("psnr");
+  row.psnr = summary.scores.model.psnr;
+  row.ssim = summary.scores.model.ssim;
+  row.copy_nearest_psnr = summary.scores.copy_nearest.psnr;
   spdlog::info("mapper-scenes: {} posed scene(s): held-out PSNR {:.2f} dB, SSIM {:.4f}", scenes, row.psnr, row.ssim);
   return row;
 }

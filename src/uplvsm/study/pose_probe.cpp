@@ -56,7 +56,7 @@ PosePairs collect_pose_pairs(model::UPLVSM& net, const data::ChunkDataset& datas
                              const PosePairOptions& opt) {
   TORCH_CHECK(opt.gap >= 1, "pose pairs: gap must be >= 1");
   torch::NoGradGuard no_grad;
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   const int64_t scenes = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
   PosePairs out;
   std::vector<torch::Tensor> latent, real;

@@ -72,7 +72,7 @@ SensitivityReport measure_pose_sensitivity(model::UPLVSM& net, const data::Chunk
                                            const data::PreprocessOptions& prep, const SensitivityOptions& opt) {
   TORCH_CHECK(opt.gap >= 1, "pose sensitivity: gap must be >= 1");
   torch::NoGradGuard no_grad;
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   const int64_t scenes = opt.max_scenes > 0 ? std::min(opt.max_scenes, dataset.size()) : dataset.size();
   SensitivityReport out;
   ProgressBar bar("pose sensitivity", scenes, "scene");

@@ -49,8 +49,8 @@ std::map<std::string, torch::Tensor> named_trainable_parameters(const torch::nn:
   return out;
 }
 
-model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module) {
-  model::NamedTensors out;
+io::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module) {
+  io::NamedTensors out;
   auto& states = opt.state();
   for (const auto& [name, p] : named_trainable_parameters(module)) {
     auto it = states.find(state_key(states, p));
@@ -63,8 +63,8 @@ model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::M
   return out;
 }
 
-void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module,
-                             const model::NamedTensors& state, const std::string& source) {
+void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module, const io::NamedTensors& state,
+                             const std::string& source) {
   auto& states = opt.state();
   int64_t restored = 0;
   for (const auto& [name, p] : named_trainable_parameters(module)) {
@@ -88,7 +88,7 @@ std::string save_training_checkpoint(const std::string& dir, const Config& confi
                                      torch::nn::Module& module, torch::optim::AdamW& opt, int64_t keep) {
   fs::create_directories(dir);
   auto path = (fs::path(dir) / checkpoint_name(state.step)).string();
-  model::write_checkpoint(path, config, state.to_json(), model::state_dict(module), optimizer_state(opt, module));
+  io::write_checkpoint(path, config, state.to_json(), io::state_dict(module), optimizer_state(opt, module));
   const auto all = training_checkpoints(dir);
   for (size_t i = 0; keep > 0 && i + static_cast<size_t>(keep) < all.size(); ++i) fs::remove(all[i]);
   return path;
@@ -106,12 +106,12 @@ std::vector<std::string> training_checkpoints(const std::string& dir) {
   return all;
 }
 
-std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::string& dir) {
+std::optional<io::CheckpointFile> read_newest_valid_checkpoint(const std::string& dir) {
   const auto all = training_checkpoints(dir);
   std::string reasons;
   for (auto it = all.rbegin(); it != all.rend(); ++it) {
     try {
-      auto ckpt = model::read_checkpoint(*it);
+      auto ckpt = io::read_checkpoint(*it);
       TrainState::from_json(ckpt.state);
       return ckpt;
     } catch (const std::exception& e) {

@@ -32,9 +32,9 @@ std::string checkpoint_name(int64_t step);
 std::map<std::string, torch::Tensor> named_trainable_parameters(const torch::nn::Module& module);
 
 // Optimiser state as named tensors "<kind>/<param name>" (kind: exp_avg, exp_avg_sq, step) and back.
-model::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module);
-void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module,
-                             const model::NamedTensors& state, const std::string& source);
+io::NamedTensors optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module);
+void restore_optimizer_state(torch::optim::AdamW& opt, const torch::nn::Module& module, const io::NamedTensors& state,
+                             const std::string& source);
 
 // The ckpt_*.safetensors files of a checkpoint directory, oldest (lowest step) first; none when it does not exist.
 std::vector<std::string> training_checkpoints(const std::string& checkpoint_dir);
@@ -43,7 +43,7 @@ std::vector<std::string> training_checkpoints(const std::string& checkpoint_dir)
 // training state). Each newer one that does not (truncated by a full disk, a copy or a crash of the storage) is
 // skipped with a warning naming it and why. None when the directory holds no checkpoint; an error when it holds
 // some and none reads.
-std::optional<model::CheckpointFile> read_newest_valid_checkpoint(const std::string& checkpoint_dir);
+std::optional<io::CheckpointFile> read_newest_valid_checkpoint(const std::string& checkpoint_dir);
 
 // Writes the checkpoint and prunes old ones; returns its path.
 std::string save_training_checkpoint(const std::string& checkpoint_dir, const Config& config, const TrainState& state,

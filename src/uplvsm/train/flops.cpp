@@ -2,7 +2,7 @@
 
 #include "uplvsm/model/posed_lvsm.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 double transformer_block_flops(int64_t seq, int64_t d, int64_t mlp_hidden) {
   const double s = static_cast<double>(seq), dd = static_cast<double>(d);
@@ -78,8 +78,8 @@ FlopCount posed_lvsm_forward_flops(const ModelConfig& c, int64_t batch, int64_t 
 
 FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views) {
   if (config.variant == Variant::UPLVSM) return uplvsm_forward_flops(config, batch, input_views, target_views);
-  const int64_t posed = posed_inputs(config.variant) == PosedInputs::All ? input_views : 1;
+  const int64_t posed = model::posed_inputs(config.variant) == model::PosedInputs::All ? input_views : 1;
   return posed_lvsm_forward_flops(config, batch, input_views, target_views, posed);
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

@@ -6,7 +6,7 @@
 
 #include "uplvsm/core/config.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 struct FlopCount {
   double dinov2 = 0, encoder = 0, estimator = 0, decoder = 0, other = 0;  // tokenizers, heads
@@ -29,4 +29,4 @@ FlopCount posed_lvsm_forward_flops(const ModelConfig& config, int64_t batch, int
 // One forward of config's model (the one of the two above that it is), without building it.
 FlopCount forward_flops(const ModelConfig& config, int64_t batch, int64_t input_views, int64_t target_views);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

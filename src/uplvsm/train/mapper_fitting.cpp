@@ -115,7 +115,7 @@ void regress(model::PoseMapperImpl& mapper, const PosePairs& pairs, const Mapper
   const int64_t steps = opt.regression_steps;
   // state_dict's CPU tensors share the parameters' storage: the kept state is a copy.
   auto snapshot = [&] {
-    auto state = model::state_dict(mapper);
+    auto state = io::state_dict(mapper);
     for (auto& [name, t] : state) t = t.clone();
     return state;
   };
@@ -135,7 +135,7 @@ void regress(model::PoseMapperImpl& mapper, const PosePairs& pairs, const Mapper
       }
     }
   }
-  if (checked) model::load_state_dict(mapper, best_state, "the best held-out check");
+  if (checked) io::load_state_dict(mapper, best_state, "the best held-out check");
   report.fit_rms = rms(split.fit);
   report.held_out_rms = checked ? rms(split.held_out) : std::nan("");
 }
@@ -184,7 +184,7 @@ MapperFitReport fit_mapper_to_model(model::UPLVSMImpl& net, model::PoseMapperImp
   if (report.scenes == 0) throw std::runtime_error("fit-mapper: " + dataset.root() + " has no scenes");
   check_posed(dataset, report.scenes);
   check_some_scene_fits(dataset, report.scenes, opt.loader);
-  model::EvalModeGuard mode(net);
+  EvalModeGuard mode(net);
   mapper.to(opt.device);
   const auto pairs = collect_pairs(net, dataset, opt);
   report.calibration_views = pairs.views;

@@ -4,7 +4,7 @@
 
 #include "uplvsm/model/pose_tokenizer.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 torch::Tensor random_patch_mask(int64_t images, int64_t patches, double ratio) {
   TORCH_CHECK(ratio > 0 && ratio < 1, "mask ratio must be in (0, 1), got ", ratio);
@@ -15,14 +15,14 @@ torch::Tensor random_patch_mask(int64_t images, int64_t patches, double ratio) {
 
 torch::Tensor normalized_patches(const torch::Tensor& images01, int64_t patch_size) {
   // (row, column, channel) per patch, as the pose tokenizer flattens rays
-  auto x = patchify(images01.to(torch::kFloat32), patch_size);
+  auto x = model::patchify(images01.to(torch::kFloat32), patch_size);
   auto mean = x.mean(-1, true);
   auto var = x.var(-1, /*unbiased=*/false, /*keepdim=*/true);
   return (x - mean) / (var + 1e-6).sqrt();
 }
 
 MaskedImageModelImpl::MaskedImageModelImpl(const ModelConfig& config) : patch_size(config.patch_size) {
-  tokenizer = register_module("tokenizer", DinoTokenizer(config.dinov2, config.patch_size));
+  tokenizer = register_module("tokenizer", model::DinoTokenizer(config.dinov2, config.patch_size));
   const int64_t d = config.dinov2.embed_dim;
   mask_token = register_parameter("mask_token", torch::zeros({1, d}));
   head = register_module("head", torch::nn::Linear(d, patch_size * patch_size * 3));
@@ -42,4 +42,4 @@ torch::Tensor MaskedImageModelImpl::forward(const torch::Tensor& images01, const
   return (error * hidden).sum() / hidden.sum().clamp_min(1);
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

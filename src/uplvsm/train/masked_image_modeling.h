@@ -9,7 +9,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/model/dinov2.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 // Exactly round(ratio * n) hidden patches per image, chosen uniformly: bool [N, n].
 torch::Tensor random_patch_mask(int64_t images, int64_t patches, double ratio);
@@ -22,7 +22,7 @@ struct MaskedImageModelImpl : torch::nn::Module {
   // Mean squared error over the hidden patches against their normalised pixels.
   torch::Tensor forward(const torch::Tensor& images01, const torch::Tensor& mask);
 
-  DinoTokenizer tokenizer{nullptr};
+  model::DinoTokenizer tokenizer{nullptr};
   torch::Tensor mask_token;  // [1, D], Meta's name and shape
   torch::nn::Linear head{nullptr};
   int64_t patch_size;
@@ -32,4 +32,4 @@ TORCH_MODULE(MaskedImageModel);
 // The patches' own normalisation, the regression target: (x - mean) / sqrt(var + 1e-6) over each patch's values.
 torch::Tensor normalized_patches(const torch::Tensor& images01, int64_t patch_size);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

@@ -1,6 +1,6 @@
 #include "uplvsm/train/memory_estimate.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 namespace {
 
 // transformer.h: norm1, norm2 (LayerNorm without bias), to_qkv and fc (no bias), RMSNorm q/k, MLP d -> 4d -> d.
@@ -83,4 +83,4 @@ TrainingMemory training_memory(const Config& config) {
   return m;
 }
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

@@ -6,7 +6,7 @@
 
 #include "uplvsm/core/config.h"
 
-namespace uplvsm::model {
+namespace uplvsm::train {
 
 // Parameters of the model `config` builds (equals make_model(config)->parameter_count()).
 int64_t parameter_count(const ModelConfig& config);
@@ -25,4 +25,4 @@ struct TrainingMemory {
 // only the group inputs are kept. Attention matrices, other buffers and the allocator's slack come on top.
 TrainingMemory training_memory(const Config& config);
 
-}  // namespace uplvsm::model
+}  // namespace uplvsm::train

@@ -52,7 +52,7 @@ const std::vector<double>& perceptual_term_divisors() {
 
 PerceptualLossImpl::PerceptualLossImpl(VggInput input_kind) : input(input_kind) {
   TORCH_CHECK(input != VggInput::Auto, "PerceptualLoss: the VGG19 input preparation must be resolved");
-  vgg = register_module("vgg", model::VggFeatures(model::Backbone::Vgg19, /*avg_pool=*/true));
+  vgg = register_module("vgg", backbones::VggFeatures(backbones::Backbone::Vgg19, /*avg_pool=*/true));
   for (auto& p : parameters()) p.set_requires_grad(false);
   eval();
 }
@@ -119,7 +119,7 @@ VggInput resolve_vgg_input(const std::string& path, VggInput requested) {
 
 PerceptualLoss load_perceptual_loss(const std::string& path, VggInput requested) {
   PerceptualLoss loss(resolve_vgg_input(path, requested));
-  model::load_backbone(*loss->vgg, path);
+  backbones::load_backbone(*loss->vgg, path);
   loss->eval();
   return loss;
 }

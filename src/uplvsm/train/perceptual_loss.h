@@ -38,7 +38,7 @@ struct PerceptualLossImpl : torch::nn::Module {
   // Scalar loss of [..., 3, H, W] predictions against targets in [0, 1]; gradients flow into `pred` only.
   torch::Tensor forward(const torch::Tensor& pred, const torch::Tensor& target);
 
-  model::VggFeatures vgg{nullptr};
+  backbones::VggFeatures vgg{nullptr};
   VggInput input;  // never Auto
 };
 TORCH_MODULE(PerceptualLoss);

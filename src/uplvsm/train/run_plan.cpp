@@ -87,7 +87,7 @@ std::string views_line(const RunPlan& p) {
 std::vector<std::string> describe_run_plan(const RunPlan& p) {
   const auto& c = p.config;
   const auto& t = c.training;
-  const auto memory = model::training_memory(c);
+  const auto memory = train::training_memory(c);
   return {line("model", fmt::format("{} ({}, {} parameters){}", c.name, to_string(c.model.variant), memory.parameters,
                                     p.init.empty() ? "" : ", starting from " + p.init)),
           line("tokenizer", describe_tokenizer_start(c, p.init, p.resuming)),

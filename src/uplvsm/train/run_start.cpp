@@ -32,15 +32,15 @@ void check_same_model(const Config& a, const Config& b, const std::string& sourc
 // A new run's starting weights; DINOv2 files go into the tokenizer like the official pretrained backbone.
 // Returns whether the pose mapper still needs its initial fit (an UP-LVSM with one, from a file without it).
 bool init_from_weights(model::NovelViewModelImpl& net, const std::string& path) {
-  auto w = model::read_pretrained_weights(path);
+  auto w = io::read_pretrained_weights(path);
   torch::NoGradGuard no_grad;
   const auto* up = model::as_uplvsm(net);
   const bool mapper = up && up->pose_mapper;
-  model::LoadOptions load;
+  io::LoadOptions load;
   if (mapper) load.allow_missing_substrings.push_back("pose_mapper.");
-  auto report = w.source == model::WeightSource::Uplvsm ? model::load_state_dict(net, w.tensors, path, load)
-                                                        : model::load_dinov2_into_tokenizer(net, w.tensors, path);
-  spdlog::info("initialised from {} weights: {}", model::to_string(w.source), report.summary(path));
+  auto report = w.source == io::WeightSource::Uplvsm ? io::load_state_dict(net, w.tensors, path, load)
+                                                     : model::load_dinov2_into_tokenizer(net, w.tensors, path);
+  spdlog::info("initialised from {} weights: {}", io::to_string(w.source), report.summary(path));
   return mapper && !w.tensors.count("pose_mapper.A");
 }
 
@@ -52,7 +52,7 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
   lo.seed += 1000003;
   const int64_t batches = std::max<int64_t>(1, (64 + lo.batch_size - 1) / lo.batch_size);
   torch::NoGradGuard no_grad;
-  model::EvalModeGuard mode(net);
+  EvalModeGuard mode(net);
   std::vector<torch::Tensor> real, latent;
   const int64_t vi = config.training.num_input_views;
   for (int64_t i = 0; i < batches; ++i) {
@@ -71,9 +71,9 @@ void calibrate_pose_mapper(model::UPLVSMImpl& net, const Config& config, const T
 
 // The checkpoint to resume from: for "auto" the newest in the run that reads (none on a new run; a damaged newer
 // one is skipped with a warning), a given file (damaged: an error), or none.
-std::optional<model::CheckpointFile> resume_checkpoint(const TrainOptions& opt, const std::string& checkpoint_dir) {
+std::optional<io::CheckpointFile> resume_checkpoint(const TrainOptions& opt, const std::string& checkpoint_dir) {
   if (opt.resume == "none") return std::nullopt;
-  if (opt.resume != "auto") return model::read_checkpoint(opt.resume);
+  if (opt.resume != "auto") return io::read_checkpoint(opt.resume);
   return read_newest_valid_checkpoint(checkpoint_dir);
 }
 
@@ -84,7 +84,7 @@ ModelStart resume_or_initialise(model::NovelViewModel net, const Config& config,
   auto optimizer = make_optimizer(*net, config.training);
   if (auto ckpt = resume_checkpoint(opt, checkpoint_dir)) {
     check_same_model(config, ckpt->config, ckpt->path);
-    model::load_state_dict(*net, ckpt->model, ckpt->path);
+    io::load_state_dict(*net, ckpt->model, ckpt->path);
     restore_optimizer_state(*optimizer, *net, ckpt->optimizer, ckpt->path);
     auto state = TrainState::from_json(ckpt->state);
     spdlog::info("resumed from {} at step {}", ckpt->path, state.step);

@@ -23,7 +23,7 @@ namespace fs = std::filesystem;
 namespace {
 
 // The tokenizer's ViT under Meta's DINOv2 names (what `--init` reads), with the mask token Meta files also carry.
-void write_tokenizer(const model::MaskedImageModelImpl& mim, const std::string& path) {
+void write_tokenizer(const train::MaskedImageModelImpl& mim, const std::string& path) {
   io::TensorMap tensors;
   for (const auto& p : mim.tokenizer->dino_vit->named_parameters()) tensors[p.key()] = p.value().detach().cpu();
   tensors["mask_token"] = mim.mask_token.detach().cpu();
@@ -31,10 +31,10 @@ void write_tokenizer(const model::MaskedImageModelImpl& mim, const std::string& 
 }
 
 // One optimiser step on every image of the batch; returns the loss.
-double pretrain_step(model::MaskedImageModelImpl& mim, torch::optim::AdamW& optimizer, const torch::Tensor& images,
+double pretrain_step(train::MaskedImageModelImpl& mim, torch::optim::AdamW& optimizer, const torch::Tensor& images,
                      const TokenizerPretrainOptions& opt, const TrainingConfig& tc) {
   const int64_t p = mim.patch_size, n = (images.size(2) / p) * (images.size(3) / p);
-  auto mask = model::random_patch_mask(images.size(0), n, opt.mask_ratio).to(opt.device);
+  auto mask = train::random_patch_mask(images.size(0), n, opt.mask_ratio).to(opt.device);
   optimizer.zero_grad();
   torch::Tensor loss;
   {
@@ -59,7 +59,7 @@ TokenizerPretrainResult pretrain_tokenizer(const Config& config, const Tokenizer
   }
   fs::create_directories(opt.run_dir);
   torch::manual_seed(static_cast<uint64_t>(tc.seed));
-  model::MaskedImageModel mim(config.model);
+  train::MaskedImageModel mim(config.model);
   mim->to(opt.device);
   mim->train();
   auto optimizer = make_optimizer(*mim, tc);

@@ -138,7 +138,7 @@ void run_periodic_eval(const TrainOptions& opt, model::NovelViewModel& net, cons
   if (lead) {
     json result;
     {
-      model::EvalModeGuard mode(*net);
+      EvalModeGuard mode(*net);
       result = opt.periodic_eval(net, state.step);
     }
     metrics << json{{"step", state.step}, {"eval", result}}.dump() << "\n";
@@ -150,7 +150,7 @@ void run_periodic_eval(const TrainOptions& opt, model::NovelViewModel& net, cons
 // Refuses, before anything is allocated, a config whose training state and activations (a lower bound) exceed the
 // memory the device has free: one line with both numbers instead of LibTorch's failed allocation.
 void check_memory_fits(const Config& config, torch::Device device) {
-  const auto need = model::training_memory(config);
+  const auto need = train::training_memory(config);
   const auto available = available_memory(device);
   if (!available || need.total() <= static_cast<double>(available->bytes)) return;
   throw std::runtime_error(fmt::format(

@@ -1,7 +1,6 @@
-// A pose mapper kept apart from the model it was fitted to (`uplvsm fit-mapper`): a small safetensors file with the
-// mapper's tensors under "pose_mapper.*" and, in its metadata, the format, the mapper's kind and width, the
-// fingerprint of the model's weights (a mapper speaks one model's latent poses only) and the fit's report. The
-// model file is never changed; `--mapper FILE` attaches the mapper at load time.
+// A fitted pose mapper in and out of a model: written to its own file (the format: io/pose_mapper_file.h) with the
+// fingerprint of the model it was fitted to, read back into a PoseMapper, attached to a model only when the
+// fingerprints agree. The model file is never changed; `--mapper FILE` attaches the mapper at load time.
 #pragma once
 #include <torch/torch.h>
 
@@ -13,9 +12,7 @@
 
 namespace uplvsm::model {
 
-inline constexpr const char* kPoseMapperFormat = "uplvsm-pose-mapper-v1";
-
-struct PoseMapperFile {
+struct LoadedPoseMapper {
   PoseMapper mapper{nullptr};
   std::string model_fingerprint;  // of the model the mapper was fitted to
   nlohmann::json fit;             // what fit-mapper recorded (scenes, steps, losses, seconds)
@@ -25,10 +22,10 @@ struct PoseMapperFile {
 // from the authors' .pt, its safetensors conversion or our checkpoint of the same weights.
 std::string model_fingerprint(UPLVSMImpl& net);
 
-void write_pose_mapper_file(const std::string& path, PoseMapperImpl& mapper, const std::string& fingerprint,
-                            const nlohmann::json& fit);
+void save_pose_mapper(const std::string& path, PoseMapperImpl& mapper, const std::string& fingerprint,
+                      const nlohmann::json& fit);
 // Throws naming the file and what is wrong: not a mapper file, unknown kind, missing or mis-shaped tensors.
-PoseMapperFile read_pose_mapper_file(const std::string& path);
+LoadedPoseMapper load_pose_mapper(const std::string& path);
 // Reads `path` and gives its mapper to `net`; an error when it was fitted to another model (fingerprints differ).
 void attach_pose_mapper_file(UPLVSMImpl& net, const std::string& path);
 

@@ -1,12 +1,15 @@
+// A fitted pose mapper travels apart from its model (model/pose_mapper_file.h over io/pose_mapper_file.h): written,
+// read back and attached only to the model it was fitted to; a file that is no mapper, or half a mapper, is named.
 #include <gtest/gtest.h>
 
 #include <fstream>
 
 #include "test_util.h"
 #include "train/train_test_util.h"
+#include "uplvsm/io/pose_mapper_file.h"
 #include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/train/pose_mapper_file.h"
+#include "uplvsm/model/pose_mapper_file.h"
 
 using namespace uplvsm;
 
@@ -25,8 +28,12 @@ TEST(PoseMapperFile, AMapperTravelsApartFromItsModelAndComesBackTheSame) {
     for (auto& p : mapper->parameters()) p.normal_(0, 0.2);
   }
   const auto path = (test::temp_dir("mapper_file") / "m.safetensors").string();
-  model::write_pose_mapper_file(path, *mapper, model::model_fingerprint(*net), {{"steps", 3}});
-  auto file = model::read_pose_mapper_file(path);
+  model::save_pose_mapper(path, *mapper, model::model_fingerprint(*net), {{"steps", 3}});
+  const auto stored = io::read_pose_mapper_file(path);  // the format: kind and width by name, the tensors unprefixed
+  EXPECT_EQ(stored.kind, "mlp");
+  EXPECT_EQ(stored.hidden, 8);
+  EXPECT_TRUE(torch::equal(stored.tensors.at("A"), mapper->A));
+  auto file = model::load_pose_mapper(path);
   EXPECT_EQ(file.fit["steps"], 3);
   EXPECT_EQ(file.mapper->options.hidden, 8);
   EXPECT_FALSE(net->has_camera_control());
@@ -43,20 +50,20 @@ TEST(PoseMapperFile, AMapperOfAnotherModelOrAFileThatIsNoMapperIsRefused) {
   const auto dir = test::temp_dir("mapper_file_errors");
   const auto path = (dir / "m.safetensors").string();
   model::PoseMapper mapper;
-  model::write_pose_mapper_file(path, *mapper, model::model_fingerprint(*net), {});
+  model::save_pose_mapper(path, *mapper, model::model_fingerprint(*net), {});
   const auto error = test::error_of([&] { model::attach_pose_mapper_file(*other, path); });
   EXPECT_NE(error.find("fitted to another model"), std::string::npos) << error;
   EXPECT_FALSE(other->has_camera_control());
 
   const auto weights = (dir / "weights.safetensors").string();
   io::write_safetensors(weights, {{"pose_mapper.A", torch::eye(7)}});
-  EXPECT_NE(test::error_of([&] { model::read_pose_mapper_file(weights); }).find("not a pose mapper file"),
+  EXPECT_NE(test::error_of([&] { model::load_pose_mapper(weights); }).find("not a pose mapper file"),
             std::string::npos);
   // An MLP file whose tensors are missing is named, not half-loaded.
   const auto broken = (dir / "broken.safetensors").string();
   io::write_safetensors(
       broken, {{"pose_mapper.A", torch::eye(7)}, {"pose_mapper.b", torch::zeros({7})}},
-      {{"format", model::kPoseMapperFormat}, {"kind", "mlp"}, {"hidden", "8"}, {"model_fingerprint", "0"}});
-  const auto missing = test::error_of([&] { model::read_pose_mapper_file(broken); });
+      {{"format", io::kPoseMapperFormat}, {"kind", "mlp"}, {"hidden", "8"}, {"model_fingerprint", "0"}});
+  const auto missing = test::error_of([&] { model::load_pose_mapper(broken); });
   EXPECT_NE(missing.find("mlp.0.weight"), std::string::npos) << missing;
 }
