@@ -44,7 +44,7 @@ TEST(FitMapperCli, TheAuthorsCheckpointGetsAMapperBesideItThatRendersAnOrbitAndS
   auto listing = nlohmann::json::parse(std::ifstream(dir / "v" / "videos.json"));
   ASSERT_EQ(listing.size(), 1u);
 
-  // Two photos without cameras: an orbit around the first, the second's real pose read back through the mapper.
+  // Two photos without cameras: an orbit around the first (render does not place the second; serve does).
   data::ChunkDataset rooms(test::micro_dataset(), "test");
   auto views = rooms.load_views(0, {0, 5}, test::micro_prep());
   std::vector<std::string> photos;

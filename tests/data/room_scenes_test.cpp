@@ -206,5 +206,24 @@ TEST(RoomScenesBench, WriteDefaultDataset) {
   EXPECT_EQ(ChunkDataset(out, "test").size(), 100);
 }
 
+TEST(RoomScenes, TheRoomRendersAtAnyCameraAsAtItsOwnFrames) {
+  auto opt = small_options();
+  auto scene = render_room(21, opt);
+  // Its own cameras give its own pixels, bit for bit; a camera half way between two frames, a picture near both.
+  auto again = render_room_at(21, opt, scene.c2w.to(torch::kFloat64));
+  EXPECT_TRUE(torch::equal(again.images, scene.images));
+  auto between = scene.c2w.narrow(0, 2, 1).to(torch::kFloat64).clone();
+  between.select(0, 0).narrow(0, 0, 3).select(1, 3).copy_((scene.c2w[2] + scene.c2w[3]).narrow(0, 0, 3).select(1, 3) /
+                                                          2);
+  auto mid = render_room_at(21, opt, between).images[0];
+  EXPECT_LT(mean_abs(mid, scene.images[2]), mean_abs(scene.images[5], scene.images[2]));
+  EXPECT_GT(mean_abs(mid, scene.images[2]), 0.0);
+  // Another room's seed is another room.
+  EXPECT_GT(mean_abs(render_room_at(22, opt, scene.c2w).images, scene.images), 5.0);
+  EXPECT_EQ(room_seed_from_url(scene.scene.url), std::optional<uint64_t>(21));
+  EXPECT_FALSE(room_seed_from_url("builtin://object/21").has_value());
+  EXPECT_FALSE(room_seed_from_url("builtin://room/2x").has_value());
+}
+
 }  // namespace
 }  // namespace uplvsm::data

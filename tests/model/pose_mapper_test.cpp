@@ -66,3 +66,34 @@ TEST(PoseMapper, SceneConditioningIsTheLatentPosesOfBothInputViews) {
   EXPECT_TRUE(torch::equal(model::scene_conditioning(one), torch::cat({one.select(1, 0), one.select(1, 0)}, -1)));
   EXPECT_EQ(model::scene_conditioning(poses).size(1), model::kSceneConditioningDims);
 }
+
+TEST(PoseMapper, TheInverseFindsTheRealPoseOneBaselineAwayThatMapsToALatentPose) {
+  torch::manual_seed(11);
+  model::PoseMapper mlp(model::PoseMapperOptions{model::PoseMapperKind::Mlp, 16});
+  {
+    // A residual as steep as the linear part: a fixed point on A^-1 need not converge here.
+    torch::NoGradGuard no_grad;
+    for (auto& p : mlp->mlp->parameters()) p.normal_(0, 0.3);
+  }
+  auto scene = torch::randn({1, model::kSceneConditioningDims});
+  auto q = torch::tensor({0.1, -0.2, 0.05, 0.97});
+  auto real = torch::cat({torch::tensor({0.6, -0.48, 0.64}), q / q.norm()});
+  auto latent = mlp(real.unsqueeze(0), scene)[0].detach();
+  auto inverse = model::invert_pose_mapper(*mlp, latent, scene);
+  EXPECT_LT(inverse.residual, 1e-5);
+  EXPECT_NEAR(inverse.real.narrow(0, 0, 3).norm().item<double>(), 1.0, 1e-9);  // one baseline
+  EXPECT_NEAR(inverse.real.narrow(0, 3, 4).norm().item<double>(), 1.0, 1e-9);
+  EXPECT_LT(test::max_abs_diff(mlp(inverse.real.to(torch::kFloat32).unsqueeze(0), scene)[0], latent), 1e-4);
+  EXPECT_NE(test::error_of([&] { model::invert_pose_mapper(*mlp, latent); }).find("scene's conditioning"),
+            std::string::npos);
+}
+
+TEST(PoseMapper, ALatentPoseNoRealPoseReachesIsToldByItsResidual) {
+  // The identity map: a latent pose three baselines away is reached at best one baseline away, 2 short.
+  model::PoseMapper identity;
+  auto latent = torch::tensor({0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 1.0});
+  auto inverse = model::invert_pose_mapper(*identity, latent);
+  EXPECT_LT(test::max_abs_diff(inverse.real, torch::tensor({0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat64)),
+            1e-6);
+  EXPECT_NEAR(inverse.residual, 2.0 / std::sqrt(7.0), 1e-6);
+}

@@ -135,6 +135,7 @@ TEST_F(ViewerServerTest, FramesFromCachedLatentsMatchAFreshRender) {
   auto s = open_scene("1");
   ASSERT_EQ(s["key_latent"].size(), 2u);
   EXPECT_TRUE(s["key_real"].is_null());
+  EXPECT_TRUE(s["key_real_residual"].is_null());
   const std::vector<double> pose = s["key_latent"][1];
   auto r = frame(s["session"], {{"pose", pose}, {"space", "latent"}, {"seq", 1}, {"format", "png"}});
   ASSERT_TRUE(r);

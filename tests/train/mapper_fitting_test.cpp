@@ -54,7 +54,9 @@ std::string dataset_without_baselines() {
 
 TEST(MapperFitting, TheMlpFitsCloserThanTheLinearMapAndTheModelIsUnchanged) {
   auto net = micro_uplvsm();
-  const auto before = io::state_dict(*net);
+  // Copies: state_dict's CPU tensors share the parameters' storage, so a comparison with them could not fail.
+  auto before = io::state_dict(*net);
+  for (auto& [name, t] : before) t = t.clone();
   data::ChunkDataset dataset(test::micro_dataset(), "train");
   model::PoseMapper linear, mlp(model::PoseMapperOptions{model::PoseMapperKind::Mlp, 16});
   auto lr = train::fit_mapper_to_model(*net, *linear, dataset, micro_fit(300));
@@ -64,10 +66,14 @@ TEST(MapperFitting, TheMlpFitsCloserThanTheLinearMapAndTheModelIsUnchanged) {
   EXPECT_EQ(lr.skipped_samples, 0);
   EXPECT_EQ(lr.fit_rms, lr.least_squares_rms);  // the linear mapper is its least-squares fit
   EXPECT_GT(lr.least_squares_rms, 0);
-  EXPECT_DOUBLE_EQ(mr.least_squares_rms, lr.least_squares_rms);  // the same pairs, the same start
   EXPECT_LT(mr.fit_rms, 0.9 * mr.least_squares_rms);
-  EXPECT_TRUE(std::isfinite(mr.held_out_rms));  // every tenth of 24 samples held out
+  // The check is on a scene the fit never saw: the last of six, all its views and only its views.
+  EXPECT_TRUE(std::isfinite(mr.held_out_rms));
+  EXPECT_EQ(mr.held_out_scenes, std::vector<std::string>{dataset.key(5)});
+  EXPECT_GT(mr.held_out_views, 0);
+  EXPECT_LT(mr.held_out_views, mr.calibration_views / 2);
   EXPECT_TRUE(std::isnan(lr.held_out_rms));
+  EXPECT_TRUE(lr.held_out_scenes.empty());
   for (const auto& [name, t] : io::state_dict(*net)) EXPECT_TRUE(torch::equal(t, before.at(name))) << name;
   // Deterministic: the same data and options give the same mapper.
   model::PoseMapper again;
@@ -105,4 +111,14 @@ TEST(MapperFitting, ScenesWithoutCamerasOrWithoutABaselineAreNamed) {
   data::ChunkDataset flat(dataset_without_baselines(), "train");
   error = test::error_of([&] { train::fit_mapper_to_model(*net, *mapper, flat, micro_fit(0)); });
   EXPECT_NE(error.find("no baseline to measure the cameras in"), std::string::npos) << error;
+}
+
+TEST(MapperFitting, WholeScenesAreHeldOut) {
+  EXPECT_FALSE(train::held_out_scene(0, 1));  // one scene: nothing to check on
+  EXPECT_TRUE(train::held_out_scene(3, 4));
+  EXPECT_FALSE(train::held_out_scene(2, 4));
+  int64_t held = 0;
+  for (int64_t i = 0; i < 400; ++i) held += train::held_out_scene(i, 400);
+  EXPECT_EQ(held, 40);
+  EXPECT_TRUE(train::held_out_scene(9, 400) && train::held_out_scene(399, 400) && !train::held_out_scene(10, 400));
 }

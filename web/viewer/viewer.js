@@ -85,7 +85,9 @@
     $('input1').src = s.inputs[1] + '?' + s.session;
     $('placeholder').classList.add('hidden');
     $('mode-badge').textContent = st.space === 'real'
-      ? (s.key_real_estimated ? 'real camera · input 2 placed by the mapper' : 'real camera · baseline units')
+      ? (s.key_real_estimated
+        ? 'real camera · input 2 placed by the mapper (residual ' + Number(s.key_real_residual).toFixed(3) + ')'
+        : 'real camera · baseline units')
       : 'latent camera';
     $('plot-units').textContent = st.space === 'real' ? '(baselines)' : '(latent space)';
     st.path = [];

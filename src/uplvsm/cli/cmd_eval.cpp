@@ -70,8 +70,8 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
       ->capture_default_str();
   cmd->add_flag("--jitter", a.jitter,
                 "also render a smooth path along each scene's real cameras (camera control: --mapper, the "
-                "checkpoint's mapper or a posed model) and report the jitter, the swing of the renders' "
-                "frame-to-frame change relative to it (jitter.json)");
+                "checkpoint's mapper or a posed model) and report the jitter, how much the rendered picture's motion "
+                "changes from one render to the next in pixels per frame² (jitter.json)");
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -163,9 +163,9 @@ void report_jitter(const EvalArgs& a, model::NovelViewModel& net, const data::Ch
   const auto text = out.dump(2) + "\n";
   io::write_file_atomic((std::filesystem::path(a.out) / "jitter.json").string(), text.data(), text.size());
   std::cout << fmt::format(
-      "  jitter along {} smooth camera paths ({} renders): {:.3f} (the swing of the renders' frame-to-frame change, "
-      "relative to it; their change: {:.2f} grey levels) -> {}/jitter.json\n",
-      j.scenes, j.renders, j.jitter, j.change, a.out);
+      "  jitter along {} smooth camera paths ({} renders): {:.3f} px/frame² (how much the rendered picture's motion "
+      "changes from one render to the next; its speed: {:.2f} px/frame) -> {}/jitter.json\n",
+      j.scenes, j.renders, j.jitter, j.speed, a.out);
 }
 
 void run_eval(const EvalArgs& a) {

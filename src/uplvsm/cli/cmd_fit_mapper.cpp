@@ -28,6 +28,7 @@ struct FitArgs {
   std::string data, split = "train", kind = "mlp";
   Amp amp = Amp::None;
   int64_t hidden = 128, batch = 8, targets = 0, min_frame_dist = 0, max_frame_dist = 0;
+  double pose_noise_std = 0;
   uint64_t seed = 0;
   train::MapperFitOptions fit;
 };
@@ -64,6 +65,12 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
   cmd->add_option("--min-frame-dist", a.min_frame_dist, "input frames at least this far apart (0: the config's)");
   cmd->add_option("--max-frame-dist", a.max_frame_dist, "input frames at most this far apart (0: the config's)");
   cmd->add_option("--seed", a.seed, "seed of the view sampling (0: the config's training seed)");
+  // Reconstructed cameras are not exact: a mapper fitted on noisy ones shows what such logs do to the map.
+  cmd->add_option("--pose-noise-std", a.pose_noise_std,
+                  "fit on cameras with N(0, S^2) added to their 7-D (t, q) encoding, inputs and targets apart, as "
+                  "the training loader's pose-noise study draws it (SfM-like camera error; 0: the dataset's cameras)")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
 }
 
 // The view sampling: the checkpoint's training views unless overridden (an official checkpoint carries the paper's).
@@ -71,7 +78,7 @@ data::LoaderOptions fit_loader_options(const FitArgs& a, const Config& config, c
   auto lo = train::loader_options(config, dataset, nullptr);
   lo.batch_size = a.batch;
   lo.micro_batches_per_step = 1;
-  lo.pose_noise_std = 0;
+  lo.pose_noise_std = a.pose_noise_std;
   lo.chunks_per_shuffle = 0;
   if (a.targets > 0) {
     lo.num_target_views = static_cast<int>(a.targets);
@@ -144,8 +151,9 @@ void run_fit_mapper(FitMapperArgs& a) {
       "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
       "the least-squares linear map's {:.4f}) -> {}\n",
       a.kind, report.calibration_views, report.scenes, report.seconds, report.fit_rms,
-      std::isfinite(report.held_out_rms) ? fmt::format(", {:.4f} on held-out samples", report.held_out_rms)
-                                         : std::string(),
+      std::isfinite(report.held_out_rms)
+          ? fmt::format(", {:.4f} on {} held-out scenes", report.held_out_rms, report.held_out_scenes.size())
+          : std::string(),
       report.least_squares_rms, a.out);
   if (a.eval_data.empty()) return;
   s.up->attach_pose_mapper(mapper);

@@ -320,7 +320,7 @@ void add_study_command(CLI::App& app) {
   auto* study = app.add_subcommand(
       "study",
       "The paper's analyses as tools (pose-pairs, pose-probe, pose-sensitivity, tsne, attention, scaling, "
-      "pose-noise) and mapper-scenes");
+      "pose-noise), mapper-scenes and camera-paths");
   study->require_subcommand(1);
   add_pose_pairs(*study);
   add_pose_probe(*study);
@@ -329,6 +329,7 @@ void add_study_command(CLI::App& app) {
   add_attention(*study);
   add_study_grid_commands(*study);
   add_mapper_scenes_command(*study);
+  add_camera_paths_command(*study);
 }
 
 }  // namespace uplvsm::cli

@@ -70,6 +70,8 @@ void add_study_command(CLI::App& app);
 void add_fit_mapper_command(CLI::App& app);
 // study mapper-scenes (cmd_fit_mapper.cpp), registered under `study`.
 void add_mapper_scenes_command(CLI::App& study);
+// study camera-paths (cmd_camera_paths.cpp), registered under `study`.
+void add_camera_paths_command(CLI::App& study);
 // study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
 void add_study_grid_commands(CLI::App& study);
 

@@ -15,23 +15,6 @@ namespace uplvsm::eval {
 
 using torch::indexing::Slice;
 
-double temporal_change(const torch::Tensor& frames) {
-  TORCH_CHECK(frames.dim() == 4 && frames.size(0) >= 2, "temporal_change: expected frames [T >= 2, C, H, W], got ",
-              frames.sizes());
-  auto x = frames.to(torch::kFloat64);
-  return 255.0 * (x.slice(0, 1) - x.slice(0, 0, -1)).pow(2).mean().sqrt().item<double>();
-}
-
-double temporal_jitter(const torch::Tensor& frames) {
-  TORCH_CHECK(frames.dim() == 4 && frames.size(0) >= 3, "temporal_jitter: expected frames [T >= 3, C, H, W], got ",
-              frames.sizes());
-  auto x = frames.to(torch::kFloat64);
-  const double change = temporal_change(x);
-  if (change <= 1e-9) return 0.0;
-  auto d2 = x.slice(0, 2) - 2 * x.slice(0, 1, -1) + x.slice(0, 0, -2);
-  return 255.0 * d2.pow(2).mean().sqrt().item<double>() / change;
-}
-
 torch::Tensor subdivide_path(const torch::Tensor& poses, int64_t s) {
   TORCH_CHECK(poses.dim() == 3 && poses.size(0) == 1 && poses.size(2) == 7 && poses.size(1) >= 1 && s >= 1,
               "subdivide_path: expected poses [1, n, 7] and subdivisions >= 1, got ", poses.sizes(), " and ", s);
@@ -52,11 +35,11 @@ namespace {
 int64_t first_context(const data::EvalEntry& e) { return *std::min_element(e.context.begin(), e.context.end()); }
 
 struct PathJitter {
-  double jitter = 0, change = 0;
+  double jitter = 0, speed = 0;
   int64_t renders = 0;
 };
 
-// The jitter of one scene's path, its renders' change and how many renders it took.
+// The jitter of one scene's path, its renders' speed and how many renders it took.
 PathJitter scene_jitter(model::NovelViewModel& net, const data::ChunkDataset& dataset, int64_t scene,
                         const data::EvalEntry& entry, const data::PreprocessOptions& prep, const JitterOptions& opt) {
   const int64_t count = std::min(opt.max_frames, dataset.num_frames(scene) - first_context(entry));
@@ -77,12 +60,18 @@ PathJitter scene_jitter(model::NovelViewModel& net, const data::ChunkDataset& da
     renders.push_back(render(path.narrow(1, s, m), k, H, W)[0].to(torch::kCPU, torch::kFloat32));
   }
   auto rendered = torch::cat(renders).clamp(0, 1);
-  return {temporal_jitter(rendered), temporal_change(rendered), n};
+  return {temporal_wobble(rendered), picture_speed(rendered), n};
 }
 
 }  // namespace
 
-nlohmann::json JitterSummary::to_json() const { return {{"scenes", scenes}, {"renders", renders}, {"jitter", jitter}}; }
+nlohmann::json JitterSummary::to_json() const {
+  return {{"scenes", scenes},
+          {"renders", renders},
+          {"jitter", jitter},
+          {"jitter_unit", "pixels per frame^2 (the rendered picture's change of motion)"},
+          {"speed", speed}};
+}
 
 JitterSummary measure_jitter(model::NovelViewModel& net, const data::ChunkDataset& dataset,
                              const data::PreprocessOptions& prep, const JitterOptions& opt) {
@@ -99,14 +88,14 @@ JitterSummary measure_jitter(model::NovelViewModel& net, const data::ChunkDatase
     if (scene < 0 || dataset.num_frames(scene) - first_context(e) < 2) continue;
     const auto j = scene_jitter(net, dataset, scene, e, prep, opt);
     out.jitter += j.jitter;
-    out.change += j.change;
+    out.speed += j.speed;
     out.renders += j.renders;
     bar.update(++out.scenes);
   }
   bar.finish();
   if (out.scenes == 0) throw std::runtime_error("jitter: no scene of " + index + " is in " + dataset.root());
   out.jitter /= static_cast<double>(out.scenes);
-  out.change /= static_cast<double>(out.scenes);
+  out.speed /= static_cast<double>(out.scenes);
   return out;
 }
 

@@ -1,6 +1,8 @@
 #include "uplvsm/model/pose_mapper.h"
 
+#include <cmath>
 #include <stdexcept>
+#include <vector>
 
 #include "uplvsm/geometry/quaternion.h"
 
@@ -69,6 +71,90 @@ double fit_pose_mapper(PoseMapperImpl& mapper, const torch::Tensor& real, const 
   mapper.b.copy_(w.index({7}).to(mapper.b.options()));
   auto residual = torch::matmul(x, w) - y;
   return std::sqrt(residual.pow(2).mean().item<double>());
+}
+
+namespace {
+
+// Unconstrained parameters [..., 7] -> the pose (t / |t|, q / |q|): one baseline away, a unit quaternion.
+torch::Tensor unit_pose(const torch::Tensor& x) {
+  auto t = x.narrow(-1, 0, 3), q = x.narrow(-1, 3, 4);
+  return torch::cat({t / t.norm(2, -1, true).clamp_min(1e-12), q / q.norm(2, -1, true).clamp_min(1e-12)}, -1);
+}
+
+// mapper(unit_pose(x)) - latent at x [7] float64 CPU, and its Jacobian [7, 7] (row i: d residual_i / dx) when asked.
+struct Residual {
+  torch::Tensor value, jacobian;
+  double cost() const { return value.pow(2).sum().item<double>(); }
+};
+Residual residual_at(PoseMapperImpl& mapper, const torch::Tensor& x, const torch::Tensor& latent,
+                     const torch::Tensor& scene, bool jacobian) {
+  torch::AutoGradMode grad(jacobian);  // the viewer calls under NoGradGuard
+  // Seven copies of x, one per output: the sum of the diagonal's gradient is the Jacobian, row by row.
+  auto xs = x.to(mapper.A.device(), torch::kFloat32).unsqueeze(0).repeat({7, 1}).requires_grad_(jacobian);
+  auto mapped = mapper.forward(unit_pose(xs), scene);  // [7, 7]
+  Residual r;
+  r.value = mapped[0].detach().to(torch::kCPU, torch::kFloat64) - latent;
+  if (jacobian) r.jacobian = torch::autograd::grad({mapped.diagonal().sum()}, {xs})[0].to(torch::kCPU, torch::kFloat64);
+  return r;
+}
+
+// Levenberg-Marquardt (Marquardt's scaling) from `x`: the end's parameters, normalised.
+torch::Tensor levenberg_marquardt(PoseMapperImpl& mapper, torch::Tensor x, const torch::Tensor& latent,
+                                  const torch::Tensor& scene) {
+  auto r = residual_at(mapper, x, latent, scene, true);
+  double cost = r.cost(), damping = 1e-3;
+  for (int i = 0; i < 200 && damping < 1e10 && cost > 1e-20; ++i) {
+    auto jtj = torch::matmul(r.jacobian.t(), r.jacobian);
+    // The scales of t and q are free (unit_pose divides them out): the small constant keeps the system solvable.
+    auto lhs = jtj + damping * torch::diag(jtj.diagonal() + 1e-9 * (jtj.trace().item<double>() + 1e-12));
+    auto step = torch::linalg_solve(lhs, -torch::matmul(r.jacobian.t(), r.value));
+    auto next = unit_pose(x + step);
+    auto trial = residual_at(mapper, next, latent, scene, false);
+    if (trial.cost() < cost) {
+      const bool converged = cost - trial.cost() < 1e-12 * cost;
+      x = next;
+      r = residual_at(mapper, x, latent, scene, true);
+      cost = r.cost();
+      damping = std::max(damping / 3, 1e-12);
+      if (converged) break;
+    } else {
+      damping *= 4;
+    }
+  }
+  return unit_pose(x);
+}
+
+}  // namespace
+
+MapperInverse invert_pose_mapper(PoseMapperImpl& mapper, const torch::Tensor& latent, const torch::Tensor& scene) {
+  TORCH_CHECK(latent.numel() == 7, "invert_pose_mapper: expected one latent pose [7], got ", latent.sizes());
+  TORCH_CHECK(!mapper.reads_scene() || (scene.defined() && scene.numel() == kSceneConditioningDims),
+              "invert_pose_mapper: an MLP mapper needs the scene's conditioning [1, 14]");
+  auto target = latent.reshape({7}).to(torch::kCPU, torch::kFloat64);
+  auto s = mapper.reads_scene() ? scene.reshape({1, kSceneConditioningDims}) : torch::Tensor();
+  torch::Tensor linear;
+  {
+    torch::NoGradGuard no_grad;
+    auto A = mapper.A.detach().to(torch::kCPU, torch::kFloat64), b = mapper.b.detach().to(torch::kCPU, torch::kFloat64);
+    linear = torch::linalg_solve(A, target - b);
+  }
+  if (linear.narrow(0, 0, 3).norm().item<double>() < 1e-9) linear.narrow(0, 0, 3).fill_(1.0);
+  if (linear.narrow(0, 3, 4).norm().item<double>() < 1e-9) linear[6].fill_(1.0);
+  std::vector<torch::Tensor> starts = {linear};
+  for (int64_t axis = 0; axis < 6; ++axis) {
+    auto start = linear.clone();
+    start.narrow(0, 0, 3).zero_();
+    start[axis % 3].fill_(axis < 3 ? 1.0 : -1.0);
+    starts.push_back(start);
+  }
+  MapperInverse best;
+  best.residual = INFINITY;
+  for (const auto& start : starts) {
+    auto x = levenberg_marquardt(mapper, unit_pose(start), target, s);
+    const double rms = std::sqrt(residual_at(mapper, x, target, s, false).cost() / 7.0);
+    if (rms < best.residual) best = {x, rms};
+  }
+  return best;
 }
 
 }  // namespace uplvsm::model

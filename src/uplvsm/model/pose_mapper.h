@@ -50,4 +50,16 @@ torch::Tensor scene_conditioning(const torch::Tensor& input_latent_poses);
 double fit_pose_mapper(PoseMapperImpl& mapper, const torch::Tensor& real, const torch::Tensor& latent,
                        double ridge = 1e-4);
 
+// The real pose of input view 1 (camera-control units: |t| = 1 baseline, |q| = 1) that `mapper` maps nearest to
+// `latent` [7] (the estimator's latent pose of that view; `scene` [1, 14] for the MLP kind): how the viewer places a
+// photo that has no camera. Levenberg-Marquardt on (t, q) through the normalisation, with the mapper's Jacobian by
+// autograd, from the linear map's inverse and from that rotation at each of the six axis directions (the best end
+// kept): a map whose MLP part is as steep as its linear part defeats a fixed-point iteration on A^-1, and a photo
+// whose latent pose no real pose reaches must be told rather than placed silently.
+struct MapperInverse {
+  torch::Tensor real;   // [7] float64 CPU
+  double residual = 0;  // RMS of mapper(real) - latent over its 7 components, latent units
+};
+MapperInverse invert_pose_mapper(PoseMapperImpl& mapper, const torch::Tensor& latent, const torch::Tensor& scene = {});
+
 }  // namespace uplvsm::model

@@ -3,7 +3,6 @@
 #include <stdexcept>
 
 #include "uplvsm/core/autocast.h"
-#include "uplvsm/geometry/camera.h"
 #include "uplvsm/geometry/camera_control.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pose_mapper.h"
@@ -54,38 +53,32 @@ torch::Tensor ViewerModel::mapper_scene(const torch::Tensor& key_latent) const {
   return model::scene_conditioning(key_latent.unsqueeze(0).to(device_, torch::kFloat32));
 }
 
-// Photos carry no cameras: their real poses are read back through the mapper (real = A^-1 (latent - b); an MLP
-// mapper's residual by a few steps of the same correction, A being most of its slope), then expressed relative to
-// input 0 with the baseline as unit, as camera_control_poses does for dataset cameras.
-torch::Tensor ViewerModel::real_from_latent(const torch::Tensor& key_latent) const {
-  auto A = net_->pose_mapper->A.detach().to(torch::kCPU, torch::kFloat64);
-  auto b = net_->pose_mapper->b.detach().to(torch::kCPU, torch::kFloat64);
-  auto real = torch::linalg_solve(A, (key_latent - b).t()).t();  // [2, 7]
-  if (net_->pose_mapper->reads_scene()) {
-    torch::NoGradGuard no_grad;
-    const auto scene = mapper_scene(key_latent);
-    for (int i = 0; i < 8; ++i) {
-      auto mapped = net_->pose_mapper(real.to(device_, torch::kFloat32), scene).to(torch::kCPU, torch::kFloat64);
-      real = real - torch::linalg_solve(A, (mapped - key_latent).t()).t();
-    }
-  }
-  auto q = real.slice(1, 3, 7);
-  real = torch::cat({real.slice(1, 0, 3), q / q.norm(2, 1, true).clamp_min(1e-9)}, 1);
-  auto c2w = geometry::pose_encoding_to_c2w(real);  // [2, 4, 4]
-  return geometry::camera_control_poses(c2w.unsqueeze(0), c2w.unsqueeze(0))[0].to(torch::kFloat64);
+// Photos carry no cameras: input 0 is the origin of camera-control units and input 1 one baseline from it, so only
+// input 1's pose is unknown; it is solved through the mapper (model::invert_pose_mapper, a convergent least-squares
+// solve with its residual) so that rendering there gives the latent pose the estimator read from that photo.
+void ViewerModel::place_second_photo(SceneEncoding& s) const {
+  auto& mapper = *net_->pose_mapper;
+  auto inverse = model::invert_pose_mapper(mapper, s.key_latent[1],
+                                           mapper.reads_scene() ? mapper_scene(s.key_latent) : torch::Tensor());
+  auto origin = torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat64);
+  s.key_real = torch::stack({origin, inverse.real});
+  s.key_real_residual = inverse.residual;
+  s.key_real_estimated = true;
 }
 
 SceneEncoding ViewerModel::encode(const data::SceneViews& views, bool posed) const {
   TORCH_CHECK(views.images.dim() == 4 && views.images.size(0) == 2 && views.images.size(1) == 3,
               "serve: a scene is two views [2, 3, H, W], got ", views.images.sizes());
   torch::NoGradGuard no_grad;
-  Bf16Autocast amp(device_, bf16_);
   SceneEncoding s;
-  auto images = views.images.unsqueeze(0).to(device_);
-  auto k = views.fxfycxcy.unsqueeze(0).to(device_, torch::kFloat32);
-  auto encoded = net_->encode_with_input_poses(images, k);
-  s.latents = encoded.latents;
-  s.key_latent = encoded.input_poses[0].to(torch::kCPU, torch::kFloat64);
+  {
+    Bf16Autocast amp(device_, bf16_);  // the model only: the mapper's inversion below needs fp32 Jacobians
+    auto images = views.images.unsqueeze(0).to(device_);
+    auto k = views.fxfycxcy.unsqueeze(0).to(device_, torch::kFloat32);
+    auto encoded = net_->encode_with_input_poses(images, k);
+    s.latents = encoded.latents;
+    s.key_latent = encoded.input_poses[0].to(torch::kCPU, torch::kFloat64);
+  }
   s.fxfycxcy = views.fxfycxcy[0].to(torch::kCPU, torch::kFloat32).clone();
   s.height = views.images.size(2);
   s.width = views.images.size(3);
@@ -94,8 +87,7 @@ SceneEncoding ViewerModel::encode(const data::SceneViews& views, bool posed) con
       auto c2w = views.c2w.unsqueeze(0);
       s.key_real = geometry::camera_control_poses(c2w, c2w)[0].to(torch::kFloat64);
     } else {
-      s.key_real = real_from_latent(s.key_latent);
-      s.key_real_estimated = true;
+      place_second_photo(s);
     }
   }
   return s;

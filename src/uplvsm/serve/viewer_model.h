@@ -5,6 +5,7 @@
 #pragma once
 #include <torch/torch.h>
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -31,7 +32,10 @@ struct SceneEncoding {
   torch::Tensor key_latent;  // [2, 7] float64 CPU: the estimator's latent poses of the two inputs
   torch::Tensor key_real;    // [2, 7] float64 CPU: the inputs in camera-control units (undefined without a mapper)
   bool key_real_estimated = false;  // key_real[1] inverted through the mapper (photos without cameras)
-  torch::Tensor fxfycxcy;           // [4] float32 pixels: input 0's intrinsics, used for every rendered frame
+  // How far the mapper at key_real[1] stays from key_latent[1] (RMS, latent units; NaN unless estimated): near 0, a
+  // render there is the estimator's render of the photo; large, no real camera reaches what the estimator read.
+  double key_real_residual = NAN;
+  torch::Tensor fxfycxcy;  // [4] float32 pixels: input 0's intrinsics, used for every rendered frame
   int64_t height = 0, width = 0;
   int64_t bytes() const;  // memory held (latents and poses)
 };
@@ -62,7 +66,7 @@ class ViewerModel {
   torch::Tensor render(const SceneEncoding& scene, const torch::Tensor& poses, PoseSpace space) const;
 
  private:
-  torch::Tensor real_from_latent(const torch::Tensor& key_latent) const;
+  void place_second_photo(SceneEncoding& scene) const;
   torch::Tensor mapper_scene(const torch::Tensor& key_latent) const;
 
   std::shared_ptr<model::UPLVSMImpl> net_;

@@ -3,6 +3,7 @@
 #include <httplib.h>
 #include <unistd.h>
 
+#include <cmath>
 #include <fstream>
 #include <optional>
 
@@ -203,6 +204,8 @@ nlohmann::json ViewerServer::describe(const Session& s) const {
                       {"key_latent", pose_rows(e.key_latent)},
                       {"key_real", e.key_real.defined() ? pose_rows(e.key_real) : nlohmann::json()},
                       {"key_real_estimated", e.key_real_estimated},
+                      {"key_real_residual",
+                       std::isfinite(e.key_real_residual) ? nlohmann::json(e.key_real_residual) : nlohmann::json()},
                       {"inputs", {"/api/sessions/" + s.id + "/inputs/0", "/api/sessions/" + s.id + "/inputs/1"}},
                       {"photos", s.photos}};
   return j;

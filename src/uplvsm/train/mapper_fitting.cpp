@@ -1,5 +1,6 @@
 #include "uplvsm/train/mapper_fitting.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <vector>
@@ -23,7 +24,8 @@ namespace {
 // pose the estimator gives its image ([N, 7], [N, 14], [N, 7] on the CPU).
 struct PosePairs {
   std::vector<torch::Tensor> real, scene, latent;
-  int64_t views = 0, skipped = 0, views_per_sample = 1;
+  std::vector<int64_t> row_scene;  // the dataset index of each row's scene
+  int64_t views = 0, skipped = 0;
 };
 
 // The samples of `batch` whose inputs have a baseline (camera-control units divide by it).
@@ -34,8 +36,8 @@ torch::Tensor samples_with_baseline(const data::TrainingBatch& batch, int64_t vi
   return torch::nonzero((t.select(1, 1) - t.select(1, 0)).norm(2, -1) > 1e-6).flatten();
 }
 
-void add_batch(model::UPLVSMImpl& net, const data::TrainingBatch& batch, int64_t vi, const MapperFitOptions& opt,
-               PosePairs& pairs) {
+void add_batch(model::UPLVSMImpl& net, const data::ChunkDataset& dataset, const data::TrainingBatch& batch, int64_t vi,
+               const MapperFitOptions& opt, PosePairs& pairs) {
   auto keep = samples_with_baseline(batch, vi);
   pairs.skipped += batch.images.size(0) - keep.size(0);
   if (keep.size(0) == 0) return;
@@ -52,6 +54,8 @@ void add_batch(model::UPLVSMImpl& net, const data::TrainingBatch& batch, int64_t
   pairs.latent.push_back(
       net.estimate_poses(dev(batch.target_images()), latents).reshape({-1, 7}).to(torch::kCPU, torch::kFloat32));
   pairs.views += b * t;
+  for (int64_t i = 0; i < b; ++i)
+    pairs.row_scene.insert(pairs.row_scene.end(), t, dataset.find(batch.keys[keep[i].item<int64_t>()]));
 }
 
 // Posed samples drawn as training draws them (another seed than a training run's stream) until there are
@@ -63,10 +67,9 @@ PosePairs collect_pairs(model::UPLVSMImpl& net, const data::ChunkDataset& datase
   const int64_t per_batch = std::max<int64_t>(1, lo.batch_size * lo.num_target_views);
   const int64_t max_batches = 4 * ((opt.calibration_views + per_batch - 1) / per_batch) + 8;
   PosePairs pairs;
-  pairs.views_per_sample = lo.num_target_views;
   ProgressBar bar("fit-mapper: reading poses", opt.calibration_views, "view");
   for (int64_t i = 0; pairs.views < opt.calibration_views && i < max_batches; ++i) {
-    add_batch(net, data::make_training_batch(dataset, lo, i), lo.num_input_views, opt, pairs);
+    add_batch(net, dataset, data::make_training_batch(dataset, lo, i), lo.num_input_views, opt, pairs);
     bar.update(std::min(pairs.views, opt.calibration_views));
   }
   bar.finish();
@@ -78,28 +81,24 @@ PosePairs collect_pairs(model::UPLVSMImpl& net, const data::ChunkDataset& datase
   return pairs;
 }
 
-// Every tenth sample's views are held out of the MLP's steps (none with fewer than ten samples): rows of the pairs.
+// Rows of the pairs fitted and held out of the MLP's steps, by scene (held_out_scene): a check on other views of
+// the fitted scenes could not show a map over-fitted to a few scenes.
 struct Split {
   torch::Tensor fit, held_out;
 };
-Split split_by_sample(const PosePairs& pairs) {
+Split split_by_scene(const PosePairs& pairs, int64_t scenes) {
   std::vector<int64_t> fit, held_out;
-  int64_t row = 0, sample = 0;
-  for (const auto& r : pairs.real) {
-    const int64_t samples = r.size(0) / pairs.views_per_sample;
-    for (int64_t s = 0; s < samples; ++s, ++sample)
-      for (int64_t v = 0; v < pairs.views_per_sample; ++v, ++row)
-        (sample % 10 == 9 && pairs.views >= 10 * pairs.views_per_sample ? held_out : fit).push_back(row);
-  }
-  return {torch::tensor(fit), torch::tensor(held_out)};
+  for (int64_t row = 0; row < static_cast<int64_t>(pairs.row_scene.size()); ++row)
+    (held_out_scene(pairs.row_scene[row], scenes) ? held_out : fit).push_back(row);
+  if (fit.empty()) std::swap(fit, held_out);  // a draw that met only held-out scenes: no check rather than no fit
+  return {torch::tensor(fit, torch::kInt64), torch::tensor(held_out, torch::kInt64)};
 }
 
 // The MLP mapper (and its linear part) by full-batch Adam on the pairs, from the least-squares start; the parameters
 // kept are those of the check (every 100 steps) with the lowest held-out residual, so that a few scenes do not end
 // in an over-fitted map.
-void regress(model::PoseMapperImpl& mapper, const PosePairs& pairs, const MapperFitOptions& opt,
+void regress(model::PoseMapperImpl& mapper, const PosePairs& pairs, const Split& split, const MapperFitOptions& opt,
              MapperFitReport& report) {
-  auto split = split_by_sample(pairs);
   auto all = [&](const std::vector<torch::Tensor>& t) { return torch::cat(t).to(opt.device, torch::kFloat32); };
   auto real = all(pairs.real), scene = all(pairs.scene), latent = all(pairs.latent);
   auto rms = [&](const torch::Tensor& rows) {
@@ -164,7 +163,25 @@ void check_some_scene_fits(const data::ChunkDataset& dataset, int64_t scenes, co
       dataset.root(), lo.num_views, lo.min_frame_dist, longest));
 }
 
+// The keys of the scenes whose rows are held out, in dataset order.
+std::vector<std::string> held_out_keys(const data::ChunkDataset& dataset, const PosePairs& pairs, const Split& split) {
+  std::vector<int64_t> scenes;
+  for (int64_t i = 0; i < split.held_out.numel(); ++i)
+    scenes.push_back(pairs.row_scene[split.held_out[i].item<int64_t>()]);
+  std::sort(scenes.begin(), scenes.end());
+  scenes.erase(std::unique(scenes.begin(), scenes.end()), scenes.end());
+  std::vector<std::string> keys;
+  for (auto i : scenes) keys.push_back(dataset.key(i));
+  return keys;
+}
+
 }  // namespace
+
+bool held_out_scene(int64_t scene, int64_t scenes) {
+  if (scenes < 2) return false;
+  if (scenes < 10) return scene == scenes - 1;
+  return scene % 10 == 9;
+}
 
 nlohmann::json MapperFitReport::to_json() const {
   return {{"scenes", scenes},
@@ -172,6 +189,8 @@ nlohmann::json MapperFitReport::to_json() const {
           {"least_squares_rms", least_squares_rms},
           {"fit_rms", fit_rms},
           {"held_out_rms", std::isfinite(held_out_rms) ? nlohmann::json(held_out_rms) : nlohmann::json()},
+          {"held_out_scenes", held_out_scenes},
+          {"held_out_views", held_out_views},
           {"skipped_samples", skipped_samples},
           {"seconds", seconds}};
 }
@@ -191,14 +210,23 @@ MapperFitReport fit_mapper_to_model(model::UPLVSMImpl& net, model::PoseMapperImp
   report.skipped_samples = pairs.skipped;
   if (pairs.skipped > 0)
     spdlog::warn("fit-mapper: skipped {} samples whose two input views coincide (no baseline)", pairs.skipped);
-  report.least_squares_rms = model::fit_pose_mapper(mapper, torch::cat(pairs.real), torch::cat(pairs.latent));
-  report.fit_rms = report.least_squares_rms;
-  if (mapper.reads_scene()) regress(mapper, pairs, opt, report);
+  if (mapper.reads_scene()) {
+    // The held-out scenes are kept out of the least-squares start too: its check would otherwise have seen them.
+    const auto split = split_by_scene(pairs, report.scenes);
+    report.held_out_scenes = held_out_keys(dataset, pairs, split);
+    report.held_out_views = split.held_out.numel();
+    report.least_squares_rms = model::fit_pose_mapper(mapper, torch::cat(pairs.real).index({split.fit}),
+                                                      torch::cat(pairs.latent).index({split.fit}));
+    regress(mapper, pairs, split, opt, report);
+  } else {
+    report.least_squares_rms = model::fit_pose_mapper(mapper, torch::cat(pairs.real), torch::cat(pairs.latent));
+    report.fit_rms = report.least_squares_rms;
+  }
   spdlog::info(
-      "pose mapper: fitted to {} target views (least-squares RMS {:.4f}; {} mapper RMS {:.4f}, on held-out "
-      "samples {:.4f} latent units)",
+      "pose mapper: fitted to {} target views (least-squares RMS {:.4f}; {} mapper RMS {:.4f}, on {} views of {} "
+      "held-out scenes {:.4f} latent units)",
       pairs.views, report.least_squares_rms, model::to_string(mapper.options.kind), report.fit_rms,
-      report.held_out_rms);
+      report.held_out_views, report.held_out_scenes.size(), report.held_out_rms);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
 }

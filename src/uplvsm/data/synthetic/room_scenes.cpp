@@ -276,6 +276,36 @@ RoomRender render_room(uint64_t seed, const RoomSceneOptions& opt) {
 
 RawScene render_room_scene(uint64_t seed, const RoomSceneOptions& opt) { return render_room(seed, opt).scene; }
 
+RoomRender render_room_at(uint64_t seed, const RoomSceneOptions& opt, const torch::Tensor& c2w) {
+  check_options(opt);
+  TORCH_CHECK(c2w.dim() == 3 && c2w.size(1) == 4 && c2w.size(2) == 4, "render_room_at: expected c2w [N, 4, 4], got ",
+              c2w.sizes());
+  Room room = sample_room(seed, opt);
+  auto m = c2w.to(torch::kCPU, torch::kFloat64).contiguous();
+  auto a = m.accessor<double, 3>();
+  std::vector<Camera> cameras(static_cast<size_t>(m.size(0)));
+  for (int64_t i = 0; i < m.size(0); ++i) {
+    auto& cam = cameras[static_cast<size_t>(i)];
+    cam.position = {a[i][0][3], a[i][1][3], a[i][2][3]};
+    for (int k = 0; k < 3; ++k) cam.axes[k] = {a[i][0][k], a[i][1][k], a[i][2][k]};  // columns: x, y, z axes
+  }
+  const double cx = opt.width / 2.0, cy = opt.height / 2.0;
+  auto tracer = [&](const Camera& cam, int u, int v, float* depth) { return trace(room, cam, cx, cy, u, v, depth); };
+  return render_scene(cameras, room.fx, opt.height, opt.width, opt.jpeg_quality, tracer, room_scene_key(seed),
+                      fmt::format("builtin://room/{}", seed));
+}
+
+std::optional<uint64_t> room_seed_from_url(const std::string& url) {
+  const std::string prefix = "builtin://room/";
+  if (url.rfind(prefix, 0) != 0 || url.size() == prefix.size()) return std::nullopt;
+  uint64_t seed = 0;
+  for (size_t i = prefix.size(); i < url.size(); ++i) {
+    if (url[i] < '0' || url[i] > '9') return std::nullopt;
+    seed = seed * 10 + static_cast<uint64_t>(url[i] - '0');
+  }
+  return seed;
+}
+
 SceneGenerator room_generator(const RoomSceneOptions& opt) {
   check_options(opt);
   SceneGenerator g;

@@ -6,6 +6,7 @@
 #include <torch/torch.h>
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 #include "uplvsm/data/synthetic/builtin_dataset.h"
@@ -31,6 +32,13 @@ std::string room_scene_key(uint64_t seed);
 // timestamps 100000 * i, cameras with the world-to-camera matrices of the rendering cameras.
 RoomRender render_room(uint64_t seed, const RoomSceneOptions& opt);
 RawScene render_room_scene(uint64_t seed, const RoomSceneOptions& opt);
+
+// The same room (the seed and options it was rendered with: its objects and path depend on both) seen from any
+// cameras c2w [N, 4, 4] (world, OpenCV axes), with the room's own intrinsics: the ground truth of a camera path that
+// leaves the scene's frames, which only a procedural scene has.
+RoomRender render_room_at(uint64_t seed, const RoomSceneOptions& opt, const torch::Tensor& c2w);
+// The seed of a built-in room from its scene's url ("builtin://room/<seed>"); nullopt for any other scene.
+std::optional<uint64_t> room_seed_from_url(const std::string& url);
 
 // The room walkthroughs as a generator for write_generated_dataset (ordered views).
 SceneGenerator room_generator(const RoomSceneOptions& opt);
