@@ -7,6 +7,7 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/synthetic/room_scenes.h"
 #include "uplvsm/study/camera_paths.h"
 
 namespace uplvsm::cli {
@@ -22,26 +23,15 @@ struct CameraPathsArgs {
   study::CameraPathsOptions opt;
 };
 
-// The rooms' options: those of the config the dataset was made with (make-dataset --config), by default the
-// checkpoint's own (the demo models carry the dataset section they were trained on).
-data::RoomSceneOptions room_options(const DatasetConfig& c) {
-  data::RoomSceneOptions opt;
-  opt.height = static_cast<int>(c.render_height);
-  opt.width = static_cast<int>(c.render_width);
-  opt.frames = static_cast<int>(c.frames_per_scene);
-  opt.frame_spacing = c.frame_spacing;
-  opt.texture_scale = c.texture_scale;
-  opt.eval_gap = static_cast<int>(c.eval_gap);
-  return opt;
-}
-
 void run_camera_paths(CameraPathsArgs& a) {
   apply_common_options(a.common);
   Config config;
   a.opt.device = parse_device(a.common.device);
   a.opt.bf16 = a.amp == Amp::Bf16;
   auto net = load_model_from_source(a.model, a.opt.device, &config);
-  a.opt.room = room_options(a.room_config.empty() ? config.dataset : load_config(a.room_config).dataset);
+  // The rooms of the config the dataset was made with (make-dataset --config), by default the checkpoint's own (the
+  // demo models carry the dataset section they were trained on).
+  a.opt.room = data::room_scene_options(a.room_config.empty() ? config.dataset : load_config(a.room_config).dataset);
   a.opt.index_path = a.scenes.index;
   data::ChunkDataset dataset(a.scenes.data, a.scenes.split);
   auto report = study::run_camera_paths(net, dataset, data::preprocess_options(config), a.opt);

@@ -23,14 +23,7 @@ data::SceneGenerator scene_generator(const DatasetConfig& c) {
     opt.texture_scale = c.texture_scale;
     return data::object_generator(opt);
   }
-  data::RoomSceneOptions opt;
-  opt.height = static_cast<int>(c.render_height);
-  opt.width = static_cast<int>(c.render_width);
-  opt.frames = static_cast<int>(c.frames_per_scene);
-  opt.frame_spacing = c.frame_spacing;
-  opt.texture_scale = c.texture_scale;
-  opt.eval_gap = static_cast<int>(c.eval_gap);
-  return data::room_generator(opt);
+  return data::room_generator(data::room_scene_options(c));
 }
 
 }  // namespace

@@ -160,7 +160,7 @@ CameraPathsReport run_camera_paths(model::NovelViewModel& net, const data::Chunk
   const auto index =
       opt.index_path.empty() ? (fs::path(dataset.root()) / "evaluation_index.json").string() : opt.index_path;
   const auto entries = data::read_eval_index(index);
-  model::EvalModeGuard mode(*net);
+  EvalModeGuard mode(*net);
   CameraPathsReport report;
   std::vector<std::pair<std::string, double>> wobble_sums;
   const int64_t wanted = opt.max_scenes > 0 ? std::min<int64_t>(opt.max_scenes, entries.size()) : entries.size();

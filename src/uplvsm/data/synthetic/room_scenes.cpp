@@ -306,6 +306,17 @@ std::optional<uint64_t> room_seed_from_url(const std::string& url) {
   return seed;
 }
 
+RoomSceneOptions room_scene_options(const DatasetConfig& c) {
+  RoomSceneOptions opt;
+  opt.height = static_cast<int>(c.render_height);
+  opt.width = static_cast<int>(c.render_width);
+  opt.frames = static_cast<int>(c.frames_per_scene);
+  opt.frame_spacing = c.frame_spacing;
+  opt.texture_scale = c.texture_scale;
+  opt.eval_gap = static_cast<int>(c.eval_gap);
+  return opt;
+}
+
 SceneGenerator room_generator(const RoomSceneOptions& opt) {
   check_options(opt);
   SceneGenerator g;

@@ -9,6 +9,7 @@
 #include <optional>
 #include <string>
 
+#include "uplvsm/core/config.h"
 #include "uplvsm/data/synthetic/builtin_dataset.h"
 
 namespace uplvsm::data {
@@ -22,6 +23,9 @@ struct RoomSceneOptions {
   int jpeg_quality = 90;
   int eval_gap = 0;  // frames between the two evaluation context views; 0: frames / 2
 };
+
+// The rooms a dataset config makes (make-dataset --config): size, frames, motion, texture and evaluation gap.
+RoomSceneOptions room_scene_options(const DatasetConfig& c);
 
 using RoomRender = SceneRender;
 
