@@ -222,11 +222,14 @@ MapperFitReport fit_mapper_to_model(model::UPLVSMImpl& net, model::PoseMapperImp
     report.least_squares_rms = model::fit_pose_mapper(mapper, torch::cat(pairs.real), torch::cat(pairs.latent));
     report.fit_rms = report.least_squares_rms;
   }
+  // A linear mapper is its least-squares fit: it holds nothing out, so it has no held-out figure to print.
+  const std::string check = report.held_out_views > 0
+                                ? fmt::format("; {:.4f} on {} views of {} held-out scenes", report.held_out_rms,
+                                              report.held_out_views, report.held_out_scenes.size())
+                                : "";
   spdlog::info(
-      "pose mapper: fitted to {} target views (least-squares RMS {:.4f}; {} mapper RMS {:.4f}, on {} views of {} "
-      "held-out scenes {:.4f} latent units)",
-      pairs.views, report.least_squares_rms, model::to_string(mapper.options.kind), report.fit_rms,
-      report.held_out_views, report.held_out_scenes.size(), report.held_out_rms);
+      "pose mapper: fitted to {} target views (least-squares RMS {:.4f}; {} mapper RMS {:.4f}{}; latent units)",
+      pairs.views, report.least_squares_rms, model::to_string(mapper.options.kind), report.fit_rms, check);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return report;
 }
