@@ -97,3 +97,17 @@ TEST(PoseMapper, ALatentPoseNoRealPoseReachesIsToldByItsResidual) {
             1e-6);
   EXPECT_NEAR(inverse.residual, 2.0 / std::sqrt(7.0), 1e-6);
 }
+
+TEST(PoseMapper, ASingularMapperIsStillInvertedFromTheAxisStarts) {
+  // A degenerate mapper (its linear part maps z to nothing) has no linear inverse; the solve still reaches the
+  // closest real pose it can and says how far it stays.
+  model::PoseMapper flat;
+  {
+    torch::NoGradGuard no_grad;
+    flat->A[2][2].fill_(0.0);
+  }
+  auto latent = torch::tensor({1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0});
+  auto inverse = model::invert_pose_mapper(*flat, latent);
+  EXPECT_TRUE(torch::isfinite(inverse.real).all().item<bool>());
+  EXPECT_LT(inverse.residual, 1e-6);
+}

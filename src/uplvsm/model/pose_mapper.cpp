@@ -136,7 +136,11 @@ MapperInverse invert_pose_mapper(PoseMapperImpl& mapper, const torch::Tensor& la
   {
     torch::NoGradGuard no_grad;
     auto A = mapper.A.detach().to(torch::kCPU, torch::kFloat64), b = mapper.b.detach().to(torch::kCPU, torch::kFloat64);
-    linear = torch::linalg_solve(A, target - b);
+    // A singular linear part (a degenerate mapper file) has no linear inverse: the solve starts from the identity
+    // rotation and the axis starts below instead of failing.
+    auto [solution, info] = torch::linalg_solve_ex(A, target - b);
+    linear = info.item<int64_t>() == 0 && torch::isfinite(solution).all().item<bool>() ? solution
+                                                                                       : torch::zeros_like(target);
   }
   if (linear.narrow(0, 0, 3).norm().item<double>() < 1e-9) linear.narrow(0, 0, 3).fill_(1.0);
   if (linear.narrow(0, 3, 4).norm().item<double>() < 1e-9) linear[6].fill_(1.0);
