@@ -76,15 +76,6 @@ torch::Tensor inner(const torch::Tensor& x) {
   return x.narrow(2, b, x.size(2) - 2 * b).narrow(3, b, x.size(3) - 2 * b);
 }
 
-// The change of motion between consecutive steps [T-2, 2, h, w] and its weight [T-2, 1, h, w] (a step pair counts as
-// well determined as its worse step), weights relative to their mean so that two sequences can be combined.
-std::pair<torch::Tensor, torch::Tensor> motion_change(const torch::Tensor& frames) {
-  auto m = picture_motion(frames);
-  auto flow = inner(m.flow), weight = inner(m.weight);
-  weight = weight / weight.mean().clamp_min(1e-300);
-  return {flow.slice(0, 1) - flow.slice(0, 0, -1), torch::minimum(weight.slice(0, 1), weight.slice(0, 0, -1))};
-}
-
 double weighted_rms(const torch::Tensor& vectors, const torch::Tensor& weight) {
   const double total = weight.sum().item<double>();
   if (!(total > 1e-12)) return 0.0;
@@ -93,18 +84,30 @@ double weighted_rms(const torch::Tensor& vectors, const torch::Tensor& weight) {
 
 }  // namespace
 
-double temporal_wobble(const torch::Tensor& frames, const torch::Tensor& truth) {
+MotionChange motion_change(const torch::Tensor& frames) {
   TORCH_CHECK(frames.dim() == 4 && frames.size(0) >= 3, "temporal_wobble: expected frames [T >= 3, C, H, W], got ",
               frames.sizes());
+  auto m = picture_motion(frames);
+  auto flow = inner(m.flow), weight = inner(m.weight);
+  weight = weight / weight.mean().clamp_min(1e-300);
+  return {flow.slice(0, 1) - flow.slice(0, 0, -1), torch::minimum(weight.slice(0, 1), weight.slice(0, 0, -1))};
+}
+
+double temporal_wobble(const torch::Tensor& frames, const MotionChange& truth) {
   auto [change, weight] = motion_change(frames);
-  if (truth.defined()) {
-    TORCH_CHECK(truth.sizes() == frames.sizes(), "temporal_wobble: the truth ", truth.sizes(),
-                " is not the frames' shape ", frames.sizes());
-    auto [truth_change, truth_weight] = motion_change(truth);
-    change = change - truth_change;
-    weight = torch::minimum(weight, truth_weight);
+  TORCH_CHECK(truth.change.sizes() == change.sizes(), "temporal_wobble: the truth's motion ", truth.change.sizes(),
+              " is not the frames' ", change.sizes());
+  return weighted_rms(change - truth.change, torch::minimum(weight, truth.weight));
+}
+
+double temporal_wobble(const torch::Tensor& frames, const torch::Tensor& truth) {
+  if (!truth.defined()) {
+    auto [change, weight] = motion_change(frames);
+    return weighted_rms(change, weight);
   }
-  return weighted_rms(change, weight);
+  TORCH_CHECK(truth.sizes() == frames.sizes(), "temporal_wobble: the truth ", truth.sizes(),
+              " is not the frames' shape ", frames.sizes());
+  return temporal_wobble(frames, motion_change(truth));
 }
 
 double picture_speed(const torch::Tensor& frames) {

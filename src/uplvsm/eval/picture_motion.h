@@ -27,6 +27,14 @@ PictureMotion picture_motion(const torch::Tensor& frames);
 // W above, pixels per frame², of frames [T >= 3, C, H, W] (with `truth` of the same shape: relative to its motion);
 // 0 where no pixel has texture to follow.
 double temporal_wobble(const torch::Tensor& frames, const torch::Tensor& truth = {});
+// The change of motion between consecutive steps [T-2, 2, h, w] of frames [T >= 3, C, H, W] and its weight
+// [T-2, 1, h, w] (a step pair counts as well determined as its worse step; weights relative to their mean, so that two
+// sequences combine): a truth's, computed once, serves every render scored against it.
+struct MotionChange {
+  torch::Tensor change, weight;
+};
+MotionChange motion_change(const torch::Tensor& frames);
+double temporal_wobble(const torch::Tensor& frames, const MotionChange& truth);
 // The picture's RMS speed along frames [T >= 2, C, H, W], pixels per frame (the same weights).
 double picture_speed(const torch::Tensor& frames);
 

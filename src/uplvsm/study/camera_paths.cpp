@@ -142,6 +142,7 @@ void score_scene(const ScenePath& path, const std::vector<std::pair<std::string,
   auto inside = (path.position >= 0) & (path.position <= 1);
   report.frames_inside += inside.sum().item<int64_t>();
   report.frames_beyond += inside.numel() - inside.sum().item<int64_t>();
+  const auto truth_motion = eval::motion_change(path.truth);  // once per scene, for every method
   for (size_t i = 0; i < renders.size(); ++i) {
     const auto& [method, frames] = renders[i];
     auto psnr = eval::psnr(frames, path.truth), ssim = eval::ssim(frames, path.truth);
@@ -149,7 +150,7 @@ void score_scene(const ScenePath& path, const std::vector<std::pair<std::string,
       report.frames.push_back({path.key, method, f, path.position[f].item<double>(), inside[f].item<bool>(),
                                psnr[f].item<double>(), ssim[f].item<double>()});
     if (wobble_sums.size() <= i) wobble_sums.emplace_back(method, 0.0);
-    wobble_sums[i].second += eval::temporal_wobble(frames, path.truth);
+    wobble_sums[i].second += eval::temporal_wobble(frames, truth_motion);
   }
 }
 
