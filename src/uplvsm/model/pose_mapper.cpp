@@ -98,9 +98,9 @@ Residual residual_at(PoseMapperImpl& mapper, const torch::Tensor& x, const torch
   return r;
 }
 
-// Levenberg-Marquardt (Marquardt's scaling) from `x`: the end's parameters, normalised.
-torch::Tensor levenberg_marquardt(PoseMapperImpl& mapper, torch::Tensor x, const torch::Tensor& latent,
-                                  const torch::Tensor& scene) {
+// Levenberg-Marquardt (Marquardt's scaling) from `x`: the end's normalised parameters and their cost.
+std::pair<torch::Tensor, double> levenberg_marquardt(PoseMapperImpl& mapper, torch::Tensor x,
+                                                     const torch::Tensor& latent, const torch::Tensor& scene) {
   auto r = residual_at(mapper, x, latent, scene, true);
   double cost = r.cost(), damping = 1e-3;
   for (int i = 0; i < 200 && damping < 1e10 && cost > 1e-20; ++i) {
@@ -121,7 +121,16 @@ torch::Tensor levenberg_marquardt(PoseMapperImpl& mapper, torch::Tensor x, const
       damping *= 4;
     }
   }
-  return unit_pose(x);
+  return {x, cost};  // every x held here is already normalised (unit_pose), so `cost` is the end's
+}
+
+// The mapper on the CPU: the solve runs a few hundred tiny forwards, each a kernel launch or more on a GPU.
+PoseMapper cpu_copy(PoseMapperImpl& mapper) {
+  PoseMapper copy(mapper.options);
+  torch::NoGradGuard no_grad;
+  const auto from = mapper.named_parameters(true);
+  for (auto& p : copy->named_parameters(true)) p.value().copy_(from[p.key()]);
+  return copy;
 }
 
 }  // namespace
@@ -151,11 +160,15 @@ MapperInverse invert_pose_mapper(PoseMapperImpl& mapper, const torch::Tensor& la
     start[axis % 3].fill_(axis < 3 ? 1.0 : -1.0);
     starts.push_back(start);
   }
+  const bool on_cpu = mapper.A.device().is_cpu();
+  PoseMapper copy = on_cpu ? PoseMapper(nullptr) : cpu_copy(mapper);
+  PoseMapperImpl& solver = on_cpu ? mapper : *copy;
+  if (s.defined()) s = s.to(torch::kCPU);
   MapperInverse best;
   best.residual = INFINITY;
   for (const auto& start : starts) {
-    auto x = levenberg_marquardt(mapper, unit_pose(start), target, s);
-    const double rms = std::sqrt(residual_at(mapper, x, target, s, false).cost() / 7.0);
+    auto [x, cost] = levenberg_marquardt(solver, unit_pose(start), target, s);
+    const double rms = std::sqrt(cost / 7.0);
     if (rms < best.residual) best = {x, rms};
   }
   return best;
