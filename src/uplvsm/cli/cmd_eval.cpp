@@ -1,6 +1,5 @@
 // `uplvsm eval`: scores a checkpoint on an evaluation index with the paper's unposed protocol, beside the two
 // baselines (LPIPS too when its weight files are given); writes metrics.json, per-scene/per-view CSV and image grids.
-#include <filesystem>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -8,11 +7,8 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
-#include "uplvsm/eval/camera_jitter.h"
 #include "uplvsm/eval/eval_pose_noise.h"
-#include "uplvsm/eval/evaluator.h"
-#include "uplvsm/io/atomic_file.h"
-#include "uplvsm/io/checkpoint_io.h"
+#include "uplvsm/eval/evaluation_run.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/train/distributed.h"
 
@@ -24,21 +20,25 @@ struct EvalArgs {
   CommonOptions common;
   ModelSource model;
   SceneSource scenes;
-  std::string out, lpips_net = "vgg", lpips_backbone, lpips_lin;
+  eval::EvalRequest request;
   Amp amp = Amp::None;
-  TargetPoses target_poses = TargetPoses::Auto;
-  int64_t max_scenes = 0, batch = 4, visualise = 8;
-  eval::PoseRefinement refinement;
-  double pose_noise_std = 0;
-  uint64_t seed = 0;
   bool jitter = false;
+  // The request with the model source, scenes and precision in.
+  eval::EvalRequest full_request() const {
+    auto r = request;
+    r.checkpoint = model.checkpoint, r.mapper = model.mapper;
+    r.data = scenes.data, r.split = scenes.split, r.index = scenes.index;
+    r.bf16 = amp == Amp::Bf16;
+    return r;
+  }
 };
 
-void add_eval_options(CLI::App* cmd, EvalArgs& a) {
-  add_common_options(cmd, a.common);
-  add_model_options(cmd, a.model);
-  add_mapper_option(cmd, a.model);
-  add_scene_source_options(cmd, a.scenes, "dataset root (pixelSplat chunks)",
+void add_eval_options(CLI::App* cmd, EvalArgs& e) {
+  add_common_options(cmd, e.common);
+  add_model_options(cmd, e.model);
+  add_mapper_option(cmd, e.model);
+  auto& a = e.request;
+  add_scene_source_options(cmd, e.scenes, "dataset root (pixelSplat chunks)",
                            "evaluation index (pixelSplat / NoPoSplat / official split JSON); default "
                            "<data>/evaluation_index.json");
   cmd->get_option("--data")->required();
@@ -46,7 +46,7 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
   cmd->add_option("--batch", a.batch, "scenes per forward pass")->check(CLI::PositiveNumber)->capture_default_str();
   cmd->add_option("--visualise", a.visualise, "PNG grids for this many scenes")->capture_default_str();
   cmd->add_option("--out", a.out, "output directory")->required();
-  add_amp_option(cmd, a.amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)");
+  add_amp_option(cmd, e.amp, "model forward precision: none (fp32) or bf16 autocast (metrics stay fp32)");
   add_target_poses_option(cmd, a.target_poses,
                           "where target cameras come from: auto (the protocol the model was trained with, its "
                           "training.target_poses: the estimator for UP-LVSM, dataset cameras for ptlvsm/lvsm, the "
@@ -68,7 +68,7 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
       ->capture_default_str();
   cmd->add_option("--seed", a.seed, "seed of --pose-noise-std (each scene draws from this seed and its key)")
       ->capture_default_str();
-  cmd->add_flag("--jitter", a.jitter,
+  cmd->add_flag("--jitter", e.jitter,
                 "also render a smooth path along each scene's real cameras (camera control: --mapper, the "
                 "checkpoint's mapper or a posed model) and report the jitter, how much the rendered picture's motion "
                 "changes from one render to the next in pixels per frame² (jitter.json)");
@@ -87,47 +87,7 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
   backbone->needs("--lpips-lin");
 }
 
-// The evaluator's options from the command line and the checkpoint's config; with a communicator, this process
-// scores its shard of the scenes and the results are gathered.
-eval::EvalOptions eval_options(const EvalArgs& a, const Config& config, model::NovelViewModel& net,
-                               torch::Device device, const std::shared_ptr<train::Communicator>& comm) {
-  eval::EvalOptions opt;
-  opt.index_path = a.scenes.index;
-  opt.max_scenes = a.max_scenes;
-  opt.batch_size = a.batch;
-  opt.device = device;
-  opt.num_visualised = a.visualise;
-  opt.out_dir = a.out;
-  opt.pose_refinement = a.refinement;
-  opt.pose_noise_std = a.pose_noise_std;
-  opt.pose_noise_seed = a.seed;
-  opt.bf16 = a.amp == Amp::Bf16;
-  // auto: as trained (a UP-LVSM trained from dataset cameras has an untrained estimator).
-  // auto with --mapper: the mapper given for it.
-  auto choice = a.target_poses;
-  if (choice == TargetPoses::Auto) choice = a.model.mapper.empty() ? config.training.target_poses : TargetPoses::Mapper;
-  opt.target_poses = model::resolve_target_poses(choice, *net);
-  if (comm) {
-    opt.shard_rank = comm->rank();
-    opt.shard_count = comm->world_size();
-    opt.gather = [comm](const std::string& mine) { return comm->all_gather(mine); };
-  }
-  if (!a.lpips_backbone.empty()) {
-    opt.lpips = eval::load_lpips(eval::parse_lpips_net(a.lpips_net), a.lpips_backbone, a.lpips_lin);
-    opt.lpips->to(device);
-  }
-  opt.extra = {{"checkpoint", io::resolve_checkpoint(a.model.checkpoint)},
-               {"mapper", a.model.mapper},
-               {"data", a.scenes.data},
-               {"split", a.scenes.split},
-               {"config", config.name},
-               {"variant", to_string(config.model.variant)},
-               {"target_poses", uplvsm::to_string(opt.target_poses)}};
-  if (a.refinement.steps > 0) opt.extra["pose_refinement"] = {{"steps", a.refinement.steps}, {"lr", a.refinement.lr}};
-  return opt;
-}
-
-void print_eval_summary(const EvalArgs& a, const Config& config, const eval::EvalOptions& opt,
+void print_eval_summary(const eval::EvalRequest& a, const Config& config, const eval::EvalOptions& opt,
                         const eval::EvalSummary& summary) {
   auto line = [&](const std::string& name, const eval::Scores& r) {
     const auto lpips = opt.lpips ? fmt::format("{:.4f}", r.lpips) : std::string("unavailable");
@@ -148,28 +108,18 @@ void print_eval_summary(const EvalArgs& a, const Config& config, const eval::Eva
 }
 
 // Jitter along the same scenes' camera paths, written beside metrics.json.
-void report_jitter(const EvalArgs& a, model::NovelViewModel& net, const data::ChunkDataset& dataset,
-                   const data::PreprocessOptions& prep, const eval::EvalOptions& eval_opt) {
-  eval::JitterOptions opt;
-  opt.index_path = a.scenes.index;
-  opt.max_scenes = a.max_scenes;
-  opt.device = eval_opt.device;
-  opt.bf16 = eval_opt.bf16;
-  auto j = eval::measure_jitter(net, dataset, prep, opt);
-  auto out = j.to_json();
-  out["mapper"] = a.model.mapper;
-  out["checkpoint"] = a.model.checkpoint;
-  std::filesystem::create_directories(a.out);
-  const auto text = out.dump(2) + "\n";
-  io::write_file_atomic((std::filesystem::path(a.out) / "jitter.json").string(), text.data(), text.size());
+void report_jitter(const eval::EvalRequest& r, model::NovelViewModel& net, const data::ChunkDataset& dataset,
+                   const data::PreprocessOptions& prep, torch::Device device) {
+  const auto j = eval::write_jitter(r, net, dataset, prep, device);
   std::cout << fmt::format(
       "  jitter along {} smooth camera paths ({} renders): {:.3f} px/frame² (how much the rendered picture's motion "
       "changes from one render to the next; its speed: {:.2f} px/frame) -> {}/jitter.json\n",
-      j.scenes, j.renders, j.jitter, j.speed, a.out);
+      j.scenes, j.renders, j.jitter, j.speed, r.out);
 }
 
 void run_eval(const EvalArgs& a) {
-  eval::check_pose_noise_std(a.pose_noise_std);  // before the model is loaded
+  const auto request = a.full_request();
+  eval::check_pose_noise_std(request.pose_noise_std);  // before the model is loaded
   apply_common_options(a.common);
   Config config;
   // torchrun / SLURM variables make this process one shard of a multi-process evaluation (results merged).
@@ -180,11 +130,16 @@ void run_eval(const EvalArgs& a) {
   auto net = load_model_from_source(a.model, device, &config);
   data::ChunkDataset dataset(a.scenes.data, a.scenes.split);
   const auto prep = data::preprocess_options(config);
-  const auto opt = eval_options(a, config, net, device, comm);
+  auto opt = eval::evaluation_options(request, config, net, device);
+  if (comm) {
+    opt.shard_rank = comm->rank();
+    opt.shard_count = comm->world_size();
+    opt.gather = [comm](const std::string& mine) { return comm->all_gather(mine); };
+  }
   auto summary = eval::evaluate(net, dataset, prep, opt);
   if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
-  print_eval_summary(a, config, opt, summary);
-  if (a.jitter) report_jitter(a, net, dataset, prep, opt);
+  print_eval_summary(request, config, opt, summary);
+  if (a.jitter) report_jitter(request, net, dataset, prep, device);
 }
 
 }  // namespace

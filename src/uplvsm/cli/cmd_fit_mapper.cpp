@@ -1,6 +1,7 @@
-// `uplvsm fit-mapper`: camera control for a trained UP-LVSM without fine-tuning it (train/mapper_fitting.h): a pose
-// mapper fitted to the model from posed scenes and saved apart from it, for `render|eval|serve --mapper`; and
-// `uplvsm study mapper-scenes`, how few posed scenes such a fit needs (study/mapper_scenes.h).
+// `uplvsm fit-mapper`: camera control for a trained UP-LVSM without fine-tuning it (train/mapper_run.h, fitted as
+// train/mapper_fitting.h says): a pose mapper fitted to the model from posed scenes and saved apart from it, for
+// `render|eval|serve --mapper`; and `uplvsm study mapper-scenes`, how few posed scenes such a fit needs
+// (study/mapper_scenes.h).
 #include <cmath>
 #include <iostream>
 
@@ -8,41 +9,42 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/data/chunk_dataset.h"
-#include "uplvsm/eval/evaluator.h"
-#include "uplvsm/model/model_factory.h"
-#include "uplvsm/model/pose_mapper_file.h"
-#include "uplvsm/model/uplvsm.h"
+#include "uplvsm/eval/training_evaluation.h"
 #include "uplvsm/study/mapper_scenes.h"
-#include "uplvsm/train/mapper_fitting.h"
-#include "uplvsm/train/trainer.h"
+#include "uplvsm/train/mapper_run.h"
 
 namespace uplvsm::cli {
 
 namespace {
 
 // What fit-mapper and study mapper-scenes share: the model, the posed scenes, the mapper and how it is fitted.
+template <typename Options>
 struct FitArgs {
   CommonOptions common;
   ModelSource model;
-  std::string data, split = "train", kind = "mlp";
   Amp amp = Amp::None;
-  int64_t hidden = 128, batch = 8, targets = 0, min_frame_dist = 0, max_frame_dist = 0;
-  double pose_noise_std = 0;
-  uint64_t seed = 0;
-  train::MapperFitOptions fit;
+  Options run;
+  // The parsed flags with the model source, precision and device in.
+  Options options() const {
+    auto o = run;
+    o.checkpoint = model.checkpoint, o.config = model.config, o.bf16 = amp == Amp::Bf16;
+    o.device = parse_device(common.device);
+    return o;
+  }
 };
 
-void add_fit_options(CLI::App* cmd, FitArgs& a) {
-  add_common_options(cmd, a.common);
-  add_model_options(cmd, a.model);
+template <typename Options>
+void add_fit_options(CLI::App* cmd, FitArgs<Options>& f) {
+  add_common_options(cmd, f.common);
+  add_model_options(cmd, f.model);
+  auto& a = f.run;
   cmd->add_option("--data", a.data,
                   "posed scenes: a dataset root (pixelSplat chunks or the LVSM layout; COLMAP / transforms.json "
                   "folders via `uplvsm dataset import`)")
       ->required()
       ->check(CLI::ExistingDirectory);
   cmd->add_option("--split", a.split, "dataset split of the posed scenes")->capture_default_str();
-  add_amp_option(cmd, a.amp, "the frozen model's forward precision: none (fp32) or bf16 autocast");
+  add_amp_option(cmd, f.amp, "the frozen model's forward precision: none (fp32) or bf16 autocast");
   cmd->add_option("--kind", a.kind,
                   "mapper: mlp (the paper's linear map plus a small MLP that also reads the latent poses the "
                   "estimator gives the two input views) or linear (the paper's C = A C_real + b)")
@@ -73,107 +75,50 @@ void add_fit_options(CLI::App* cmd, FitArgs& a) {
       ->capture_default_str();
 }
 
-// The view sampling: the checkpoint's training views unless overridden (an official checkpoint carries the paper's).
-data::LoaderOptions fit_loader_options(const FitArgs& a, const Config& config, const data::ChunkDataset& dataset) {
-  auto lo = train::loader_options(config, dataset, nullptr);
-  lo.batch_size = a.batch;
-  lo.micro_batches_per_step = 1;
-  lo.pose_noise_std = a.pose_noise_std;
-  lo.chunks_per_shuffle = 0;
-  if (a.targets > 0) {
-    lo.num_target_views = static_cast<int>(a.targets);
-    lo.num_views = lo.num_input_views + lo.num_target_views;
-  }
-  if (a.min_frame_dist > 0) lo.min_frame_dist = static_cast<int>(a.min_frame_dist);
-  if (a.max_frame_dist > 0) lo.max_frame_dist = static_cast<int>(a.max_frame_dist);
-  lo.frame_dist_curriculum_steps = 0;
-  if (a.seed > 0) lo.seed = a.seed;
-  return lo;
-}
-
-// The model (an UP-LVSM), its config and the fit's options, ready to fit on `dataset`.
-struct FitSetup {
-  Config config;
-  model::NovelViewModel net{nullptr};
-  model::UPLVSM up{nullptr};
-  torch::Device device = torch::kCPU;
+struct FitMapperArgs : FitArgs<train::FitMapperOptions> {
+  std::string eval_data, eval_out;
+  int64_t eval_scenes = 0;
 };
 
-FitSetup load_for_fit(FitArgs& a, const data::ChunkDataset& dataset) {
-  FitSetup s;
-  s.device = parse_device(a.common.device);
-  s.net = model::load_model_with_config_file(a.model.checkpoint, a.model.config, s.device, &s.config);
-  s.up = model::require_uplvsm(s.net, "fit-mapper (camera control through latent poses)");
-  a.fit.loader = fit_loader_options(a, s.config, dataset);
-  a.fit.device = s.device;
-  a.fit.bf16 = a.amp == Amp::Bf16;
-  return s;
-}
-
-model::PoseMapperOptions mapper_options(const FitArgs& a) { return {model::parse_pose_mapper_kind(a.kind), a.hidden}; }
-
-struct FitMapperArgs : FitArgs {
-  std::string out, eval_data, eval_out;
-  int64_t scenes = 0, eval_scenes = 0;
-};
-
-void evaluate_fitted(const FitMapperArgs& a, FitSetup& s) {
-  data::ChunkDataset dataset(a.eval_data, "test");
-  eval::EvalOptions opt;
-  opt.max_scenes = a.eval_scenes;
-  opt.device = s.device;
-  opt.num_visualised = 4;
-  opt.bf16 = a.amp == Amp::Bf16;
-  opt.target_poses = model::TargetPoses::Mapper;
-  opt.out_dir = a.eval_out.empty() ? a.out + ".eval" : a.eval_out;
-  opt.extra = {{"checkpoint", a.model.checkpoint}, {"mapper", a.out}, {"data", a.eval_data}};
-  auto summary = eval::evaluate(s.net, dataset, data::preprocess_options(s.config), opt);
+void run_fit_mapper(const FitMapperArgs& a) {
+  apply_common_options(a.common);
+  const auto options = a.options();
+  auto [report, s] = train::fit_mapper(options);
+  std::cout << fmt::format(
+      "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
+      "the least-squares linear map's {:.4f}) -> {}\n",
+      options.kind, report.calibration_views, report.scenes, report.seconds, report.fit_rms,
+      std::isfinite(report.held_out_rms)
+          ? fmt::format(", {:.4f} on {} held-out scenes", report.held_out_rms, report.held_out_scenes.size())
+          : std::string(),
+      report.least_squares_rms, options.out);
+  if (a.eval_data.empty()) return;
+  const auto out = a.eval_out.empty() ? options.out + ".eval" : a.eval_out;
+  const auto summary =
+      eval::evaluate_mapper(s.net, s.config, a.eval_data, a.eval_scenes, options.bf16, options.device, out,
+                            {{"checkpoint", options.checkpoint}, {"mapper", options.out}, {"data", a.eval_data}});
   const auto& m = summary.scores.model;
   std::cout << fmt::format(
       "held-out: {} scenes at real cameras through the mapper: PSNR {:.2f} dB, SSIM {:.4f} "
       "(copy-nearest {:.2f} dB) -> {}/metrics.json\n",
-      summary.scenes, m.psnr, m.ssim, summary.scores.copy_nearest.psnr, opt.out_dir);
+      summary.scenes, m.psnr, m.ssim, summary.scores.copy_nearest.psnr, out);
 }
 
-void run_fit_mapper(FitMapperArgs& a) {
-  apply_common_options(a.common);
-  data::ChunkDataset dataset(a.data, a.split);
-  auto s = load_for_fit(a, dataset);
-  a.fit.loader.max_scenes = a.scenes;
-  model::PoseMapper mapper(mapper_options(a));
-  auto report = train::fit_mapper_to_model(*s.up, *mapper, dataset, a.fit);
-  auto fit = report.to_json();
-  fit["kind"] = a.kind;
-  fit["data"] = a.data;
-  fit["checkpoint"] = a.model.checkpoint;
-  model::save_pose_mapper(a.out, *mapper, model::model_fingerprint(*s.up), fit);
-  std::cout << fmt::format(
-      "fitted a {} pose mapper to {} views of {} scenes in {:.1f} s (RMS {:.4f} latent units{}; "
-      "the least-squares linear map's {:.4f}) -> {}\n",
-      a.kind, report.calibration_views, report.scenes, report.seconds, report.fit_rms,
-      std::isfinite(report.held_out_rms)
-          ? fmt::format(", {:.4f} on {} held-out scenes", report.held_out_rms, report.held_out_scenes.size())
-          : std::string(),
-      report.least_squares_rms, a.out);
-  if (a.eval_data.empty()) return;
-  s.up->attach_pose_mapper(mapper);
-  evaluate_fitted(a, s);
-}
-
-struct MapperScenesArgs : FitArgs {
+struct MapperScenesArgs : FitArgs<train::MapperRunOptions> {
   std::string eval_data, out;
   std::vector<int64_t> counts = {1, 4, 16, 64, 256};
   int64_t eval_scenes = 0;
 };
 
-void run_mapper_scenes(MapperScenesArgs& a) {
+void run_mapper_scenes(const MapperScenesArgs& a) {
   apply_common_options(a.common);
-  data::ChunkDataset posed(a.data, a.split), held_out(a.eval_data, "test");
-  auto s = load_for_fit(a, posed);
+  const auto options = a.options();
+  data::ChunkDataset posed(options.data, options.split), held_out(a.eval_data, "test");
+  auto s = train::load_for_mapper_fit(options, posed);
   study::MapperScenesOptions opt;
   opt.scene_counts = a.counts;
-  opt.mapper = mapper_options(a);
-  opt.fit = a.fit;
+  opt.mapper = train::mapper_options(options);
+  opt.fit = s.fit;
   opt.eval_scenes = a.eval_scenes;
   opt.out_dir = a.out;
   auto rows = study::run_mapper_scenes(s.net, posed, held_out, data::preprocess_options(s.config), opt);
@@ -193,8 +138,9 @@ void add_fit_mapper_command(CLI::App& app) {
       "mapper from real cameras to the latent poses the model's estimator reads, fitted on posed scenes in pose "
       "space (minutes), saved apart from the model for render|eval|serve --mapper");
   add_fit_options(cmd, *a);
-  cmd->add_option("--out", a->out, "the mapper file to write (safetensors; the model file is not changed)")->required();
-  cmd->add_option("--scenes", a->scenes, "use the split's first N scenes only (0: all)")
+  cmd->add_option("--out", a->run.out, "the mapper file to write (safetensors; the model file is not changed)")
+      ->required();
+  cmd->add_option("--scenes", a->run.scenes, "use the split's first N scenes only (0: all)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
   cmd->add_option("--eval-data", a->eval_data,

@@ -23,36 +23,6 @@
 
 namespace uplvsm::cli {
 
-std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluation(const Config& config,
-                                                                                   const std::string& data,
-                                                                                   const std::string& run,
-                                                                                   torch::Device device) {
-  const auto index = std::filesystem::path(data) / "evaluation_index.json";
-  if (!std::filesystem::exists(index)) {
-    spdlog::warn("training.eval_every is set but {} does not exist: no periodic evaluation", index.string());
-    return {};
-  }
-  return [=](model::NovelViewModel& net, int64_t step) {
-    data::ChunkDataset dataset(data, "test");
-    const auto prep = data::preprocess_options(config);
-    auto opt = eval::training_evaluation_options(
-        config, model::resolve_target_poses(config.training.target_poses, *net), device);
-    opt.index_path = index.string();
-    opt.out_dir = (std::filesystem::path(run) / "eval" / fmt::format("step_{:07d}", step)).string();
-    auto summary = eval::evaluate(net, dataset, prep, opt);
-    const auto& model_row = summary.scores.model;
-    spdlog::info("step {}: held-out PSNR {:.2f} dB, SSIM {:.4f}, edges {:.3f} on {} scenes (copy-nearest {:.2f} dB)",
-                 step, model_row.psnr, model_row.ssim, model_row.grad_ratio, summary.scenes,
-                 summary.scores.copy_nearest.psnr);
-    return nlohmann::json{{"psnr", model_row.psnr},
-                          {"ssim", model_row.ssim},
-                          {"grad_ratio", model_row.grad_ratio},
-                          {"scenes", summary.scenes},
-                          {"copy_nearest_psnr", summary.scores.copy_nearest.psnr},
-                          {"dir", opt.out_dir}};
-  };
-}
-
 namespace {
 
 struct TrainArgs {
@@ -146,7 +116,7 @@ train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
   opt.device = train::rank_device(parse_device(a.common.device), env);
   if (env.distributed()) opt.comm = std::make_shared<train::Communicator>(env, opt.device);
   opt.stop_after_steps = a.stop_after;
-  if (config.training.eval_every > 0) opt.periodic_eval = periodic_evaluation(config, a.data, a.run, opt.device);
+  if (config.training.eval_every > 0) opt.periodic_eval = eval::periodic_evaluation(config, a.data, a.run, opt.device);
   return opt;
 }
 

@@ -75,12 +75,4 @@ void add_camera_paths_command(CLI::App& study);
 // study scaling / study pose-noise (cmd_study_grid.cpp), registered under `study`.
 void add_study_grid_commands(CLI::App& study);
 
-// Held-out evaluation during training (training.eval_every): the test split's evaluation index, at most
-// eval.max_scenes scenes (default 16), with the run's target-pose protocol; results in <run>/eval/step_NNNNNNN/.
-// Empty (with a warning) when <data>/evaluation_index.json does not exist.
-std::function<nlohmann::json(model::NovelViewModel&, int64_t)> periodic_evaluation(const Config& config,
-                                                                                   const std::string& data,
-                                                                                   const std::string& run,
-                                                                                   torch::Device device);
-
 }  // namespace uplvsm::cli

@@ -36,7 +36,7 @@ struct UPLVSMImpl : NovelViewModelImpl {
   torch::Tensor estimate_poses(const torch::Tensor& target_images, const torch::Tensor& scene_latents,
                                ForwardTrace* trace = nullptr);
   // The scene latents of unposed inputs and the latent poses [b, v_in, 7] the estimator reads from those same
-  // inputs: what rendering between (or around) the inputs starts from (render/renderer, serve/viewer_model).
+  // inputs: what rendering between (or around) the inputs starts from (model/encoded_scene.h).
   struct EncodedInputs {
     torch::Tensor latents, input_poses;
   };

@@ -7,28 +7,12 @@
 
 #include "uplvsm/io/image.h"
 #include "uplvsm/io/video.h"
+#include "uplvsm/model/encoded_scene.h"
 #include "uplvsm/render/trajectory.h"
 
 namespace uplvsm::render {
 
 namespace fs = std::filesystem;
-
-namespace {
-// The decoder over a path of latent poses [F, 7] and intrinsics [F, 4], `chunk` frames at a time.
-torch::Tensor decode_path(model::UPLVSM& net, const torch::Tensor& latents, const torch::Tensor& poses,
-                          const torch::Tensor& intrinsics, int64_t H, int64_t W, int64_t chunk) {
-  const auto device = latents.device();
-  std::vector<torch::Tensor> out;
-  for (int64_t s = 0; s < poses.size(0); s += chunk) {
-    const int64_t n = std::min(chunk, poses.size(0) - s);
-    out.push_back(net->render_views(latents, poses.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32),
-                                    intrinsics.slice(0, s, s + n).unsqueeze(0).to(device, torch::kFloat32), H, W)[0]
-                      .to(torch::kFloat32)
-                      .cpu());
-  }
-  return torch::cat(out);
-}
-}  // namespace
 
 InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
                                         int64_t num_frames, int64_t chunk) {
@@ -37,15 +21,12 @@ InterpolationVideo render_interpolation(model::UPLVSM& net, const torch::Tensor&
   TORCH_CHECK(num_frames >= 2, "render_interpolation: need at least 2 frames");
   torch::NoGradGuard no_grad;
   net->eval();
-  auto device = model_device(*net);
-  auto inputs = images.unsqueeze(0).to(device);
-  auto k = fxfycxcy.unsqueeze(0).to(device);
-  const int64_t H = images.size(2), W = images.size(3);
-  const auto scene = net->encode_with_input_poses(inputs, k);
-  auto key_poses = scene.input_poses[0];  // [2, 7]
-  auto poses = interpolate_poses(key_poses, num_frames);
-  auto intrinsics = interpolate_intrinsics(k[0], num_frames);
-  return {decode_path(net, scene.latents, poses, intrinsics, H, W, chunk), poses.cpu(), key_poses.cpu()};
+  const auto scene = model::encode_scene(*net, images, fxfycxcy);
+  auto poses = interpolate_poses(scene.input_poses, num_frames);
+  auto intrinsics = interpolate_intrinsics(fxfycxcy.to(scene.latents.device()), num_frames);
+  auto frames =
+      model::render_latent_poses(*net, scene, poses.to(torch::kFloat32), intrinsics.to(torch::kFloat32), chunk);
+  return {frames, poses.cpu(), scene.input_poses.cpu()};
 }
 
 torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images, const torch::Tensor& fxfycxcy,
@@ -57,9 +38,8 @@ torch::Tensor render_latent_path(model::UPLVSM& net, const torch::Tensor& images
               intrinsics.sizes());
   torch::NoGradGuard no_grad;
   net->eval();
-  auto device = model_device(*net);
-  auto latents = net->encode_scene(images.unsqueeze(0).to(device), fxfycxcy.unsqueeze(0).to(device));
-  return decode_path(net, latents, poses, intrinsics, images.size(2), images.size(3), chunk);
+  const auto scene = model::encode_scene(*net, images, fxfycxcy, /*estimate_input_poses=*/false);
+  return model::render_latent_poses(*net, scene, poses.to(torch::kFloat32), intrinsics.to(torch::kFloat32), chunk);
 }
 
 torch::Device model_device(const torch::nn::Module& net) {

@@ -1,6 +1,7 @@
 // Novel-view videos from two input images, decoded in chunks of views, written as PNG frames, an MP4 and a GIF.
 // - render_interpolation: unposed; the Latent Plücker Learner estimates the inputs' latent poses, which are
-//   interpolated (no camera control needed).
+//   interpolated (no camera control needed); it and render_latent_path decode an encoded scene
+//   (model/encoded_scene.h).
 // - render_camera_path: real cameras in camera-control units (render/trajectory.h), placed by the model's camera
 //   control: UP-LVSM's pose mapper, or the posed models' world cameras (they need the inputs' c2w).
 #pragma once

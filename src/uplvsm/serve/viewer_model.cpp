@@ -4,6 +4,7 @@
 
 #include "uplvsm/core/autocast.h"
 #include "uplvsm/geometry/camera_control.h"
+#include "uplvsm/model/encoded_scene.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/model/pose_mapper_file.h"
@@ -47,19 +48,13 @@ bool ViewerModel::has_mapper() const { return static_cast<bool>(net_->pose_mappe
 
 int64_t ViewerModel::parameter_count() const { return net_->parameter_count(); }
 
-// What an MLP mapper reads of the scene: the estimator's latent poses of the two inputs ([1, 14] on the model's
-// device).
-torch::Tensor ViewerModel::mapper_scene(const torch::Tensor& key_latent) const {
-  return model::scene_conditioning(key_latent.unsqueeze(0).to(device_, torch::kFloat32));
-}
-
 // Photos carry no cameras: input 0 is the origin of camera-control units and input 1 one baseline from it, so only
 // input 1's pose is unknown; it is solved through the mapper (model::invert_pose_mapper, a convergent least-squares
 // solve with its residual) so that rendering there gives the latent pose the estimator read from that photo.
 void ViewerModel::place_second_photo(SceneEncoding& s) const {
   auto& mapper = *net_->pose_mapper;
   auto inverse = model::invert_pose_mapper(mapper, s.key_latent[1],
-                                           mapper.reads_scene() ? mapper_scene(s.key_latent) : torch::Tensor());
+                                           mapper.reads_scene() ? model::mapper_conditioning(s) : torch::Tensor());
   auto origin = torch::tensor({0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0}, torch::kFloat64);
   s.key_real = torch::stack({origin, inverse.real});
   s.key_real_residual = inverse.residual;
@@ -73,15 +68,10 @@ SceneEncoding ViewerModel::encode(const data::SceneViews& views, bool posed) con
   SceneEncoding s;
   {
     Bf16Autocast amp(device_, bf16_);  // the model only: the mapper's inversion below needs fp32 Jacobians
-    auto images = views.images.unsqueeze(0).to(device_);
-    auto k = views.fxfycxcy.unsqueeze(0).to(device_, torch::kFloat32);
-    auto encoded = net_->encode_with_input_poses(images, k);
-    s.latents = encoded.latents;
-    s.key_latent = encoded.input_poses[0].to(torch::kCPU, torch::kFloat64);
+    static_cast<model::EncodedScene&>(s) = model::encode_scene(*net_, views.images, views.fxfycxcy.to(torch::kFloat32));
+    s.key_latent = s.input_poses.to(torch::kCPU, torch::kFloat64);
   }
   s.fxfycxcy = views.fxfycxcy[0].to(torch::kCPU, torch::kFloat32).clone();
-  s.height = views.images.size(2);
-  s.width = views.images.size(3);
   if (has_mapper()) {
     if (posed && views.c2w.defined()) {
       auto c2w = views.c2w.unsqueeze(0);
@@ -97,13 +87,11 @@ torch::Tensor ViewerModel::render(const SceneEncoding& scene, const torch::Tenso
   TORCH_CHECK(poses.dim() == 2 && poses.size(1) == 7, "serve: poses must be [F, 7], got ", poses.sizes());
   if (space == PoseSpace::Real && !has_mapper())
     throw std::invalid_argument("this checkpoint has no camera mapper: render latent poses (space \"latent\")");
-  torch::NoGradGuard no_grad;
   Bf16Autocast amp(device_, bf16_);
-  auto p = poses.to(device_, torch::kFloat32).unsqueeze(0);
-  if (space == PoseSpace::Real)
-    p = net_->pose_mapper(p, net_->pose_mapper->reads_scene() ? mapper_scene(scene.key_latent) : torch::Tensor());
-  auto k = scene.fxfycxcy.to(device_).view({1, 1, 4}).expand({1, poses.size(0), 4}).contiguous();
-  return net_->render_views(scene.latents, p, k, scene.height, scene.width)[0].to(torch::kCPU, torch::kFloat32);
+  auto latent =
+      space == PoseSpace::Real ? model::latent_poses_of_cameras(*net_, scene, poses) : poses.to(torch::kFloat32);
+  auto k = scene.fxfycxcy.view({1, 4}).expand({poses.size(0), 4}).contiguous();
+  return model::render_latent_poses(*net_, scene, latent, k);
 }
 
 }  // namespace uplvsm::serve

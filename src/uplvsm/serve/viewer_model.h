@@ -1,7 +1,7 @@
-// The viewer's one door into the model: everything `uplvsm serve` asks of UP-LVSM goes through this adapter —
-// encode_with_input_poses once per scene (the scene latents, cached by the caller, and the inputs' latent poses),
-// render_views per frame, and, when the checkpoint has a camera mapper, pose_mapper + camera_control_poses
-// for cameras in real units. Keeping it here keeps the rest of serve/ independent of the model's class layout.
+// The viewer's one door into the model: everything `uplvsm serve` asks of UP-LVSM goes through this adapter, which
+// keeps the rest of serve/ independent of the model's class layout. A scene is encoded once (model/encoded_scene.h:
+// the scene latents and the inputs' latent poses, cached by the caller) and each frame rendered from it, at latent
+// poses or, when the checkpoint has a camera mapper, at real cameras through it.
 #pragma once
 #include <torch/torch.h>
 
@@ -13,6 +13,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/scene.h"
+#include "uplvsm/model/encoded_scene.h"
 
 namespace uplvsm::model {
 struct UPLVSMImpl;
@@ -26,18 +27,17 @@ enum class PoseSpace { Latent, Real };
 PoseSpace parse_pose_space(const std::string& name);  // "latent" | "real"; throws std::invalid_argument
 const char* to_string(PoseSpace space);
 
-// One scene as the decoder needs it, computed once.
-struct SceneEncoding {
-  torch::Tensor latents;     // [1, L, d] scene latents on the model's device
-  torch::Tensor key_latent;  // [2, 7] float64 CPU: the estimator's latent poses of the two inputs
+// One scene as the decoder needs it, computed once (latents, input_poses, height, width), with what the viewer shows
+// of it.
+struct SceneEncoding : model::EncodedScene {
+  torch::Tensor key_latent;  // [2, 7] float64 CPU: the estimator's latent poses of the two inputs (input_poses)
   torch::Tensor key_real;    // [2, 7] float64 CPU: the inputs in camera-control units (undefined without a mapper)
   bool key_real_estimated = false;  // key_real[1] inverted through the mapper (photos without cameras)
   // How far the mapper at key_real[1] stays from key_latent[1] (RMS, latent units; NaN unless estimated): near 0, a
   // render there is the estimator's render of the photo; large, no real camera reaches what the estimator read.
   double key_real_residual = NAN;
   torch::Tensor fxfycxcy;  // [4] float32 pixels: input 0's intrinsics, used for every rendered frame
-  int64_t height = 0, width = 0;
-  int64_t bytes() const;  // memory held (latents and poses)
+  int64_t bytes() const;   // memory held (latents and poses; input_poses counted as key_latent)
 };
 
 class ViewerModel {
@@ -67,7 +67,6 @@ class ViewerModel {
 
  private:
   void place_second_photo(SceneEncoding& scene) const;
-  torch::Tensor mapper_scene(const torch::Tensor& key_latent) const;
 
   std::shared_ptr<model::UPLVSMImpl> net_;
   Config config_;

@@ -37,8 +37,8 @@ struct TrainOptions {
   // Data-parallel group (train/distributed.h); null: one process. Rank 0 writes the logs and checkpoints.
   std::shared_ptr<Communicator> comm;
   // Periodic evaluation, every training.eval_every steps and at the end, on rank 0 with the model in eval mode
-  // (other ranks wait). Its result is logged to metrics.jsonl as {"step", "eval": result}. The CLI supplies it
-  // (eval/ sits beside train/, not below it).
+  // (other ranks wait). Its result is logged to metrics.jsonl as {"step", "eval": result}. eval::periodic_evaluation
+  // makes it (eval/ sits beside train/, not below it); train and the grid studies pass it.
   std::function<nlohmann::json(model::NovelViewModel& net, int64_t step)> periodic_eval;
 };
 
