@@ -69,8 +69,25 @@ TEST(CameraPaths, EveryFrameIsScoredInsideOrBeyondForEachMethod) {
     EXPECT_GE(m.wobble, 0.0);
   }
   for (const auto& f : report.frames) EXPECT_EQ(f.inside, f.position >= 0 && f.position <= 1);
+  // Each scene's figures for each method, what a paired comparison reads: the method's wobble is their mean.
+  ASSERT_EQ(report.scene_scores.size(), static_cast<size_t>(report.scenes * 2));
+  for (const auto& m : report.methods) {
+    double sum = 0;
+    for (const auto& s : report.scene_scores)
+      if (s.method == m.method) sum += s.wobble;
+    EXPECT_NEAR(m.wobble, sum / report.scenes, 1e-12) << m.method;
+  }
   const auto dir = test::temp_dir("camera_paths");
   study::write_camera_paths(report, dir.string());
   EXPECT_TRUE(std::filesystem::exists(dir / "camera_paths.csv"));
   EXPECT_TRUE(std::filesystem::exists(dir / "camera_paths.json"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "camera_paths_scenes.csv"));
+  // Without the estimator (it does not depend on the mapper): camera control alone, the same figures.
+  auto options = micro_paths();
+  options.estimator = false;
+  auto alone = study::run_camera_paths(net, dataset, test::micro_prep(), options);
+  ASSERT_EQ(alone.methods.size(), 1u);
+  EXPECT_EQ(alone.methods[0].method, "camera control");
+  EXPECT_NEAR(alone.methods[0].psnr_inside, report.methods[0].psnr_inside, 1e-9);
+  EXPECT_NEAR(alone.methods[0].wobble, report.methods[0].wobble, 1e-9);
 }

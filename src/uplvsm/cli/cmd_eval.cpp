@@ -14,6 +14,7 @@
 #include "uplvsm/io/atomic_file.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/study/camera_paths.h"
 #include "uplvsm/train/distributed.h"
 
 namespace uplvsm::cli {
@@ -32,6 +33,8 @@ struct EvalArgs {
   double pose_noise_std = 0;
   uint64_t seed = 0;
   bool jitter = false;
+  std::string trajectory;
+  int64_t trajectory_frames = 96;
 };
 
 void add_eval_options(CLI::App* cmd, EvalArgs& a) {
@@ -72,6 +75,14 @@ void add_eval_options(CLI::App* cmd, EvalArgs& a) {
                 "also render a smooth path along each scene's real cameras (camera control: --mapper, the "
                 "checkpoint's mapper or a posed model) and report the jitter, how much the rendered picture's motion "
                 "changes from one render to the next in pixels per frame² (jitter.json)");
+  cmd->add_option("--trajectory", a.trajectory,
+                  "built-in rooms: also score camera control along this path past the inputs (orbit, spiral, "
+                  "dolly or a camera-path file in baseline units) against the ray-traced truth, as `study "
+                  "camera-paths` does: PSNR/SSIM inside and beyond the inputs' span, wobble (<out>/trajectory/)")
+      ->check(CLI::IsMember({"orbit", "spiral", "dolly"}) | CLI::ExistingFile);
+  cmd->add_option("--trajectory-frames", a.trajectory_frames, "poses of a --trajectory preset")
+      ->check(CLI::Range(3, 1000))
+      ->capture_default_str();
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -168,6 +179,28 @@ void report_jitter(const EvalArgs& a, model::NovelViewModel& net, const data::Ch
       j.scenes, j.renders, j.jitter, j.speed, a.out);
 }
 
+// Camera control along a user's path on the same rooms (study/camera_paths.h), written under <out>/trajectory.
+void report_trajectory(const EvalArgs& a, const Config& config, model::NovelViewModel& net,
+                       const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                       const eval::EvalOptions& eval_opt) {
+  study::CameraPathsOptions opt;
+  opt.trajectory = a.trajectory;
+  opt.frames = a.trajectory_frames;
+  opt.index_path = a.scenes.index;
+  opt.max_scenes = a.max_scenes;
+  opt.room = data::room_scene_options(config.dataset);  // the rooms the checkpoint was trained on
+  opt.device = eval_opt.device;
+  opt.bf16 = eval_opt.bf16;
+  const auto report = study::run_camera_paths(net, dataset, prep, opt);
+  const auto out = (std::filesystem::path(a.out) / "trajectory").string();
+  study::write_camera_paths(report, out);
+  for (const auto& m : report.methods)
+    std::cout << fmt::format(
+        "  {} path, {}: PSNR {:.2f} dB inside the inputs' span, {:.2f} beyond; wobble {:.3f} "
+        "px/frame² -> {}/camera_paths.json\n",
+        a.trajectory, m.method, m.psnr_inside, m.psnr_beyond, m.wobble, out);
+}
+
 void run_eval(const EvalArgs& a) {
   eval::check_pose_noise_std(a.pose_noise_std);  // before the model is loaded
   apply_common_options(a.common);
@@ -185,6 +218,7 @@ void run_eval(const EvalArgs& a) {
   if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
   print_eval_summary(a, config, opt, summary);
   if (a.jitter) report_jitter(a, net, dataset, prep, opt);
+  if (!a.trajectory.empty()) report_trajectory(a, config, net, dataset, prep, opt);
 }
 
 }  // namespace
