@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 
 #include "test_util.h"
 #include "uplvsm/study/camera_paths_summary.h"
@@ -68,7 +69,15 @@ TEST(CameraPathsSummary, ComparesMethodsSceneBySceneOverTheScenesAllScored) {
   EXPECT_EQ(s.psnr_position[1].y, (std::vector<double>{24, 21}));
   study::write_camera_paths_summary(s, (dir / "summary").string());
   EXPECT_TRUE(std::filesystem::exists(dir / "summary" / "psnr_position.png"));
-  EXPECT_TRUE(std::filesystem::exists(dir / "summary" / "differences.csv"));
+  EXPECT_EQ(study::summary_method_name("A", "estimator reading the truth"), "A (estimator reading the truth)");
+  // A label with a comma stays one field of differences.csv.
+  const auto quoted = study::summarise_camera_paths({{"A, exact", (dir / "a").string()}, {"b", (dir / "b").string()}});
+  study::write_camera_paths_summary(quoted, (dir / "quoted").string());
+  std::ifstream csv(dir / "quoted" / "differences.csv");
+  std::string line;
+  std::getline(csv, line);
+  ASSERT_TRUE(std::getline(csv, line));
+  EXPECT_EQ(line.rfind("wobble,\"A, exact\",,", 0), 0u) << line;
   const auto error = test::error_of([&] { study::summarise_camera_paths({{"A", (dir / "nothing").string()}}); });
   EXPECT_NE(error.find("not a camera-paths file"), std::string::npos) << error;
 }

@@ -84,7 +84,7 @@ std::vector<PathFrameScore> read_camera_paths_frames(const std::string& path) {
 }
 
 std::string summary_method_name(const std::string& label, const std::string& method) {
-  return method == "camera control" ? label : label + ", " + method;
+  return method == "camera control" ? label : label + " (" + method + ")";
 }
 
 namespace {
@@ -203,13 +203,20 @@ void write_camera_paths_summary(const CameraPathsSummary& summary, const std::st
   const fs::path out(out_dir);
   fs::create_directories(out);
   auto number = [](double v) { return std::isfinite(v) ? fmt::format("{:.4f}", v) : std::string(); };
+  // A label may hold a comma ("MLP, noisy"): quoted as csv_fields() reads it back.
+  auto field = [](const std::string& v) {
+    if (v.find_first_of(",\"") == std::string::npos) return v;
+    std::string q = "\"";
+    for (char c : v) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+    return q + "\"";
+  };
   std::ostringstream csv;
   csv << "metric,a,b,estimate,lo,hi,scenes\n";
   nlohmann::json stats = nlohmann::json::array();
   for (const auto& s : summary.stats) {
     const auto& i = s.interval;
-    csv << fmt::format("{},{},{},{},{},{},{}\n", s.metric, s.a, s.b, number(i.estimate), number(i.lo), number(i.hi),
-                       i.scenes);
+    csv << fmt::format("{},{},{},{},{},{},{}\n", s.metric, field(s.a), field(s.b), number(i.estimate), number(i.lo),
+                       number(i.hi), i.scenes);
     auto json_number = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(); };
     stats.push_back({{"metric", s.metric},
                      {"a", s.a},

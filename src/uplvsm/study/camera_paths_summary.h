@@ -27,7 +27,7 @@ CameraPathsRun parse_camera_paths_run(const std::string& arg);
 std::vector<PathSceneScore> read_camera_paths_scenes(const std::string& path);
 std::vector<PathFrameScore> read_camera_paths_frames(const std::string& path);
 
-// A method's name in the summary: the run's label for its camera control, "LABEL, METHOD" for any other method.
+// A method's name in the summary: the run's label for its camera control, "LABEL (METHOD)" for any other method.
 std::string summary_method_name(const std::string& label, const std::string& method);
 
 struct PathMetricStat {
