@@ -166,4 +166,25 @@ TEST(Plot, MarkersErrorBarsAndTicksAtTheData) {
   EXPECT_NO_THROW(plot_lines({bad_error}, PlotOptions{}));
 }
 
+TEST(Plot, BandsShadeTheirSpanOfXOnly) {
+  // x from 0 to 10 on a 400-pixel-wide plot: the band [2, 4] is shaded, x = 7 is not; a flat line at y = 0 keeps the
+  // middle rows free of the series.
+  Series line{"", {0, 10}, {0, 0}};
+  PlotOptions o;
+  o.width = 400;
+  o.height = 200;
+  o.x_bands = {{2.0, 4.0}, {-5.0, -1.0}};  // the second lies off the axis: clipped away
+  auto img = plot_lines({line}, o).to(torch::kInt32);
+  o.x_bands.clear();
+  auto plain = plot_lines({line}, o).to(torch::kInt32);
+  const auto shaded = (img - plain).abs().sum(2) > 0;  // pixels the bands changed
+  ASSERT_GT(shaded.sum().item<int64_t>(), 0);
+  auto cols = std::get<0>(shaded.max(0)).nonzero().squeeze(1);
+  const int64_t first = cols.min().item<int64_t>(), last = cols.max().item<int64_t>();
+  // The band spans a fifth of the axis's width (its data run 0..10) and sits left of its middle.
+  EXPECT_GT(last - first, 40);
+  EXPECT_LT(last - first, 110);
+  EXPECT_LT((first + last) / 2, 180);
+}
+
 }  // namespace uplvsm::io

@@ -1,5 +1,6 @@
 // `uplvsm eval`: scores a checkpoint on an evaluation index with the paper's unposed protocol, beside the two
 // baselines (LPIPS too when its weight files are given); writes metrics.json, per-scene/per-view CSV and image grids.
+#include <filesystem>
 #include <iostream>
 
 #include <fmt/format.h>
@@ -7,9 +8,11 @@
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/data/chunk_dataset.h"
+#include "uplvsm/data/synthetic/room_scenes.h"
 #include "uplvsm/eval/eval_pose_noise.h"
 #include "uplvsm/eval/evaluation_run.h"
 #include "uplvsm/model/model_factory.h"
+#include "uplvsm/study/camera_paths.h"
 #include "uplvsm/train/distributed.h"
 
 namespace uplvsm::cli {
@@ -31,6 +34,8 @@ struct EvalArgs {
     r.bf16 = amp == Amp::Bf16;
     return r;
   }
+  std::string trajectory;
+  int64_t trajectory_frames = 96;
 };
 
 void add_eval_options(CLI::App* cmd, EvalArgs& e) {
@@ -72,6 +77,14 @@ void add_eval_options(CLI::App* cmd, EvalArgs& e) {
                 "also render a smooth path along each scene's real cameras (camera control: --mapper, the "
                 "checkpoint's mapper or a posed model) and report the jitter, how much the rendered picture's motion "
                 "changes from one render to the next in pixels per frame² (jitter.json)");
+  cmd->add_option("--trajectory", e.trajectory,
+                  "built-in rooms: also score camera control along this path past the inputs (orbit, spiral, "
+                  "dolly or a camera-path file in baseline units) against the ray-traced truth, as `study "
+                  "camera-paths` does: PSNR/SSIM inside and beyond the inputs' span, wobble (<out>/trajectory/)")
+      ->check(CLI::IsMember({"orbit", "spiral", "dolly"}) | CLI::ExistingFile);
+  cmd->add_option("--trajectory-frames", e.trajectory_frames, "poses of a --trajectory preset")
+      ->check(CLI::Range(3, 1000))
+      ->capture_default_str();
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -117,6 +130,28 @@ void report_jitter(const eval::EvalRequest& r, model::NovelViewModel& net, const
       j.scenes, j.renders, j.jitter, j.speed, r.out);
 }
 
+// Camera control along a user's path on the same rooms (study/camera_paths.h), written under <out>/trajectory.
+void report_trajectory(const EvalArgs& a, const eval::EvalRequest& r, const Config& config, model::NovelViewModel& net,
+                       const data::ChunkDataset& dataset, const data::PreprocessOptions& prep,
+                       const eval::EvalOptions& eval_opt) {
+  study::CameraPathsOptions opt;
+  opt.trajectory = a.trajectory;
+  opt.frames = a.trajectory_frames;
+  opt.index_path = a.scenes.index;
+  opt.max_scenes = r.max_scenes;
+  opt.room = data::room_scene_options(config.dataset);  // the rooms the checkpoint was trained on
+  opt.device = eval_opt.device;
+  opt.bf16 = eval_opt.bf16;
+  const auto report = study::run_camera_paths(net, dataset, prep, opt);
+  const auto out = (std::filesystem::path(r.out) / "trajectory").string();
+  study::write_camera_paths(report, out);
+  for (const auto& m : report.methods)
+    std::cout << fmt::format(
+        "  {} path, {}: PSNR {:.2f} dB inside the inputs' span, {:.2f} beyond; wobble {:.3f} "
+        "px/frame² -> {}/camera_paths.json\n",
+        a.trajectory, m.method, m.psnr_inside, m.psnr_beyond, m.wobble, out);
+}
+
 void run_eval(const EvalArgs& a) {
   const auto request = a.full_request();
   eval::check_pose_noise_std(request.pose_noise_std);  // before the model is loaded
@@ -140,6 +175,7 @@ void run_eval(const EvalArgs& a) {
   if (comm && comm->rank() != 0) return;  // rank 0 reports for all shards
   print_eval_summary(request, config, opt, summary);
   if (a.jitter) report_jitter(request, net, dataset, prep, device);
+  if (!a.trajectory.empty()) report_trajectory(a, request, config, net, dataset, prep, opt);
 }
 
 }  // namespace

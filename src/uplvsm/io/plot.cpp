@@ -301,6 +301,21 @@ std::string format_tick(double value, double step) {
   return fmt::format("{:.{}f}", value, decimals);
 }
 
+namespace {
+
+void draw_bands(torch::Tensor& img, const Layout& l, const Axis& ax, const PlotOptions& opt) {
+  const Rgb shade{228, 236, 246};
+  for (const auto& [lo, hi] : opt.x_bands) {
+    if (ax.log && (lo <= 0 || hi <= 0)) continue;
+    const double a = to_pixel(to_axis(lo, ax.log), ax, l.x0, l.x1), b = to_pixel(to_axis(hi, ax.log), ax, l.x0, l.x1);
+    const int x0 = std::max(l.x0 + 1, int(std::lround(std::min(a, b))));
+    const int x1 = std::min(l.x1 - 1, int(std::lround(std::max(a, b))));
+    if (x1 >= x0) fill_rect(img, x0, l.y0 + 1, x1 - x0 + 1, l.y1 - l.y0 - 1, shade);
+  }
+}
+
+}  // namespace
+
 torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& opt) {
   if (opt.width < 160 || opt.height < 120)
     throw std::runtime_error(
@@ -309,6 +324,7 @@ torch::Tensor plot_lines(const std::vector<Series>& series, const PlotOptions& o
   Axis ay = make_axis(series, false, opt, opt.height - 100);
   Layout l = compute_layout(opt, ax, ay);
   torch::Tensor img = blank_image(opt.height, opt.width, kWhite);
+  draw_bands(img, l, ax, opt);
   draw_axes(img, l, ax, ay);
   for (size_t i = 0; i < series.size(); ++i) draw_series(img, l, ax, ay, series[i], series_style(i), i);
   draw_legend(img, l, series);

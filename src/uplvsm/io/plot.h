@@ -30,6 +30,9 @@ struct PlotOptions {
   // (else the number); the axis then spans them with a margin. Empty: round-number ticks.
   std::vector<double> x_ticks{};
   std::vector<std::string> x_tick_labels{};
+  // Spans of x (data units) shaded behind the lines, e.g. where a camera path lies between its inputs; clipped to
+  // the axis.
+  std::vector<std::pair<double, double>> x_bands{};
 };
 
 // uint8 [height, width, 3]. Points with a non-finite coordinate (or <= 0 on a log axis) are skipped and break the

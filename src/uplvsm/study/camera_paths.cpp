@@ -31,6 +31,19 @@ torch::Tensor baseline_position(const torch::Tensor& poses, const torch::Tensor&
   return torch::matmul(t, d) / d.pow(2).sum().clamp_min(1e-12);
 }
 
+torch::Tensor camera_path_poses(const CameraPathsOptions& opt) {
+  const auto& name = opt.trajectory;
+  if (name == "orbit" || name == "spiral" || name == "dolly")
+    return render::camera_path_preset(name, opt.frames, opt.preset).to(torch::kFloat32);
+  const auto path = render::read_camera_path(name);
+  if (path.latent)
+    throw std::runtime_error("camera-paths: " + name +
+                             " holds latent poses (\"units\": \"latent\"): the truth needs real cameras (baseline "
+                             "units)");
+  if (path.poses.size(0) < 3) throw std::runtime_error("camera-paths: " + name + " has fewer than 3 frames");
+  return path.poses.to(torch::kFloat32);
+}
+
 namespace {
 
 constexpr double kReproducedPsnr = 30.0;  // dB: a JPEG-q90 frame against its exact render is well above
@@ -62,7 +75,7 @@ ScenePath scene_path(const data::ChunkDataset& dataset, int64_t index, const dat
         "camera-paths: scene {} of {} is not reproduced by the room options given ({:.1f} dB at its input frames): "
         "pass the config the dataset was made with (--room-config)",
         entry.key, dataset.root(), reproduced));
-  s.poses = render::camera_path_preset(opt.trajectory, opt.frames, opt.preset).to(torch::kFloat32);
+  s.poses = camera_path_poses(opt);
   auto c2w = s.inputs.c2w.unsqueeze(0);
   auto world = geometry::camera_control_to_world(c2w, s.poses.unsqueeze(0))[0];
   auto truth = preprocess_render(data::render_room_at(*seed, opt.room, world), prep);
@@ -94,7 +107,8 @@ std::vector<std::pair<std::string, torch::Tensor>> render_path(model::NovelViewM
   out.emplace_back("camera control", in_chunks(n, [&](int64_t first, int64_t m) {
                      return control(s.poses.narrow(0, first, m).unsqueeze(0).to(opt.device), k(first, m), H, W)[0];
                    }));
-  if (auto* up = model::as_uplvsm(*net)) {
+  auto* up = model::as_uplvsm(*net);
+  if (up && opt.estimator) {
     auto latents = up->encode_scene(inputs.images, inputs.fxfycxcy);
     out.emplace_back("estimator reading the truth", in_chunks(n, [&](int64_t first, int64_t m) {
                        auto truth = s.truth.narrow(0, first, m).unsqueeze(0).to(opt.device);
@@ -112,10 +126,11 @@ double mean_where(const torch::Tensor& values, const torch::Tensor& mask) {
 
 namespace {
 
-// Each method's means over the frames inside and beyond the inputs' span, pooled over scenes.
-void summarise(CameraPathsReport& report, const std::vector<std::pair<std::string, double>>& wobble_sums) {
-  for (const auto& [method, wobble] : wobble_sums) {
-    std::vector<double> psnr, ssim;
+// Each method's means over the frames inside and beyond the inputs' span, pooled over scenes; its wobble the mean of
+// the scenes'.
+void summarise(CameraPathsReport& report, const std::vector<std::string>& methods) {
+  for (const auto& method : methods) {
+    std::vector<double> psnr, ssim, wobble;
     std::vector<uint8_t> inside;
     for (const auto& f : report.frames)
       if (f.method == method) {
@@ -123,6 +138,8 @@ void summarise(CameraPathsReport& report, const std::vector<std::pair<std::strin
         ssim.push_back(f.ssim);
         inside.push_back(f.inside ? 1 : 0);
       }
+    for (const auto& s : report.scene_scores)
+      if (s.method == method) wobble.push_back(s.wobble);
     auto p = torch::tensor(psnr, torch::kFloat64), s = torch::tensor(ssim, torch::kFloat64);
     auto in = torch::tensor(inside, torch::kUInt8).to(torch::kBool);
     PathMethodScores m;
@@ -131,26 +148,27 @@ void summarise(CameraPathsReport& report, const std::vector<std::pair<std::strin
     m.psnr_beyond = mean_where(p, ~in);
     m.ssim_inside = mean_where(s, in);
     m.ssim_beyond = mean_where(s, ~in);
-    m.wobble = wobble / static_cast<double>(report.scenes);
+    m.wobble = torch::tensor(wobble, torch::kFloat64).mean().item<double>();
     report.methods.push_back(m);
   }
 }
 
-// Scores one scene's renders into the report; adds each method's wobble to its sum (methods in a fixed order).
+// Scores one scene's renders into the report: every frame, and each method's scene figures.
 void score_scene(const ScenePath& path, const std::vector<std::pair<std::string, torch::Tensor>>& renders,
-                 CameraPathsReport& report, std::vector<std::pair<std::string, double>>& wobble_sums) {
+                 CameraPathsReport& report) {
   auto inside = (path.position >= 0) & (path.position <= 1);
   report.frames_inside += inside.sum().item<int64_t>();
   report.frames_beyond += inside.numel() - inside.sum().item<int64_t>();
   const auto truth_motion = eval::motion_change(path.truth);  // once per scene, for every method
-  for (size_t i = 0; i < renders.size(); ++i) {
-    const auto& [method, frames] = renders[i];
-    auto psnr = eval::psnr(frames, path.truth), ssim = eval::ssim(frames, path.truth);
+  for (const auto& [method, frames] : renders) {
+    auto psnr = eval::psnr(frames, path.truth).to(torch::kFloat64);
+    auto ssim = eval::ssim(frames, path.truth).to(torch::kFloat64);
     for (int64_t f = 0; f < frames.size(0); ++f)
       report.frames.push_back({path.key, method, f, path.position[f].item<double>(), inside[f].item<bool>(),
                                psnr[f].item<double>(), ssim[f].item<double>()});
-    if (wobble_sums.size() <= i) wobble_sums.emplace_back(method, 0.0);
-    wobble_sums[i].second += eval::temporal_wobble(frames, truth_motion);
+    report.scene_scores.push_back({path.key, method, psnr.mean().item<double>(), mean_where(psnr, inside),
+                                   mean_where(psnr, ~inside), mean_where(ssim, inside), mean_where(ssim, ~inside),
+                                   eval::temporal_wobble(frames, truth_motion)});
   }
 }
 
@@ -163,7 +181,7 @@ CameraPathsReport run_camera_paths(model::NovelViewModel& net, const data::Chunk
   const auto entries = data::read_eval_index(index);
   EvalModeGuard mode(*net);
   CameraPathsReport report;
-  std::vector<std::pair<std::string, double>> wobble_sums;
+  std::vector<std::string> methods;
   const int64_t wanted = opt.max_scenes > 0 ? std::min<int64_t>(opt.max_scenes, entries.size()) : entries.size();
   ProgressBar bar("camera paths", wanted, "scene");
   for (const auto& e : entries) {
@@ -171,12 +189,15 @@ CameraPathsReport run_camera_paths(model::NovelViewModel& net, const data::Chunk
     const int64_t scene = dataset.find(e.key);
     if (scene < 0) continue;
     const auto path = scene_path(dataset, scene, e, prep, opt);
-    score_scene(path, render_path(net, path, opt), report, wobble_sums);
+    const auto renders = render_path(net, path, opt);
+    if (methods.empty())
+      for (const auto& r : renders) methods.push_back(r.first);
+    score_scene(path, renders, report);
     bar.update(++report.scenes);
   }
   bar.finish();
   if (report.scenes == 0) throw std::runtime_error("camera-paths: no scene of " + index + " is in " + dataset.root());
-  summarise(report, wobble_sums);
+  summarise(report, methods);
   return report;
 }
 
@@ -209,6 +230,14 @@ void write_camera_paths(const CameraPathsReport& report, const std::string& out_
                        f.psnr, f.ssim);
   const auto text = csv.str();
   io::write_file_atomic((out / "camera_paths.csv").string(), text.data(), text.size());
+  auto number = [](double v) { return std::isfinite(v) ? fmt::format("{:.6f}", v) : std::string(); };
+  std::ostringstream scenes;
+  scenes << "scene,method,psnr,psnr_inside,psnr_beyond,ssim_inside,ssim_beyond,wobble\n";
+  for (const auto& s : report.scene_scores)
+    scenes << fmt::format("{},{},{},{},{},{},{},{}\n", s.scene, s.method, number(s.psnr), number(s.psnr_inside),
+                          number(s.psnr_beyond), number(s.ssim_inside), number(s.ssim_beyond), number(s.wobble));
+  const auto scenes_text = scenes.str();
+  io::write_file_atomic((out / "camera_paths_scenes.csv").string(), scenes_text.data(), scenes_text.size());
 }
 
 }  // namespace uplvsm::study

@@ -25,7 +25,7 @@
 namespace uplvsm::study {
 
 struct CameraPathsOptions {
-  std::string trajectory = "dolly";              // a render preset: orbit, spiral or dolly
+  std::string trajectory = "dolly";              // a render preset (orbit, spiral, dolly) or a camera-path file
   int64_t frames = 24;                           // poses of the (looping) path
   render::PresetOptions preset{2.0, 1.5, 30.0};  // dolly 1.5 baselines forward and back: past both inputs
   std::string index_path;                        // empty: <dataset root>/evaluation_index.json
@@ -33,6 +33,9 @@ struct CameraPathsOptions {
   data::RoomSceneOptions room;  // the options the dataset's rooms were made with (checked on its frames)
   torch::Device device = torch::kCPU;
   bool bf16 = false;
+  // UP-LVSM: also the estimator reading each true frame. It does not depend on the mapper, so runs that compare
+  // mappers of one model render it once and leave it out of the others (half the time of each).
+  bool estimator = true;
 };
 
 struct PathMethodScores {
@@ -49,12 +52,27 @@ struct PathFrameScore {
   double psnr = 0, ssim = 0;
 };
 
+// One scene's figures for one method: what a paired comparison of two methods resamples (study/
+// camera_paths_summary.h). NaN where the scene's path has no frame inside (or beyond) the inputs' span.
+struct PathSceneScore {
+  std::string scene, method;
+  double psnr = 0, psnr_inside = NAN, psnr_beyond = NAN, ssim_inside = NAN, ssim_beyond = NAN;
+  double wobble = 0;  // pixels per frame², relative to the truth's motion
+};
+
 struct CameraPathsReport {
   int64_t scenes = 0, frames_inside = 0, frames_beyond = 0;
   std::vector<PathMethodScores> methods;
   std::vector<PathFrameScore> frames;
+  std::vector<PathSceneScore> scene_scores;  // scene by scene, the methods in a fixed order
   nlohmann::json to_json() const;
 };
+
+// The path's poses [F, 7] (float32, camera-control units): the preset named by options.trajectory at options.frames
+// poses, or a camera-path file (render::read_camera_path) in baseline units, its own frame count (a path recorded in
+// latent units is refused: it has no real camera to render the truth at). A file's intrinsics are not read: the
+// truth is the room seen with its dataset's.
+torch::Tensor camera_path_poses(const CameraPathsOptions& options);
 
 // Positions [F] (float64) of path poses [F, 7] (camera-control units) along the baseline to input 1's pose [7]:
 // the projection of each camera centre, 0 at input 0 and 1 at input 1.
@@ -75,7 +93,9 @@ ScenePath scene_path(const data::ChunkDataset& dataset, int64_t index, const dat
 CameraPathsReport run_camera_paths(model::NovelViewModel& net, const data::ChunkDataset& dataset,
                                    const data::PreprocessOptions& prep, const CameraPathsOptions& options);
 
-// camera_paths.json (the report without its frames) and camera_paths.csv (one row per frame and method).
+// camera_paths.json (the report without its frames), camera_paths.csv (one row per frame and method) and
+// camera_paths_scenes.csv (one row per scene and method: scene,method,psnr,psnr_inside,psnr_beyond,ssim_inside,
+// ssim_beyond,wobble; empty where NaN).
 void write_camera_paths(const CameraPathsReport& report, const std::string& out_dir);
 
 }  // namespace uplvsm::study
