@@ -84,3 +84,67 @@ TEST(EvalCli, PoseNoiseStdScoresAPosedModelWithNoisyCameras) {
   }
   test::remove_tree(dir);
 }
+
+// `eval --trajectory dolly` scores camera control along a path past the inputs against the ray-traced truth of the
+// rooms the checkpoint's dataset config makes: <out>/trajectory/camera_paths.json holds the frames inside and beyond
+// the inputs' span for each method. A UP-LVSM without a mapper is refused before it is evaluated; a model whose
+// dataset config makes other rooms (here a posed LVSM, which needs no mapper) is refused, not scored.
+TEST(EvalCli, TrajectoryScoresCameraControlAlongAPathAgainstTheTruth) {
+  const auto dir = test::temp_dir("cli_eval_trajectory");
+  auto micro_config = [](const std::string& name) {
+    std::ifstream in(std::string(UPLVSM_SOURCE_DIR) + "/configs/" + name);
+    auto config = nlohmann::json::parse(in);
+    // The rooms of test::micro_dataset().
+    config["dataset"]["render_height"] = 36, config["dataset"]["render_width"] = 64;
+    config["dataset"]["frames_per_scene"] = 12, config["dataset"]["frame_spacing"] = 1.0;
+    config["dataset"]["eval_gap"] = 0;
+    return config;
+  };
+  std::ofstream((dir / "micro.json").string()) << micro_config("tiny.json").dump();
+  auto other = micro_config("tiny_lvsm.json");
+  other["dataset"]["frames_per_scene"] = 10;  // another path through other objects: other rooms
+  std::ofstream((dir / "other.json").string()) << other.dump();
+  std::string out;
+  for (const char* name : {"micro", "other"})
+    ASSERT_EQ(test::run_cli("train --config " + (dir / (std::string(name) + ".json")).string() + " --data " +
+                                test::micro_dataset() + " --run " + (dir / name).string() + " --steps 1",
+                            &out),
+              0)
+        << out;
+  const std::string eval = " --data " + test::micro_dataset() +
+                           " --max-scenes 1 --trajectory dolly --trajectory-frames 6 --visualise 0 --out ";
+  EXPECT_NE(test::run_cli("eval --checkpoint " + (dir / "micro").string() + eval + (dir / "none").string(), &out), 0);
+  EXPECT_NE(out.find("has no camera mapper: give --mapper FILE"), std::string::npos) << out;
+  EXPECT_EQ(out.find("PSNR"), std::string::npos) << out;  // refused before the evaluation
+  const auto mapper = (dir / "linear.safetensors").string();
+  ASSERT_EQ(test::run_cli("fit-mapper --checkpoint " + (dir / "micro").string() + " --data " + test::micro_dataset() +
+                              " --kind linear --targets 2 --min-frame-dist 2 --max-frame-dist 6 --batch 2 --views 16 "
+                              "--out " +
+                              mapper,
+                          &out),
+            0)
+      << out;
+  ASSERT_EQ(
+      test::run_cli(
+          "eval --checkpoint " + (dir / "micro").string() + " --mapper " + mapper + eval + (dir / "e").string(), &out),
+      0)
+      << out;
+  EXPECT_NE(out.find("dolly path"), std::string::npos) << out;
+  std::ifstream paths(dir / "e" / "trajectory" / "camera_paths.json");
+  ASSERT_TRUE(paths.good());
+  const auto report = nlohmann::json::parse(paths);
+  EXPECT_EQ(report.at("scenes"), 1);
+  EXPECT_EQ(report.at("frames_inside").get<int64_t>() + report.at("frames_beyond").get<int64_t>(), 6);
+  EXPECT_GT(report.at("frames_beyond").get<int64_t>(), 0);  // the dolly leaves the inputs' span
+  ASSERT_FALSE(report.at("methods").empty()) << report.dump();
+  for (const auto& m : report.at("methods")) EXPECT_TRUE(m.at("psnr_beyond").is_number()) << m.dump();
+  EXPECT_NE(test::run_cli("eval --checkpoint " + (dir / "other").string() + eval + (dir / "o").string(), &out), 0);
+  EXPECT_NE(out.find("not reproduced by the room options"), std::string::npos) << out;
+  // Given the rooms' own config, the same model is scored.
+  EXPECT_EQ(test::run_cli("eval --checkpoint " + (dir / "other").string() + eval + (dir / "o").string() +
+                              " --room-config " + (dir / "micro.json").string(),
+                          &out),
+            0)
+      << out;
+  test::remove_tree(dir);
+}

@@ -34,7 +34,7 @@ struct EvalArgs {
     r.bf16 = amp == Amp::Bf16;
     return r;
   }
-  std::string trajectory;
+  std::string trajectory, room_config;
   int64_t trajectory_frames = 96;
 };
 
@@ -85,6 +85,9 @@ void add_eval_options(CLI::App* cmd, EvalArgs& e) {
   cmd->add_option("--trajectory-frames", e.trajectory_frames, "poses of a --trajectory preset")
       ->check(CLI::Range(3, 1000))
       ->capture_default_str();
+  cmd->add_option("--room-config", e.room_config,
+                  "--trajectory: the config the rooms were made with (default: the checkpoint's dataset section)")
+      ->check(CLI::ExistingFile);
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
@@ -139,7 +142,8 @@ void report_trajectory(const EvalArgs& a, const eval::EvalRequest& r, const Conf
   opt.frames = a.trajectory_frames;
   opt.index_path = a.scenes.index;
   opt.max_scenes = r.max_scenes;
-  opt.room = data::room_scene_options(config.dataset);  // the rooms the checkpoint was trained on
+  // By default the rooms the checkpoint was trained on.
+  opt.room = data::room_scene_options(a.room_config.empty() ? config.dataset : load_config(a.room_config).dataset);
   opt.device = eval_opt.device;
   opt.bf16 = eval_opt.bf16;
   const auto report = study::run_camera_paths(net, dataset, prep, opt);
@@ -163,6 +167,10 @@ void run_eval(const EvalArgs& a) {
   std::shared_ptr<train::Communicator> comm;
   if (env.distributed()) comm = std::make_shared<train::Communicator>(env, device);
   auto net = load_model_from_source(a.model, device, &config);
+  if (!a.trajectory.empty() && !net->has_camera_control())  // before the evaluation, not after it
+    throw std::runtime_error("eval --trajectory: " + a.model.checkpoint +
+                             " has no camera mapper: give --mapper FILE (fit one with `uplvsm fit-mapper`, minutes) "
+                             "or a model fine-tuned with `uplvsm train --stage mapper`");
   data::ChunkDataset dataset(a.scenes.data, a.scenes.split);
   const auto prep = data::preprocess_options(config);
   auto opt = eval::evaluation_options(request, config, net, device);
