@@ -1,6 +1,5 @@
 // `uplvsm convert`: the authors' UP-LVSM checkpoints and DINOv2 weight files -> our safetensors checkpoint (weights +
 // config), with a per-module summary and an optional verification forward pass.
-#include <chrono>
 #include <filesystem>
 #include <iostream>
 #include <set>
@@ -11,9 +10,9 @@
 #include "uplvsm/core/runtime.h"
 #include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/pretrained_weights.h"
-#include "uplvsm/io/safetensors.h"
 #include "uplvsm/model/model_factory.h"
-#include "uplvsm/train/perceptual_loss.h"
+#include "uplvsm/model/round_trip_check.h"
+#include "uplvsm/train/vgg19_extraction.h"
 
 namespace uplvsm::cli {
 
@@ -43,54 +42,13 @@ void print_summary(const model::NovelViewModelImpl& net, const io::PretrainedWei
   std::cout << fmt::format("  {:<40} {:>14} parameters\n", "total", net.parameter_count());
 }
 
-// The known extras of official checkpoints: the perceptual loss's VGG19 (MatConvNet ImageNet weights). Its conv
-// layers are saved under torchvision's `features.N` names, the format the perceptual loss reads; the untrained
-// classifier and the aliased `blocks.*` keys are left out.
-void write_vgg19_extras(const io::PretrainedWeights& w, const std::string& output) {
-  io::TensorMap vgg;
-  const std::string prefix = "loss_computer.perceptual_loss_module.vgg.";
-  for (const auto& [k, v] : w.tensors)
-    if (k.rfind(prefix + "features.", 0) == 0) vgg[k.substr(prefix.size())] = v.contiguous();
-  if (vgg.empty()) return;
-  auto path = fs::path(output).replace_extension(".vgg19.safetensors").string();
-  // Marked, so the perceptual loss prepares MatConvNet's input for them (train/perceptual_loss.h).
-  io::write_safetensors(path, vgg,
-                        {{"source", w.path},
-                         {"content", "VGG19 features of the perceptual loss"},
-                         {train::kVggInputMetadataKey, train::to_string(train::VggInput::MatConvNet)}});
-  std::cout << fmt::format("wrote the {} VGG19 feature tensors of the perceptual loss to {}\n", vgg.size(), path);
-}
-
 // Reloads the written file and checks every tensor and one forward pass.
 void verify(const std::string& output, const model::NovelViewModelImpl& converted, const torch::Device& device) {
-  Config config;
-  auto net = model::load_model(output, device, &config);
-  auto expected = io::state_dict(converted);
-  for (const auto& [k, v] : io::state_dict(*net))
-    if (!torch::equal(v, expected.at(k)))
-      throw std::runtime_error("verify: tensor " + k + " changed in the round trip");
-  torch::NoGradGuard no_grad;
-  torch::manual_seed(0);
-  const int64_t s = config.model.image_size;
-  auto images = torch::rand({1, 3, 3, s, s}, torch::TensorOptions().device(device));
-  auto K = torch::tensor({0.9 * s, 0.9 * s, 0.5 * s, 0.5 * s}, torch::TensorOptions().device(device)).expand({1, 3, 4});
-  auto t0 = std::chrono::steady_clock::now();
-  // Posed models need cameras: a camera 1 unit to the right per view.
-  auto c2w = torch::eye(4, images.options()).repeat({1, 3, 1, 1});
-  c2w.select(1, 1)[0][0][3] = 1.0;
-  c2w.select(1, 2)[0][0][3] = 0.5;
-  model::Views inputs{images.narrow(1, 0, 2), K.narrow(1, 0, 2), c2w.narrow(1, 0, 2)};
-  model::Views targets{images.narrow(1, 2, 1), K.narrow(1, 2, 1), c2w.narrow(1, 2, 1)};
-  auto out = net->render(inputs, targets, net->default_target_poses());
-  double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  auto pose = out.pose_enc.defined() ? out.pose_enc.cpu().contiguous() : torch::zeros({7});
-  if (!torch::isfinite(out.render).all().item<bool>() || !torch::isfinite(pose).all().item<bool>())
-    throw std::runtime_error("verify: the forward pass produced NaN/Inf");
-  std::vector<float> pose7(pose.data_ptr<float>(), pose.data_ptr<float>() + 7);
+  const auto r = model::check_round_trip(output, converted, device);
   std::cout << fmt::format(
       "verify: {} tensors identical after reload; forward 2 inputs + 1 target at {}x{} px in "
       "{:.2f} s, render mean {:.4f}, pose {:.4f}\n",
-      expected.size(), s, s, seconds, out.render.mean().item<double>(), fmt::join(pose7, " "));
+      r.tensors, r.image_size, r.image_size, r.seconds, r.render_mean, fmt::join(r.pose, " "));
 }
 
 void run_convert(const ConvertArgs& a) {
@@ -125,7 +83,10 @@ void run_convert(const ConvertArgs& a) {
   print_summary(*net, w);
   io::write_checkpoint(a.output, config, state, io::state_dict(*net), {});
   std::cout << fmt::format("wrote {} ({})\n", a.output, config.name);
-  write_vgg19_extras(w, a.output);
+  // The known extras of official checkpoints: the perceptual loss's VGG19, for a later `train --vgg19`.
+  if (const auto vgg = train::write_vgg19_extras(w, a.output); vgg.tensors > 0)
+    std::cout << fmt::format("wrote the {} VGG19 feature tensors of the perceptual loss to {}\n", vgg.tensors,
+                             vgg.path);
   if (a.verify) verify(a.output, *net, parse_device(a.common.device));
 }
 

@@ -6,19 +6,12 @@
 #include <spdlog/spdlog.h>
 
 #include "uplvsm/cli/commands.h"
-#include "uplvsm/core/config.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/data/chunk_dataset.h"
-#include "uplvsm/data/subset.h"
-#include "uplvsm/data/view_sampler.h"
 #include "uplvsm/eval/evaluator.h"
 #include "uplvsm/eval/training_evaluation.h"
 #include "uplvsm/io/checkpoint_io.h"
-#include "uplvsm/train/global_batch.h"
-#include "uplvsm/train/run_plan.h"
-#include "uplvsm/train/run_start.h"
 #include "uplvsm/train/tokenizer_pretraining.h"
-#include "uplvsm/train/tokenizer_start.h"
+#include "uplvsm/train/train_request.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::cli {
@@ -27,21 +20,20 @@ namespace {
 
 struct TrainArgs {
   CommonOptions common;
-  std::string config, data, run, resume = "auto", init, vgg19, amp, stage = "main", subset;
-  std::vector<std::string> set;
-  int64_t steps = -1, stop_after = -1, ranks = 0;
+  train::TrainRequest r;
+  int64_t stop_after = -1, ranks = 0;
   bool dry_run = false;
   train::VggInput vgg19_input = train::VggInput::Auto;
 };
 
 void add_train_options(CLI::App* cmd, TrainArgs& a) {
   add_common_options(cmd, a.common);
-  cmd->add_option("--config", a.config, "config JSON (configs/tiny.json, configs/paper_x224.json)")
+  cmd->add_option("--config", a.r.config_path, "config JSON (configs/tiny.json, configs/paper_x224.json)")
       ->required()
       ->check(CLI::ExistingFile);
-  cmd->add_option("--data", a.data, "dataset root (pixelSplat chunks with a train/ split); optional with --dry-run")
+  cmd->add_option("--data", a.r.data, "dataset root (pixelSplat chunks with a train/ split); optional with --dry-run")
       ->check(CLI::ExistingDirectory);
-  cmd->add_option("--run", a.run,
+  cmd->add_option("--run", a.r.run,
                   "run directory (config snapshot, metrics.jsonl, checkpoints/); optional with --dry-run");
   cmd->add_flag("--dry-run", a.dry_run,
                 "print what the run will do (global batch, schedule, precision, loss terms, data and shuffling) and "
@@ -49,24 +41,24 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
   cmd->add_option("--ranks", a.ranks,
                   "with --dry-run: plan for this many data-parallel processes (default: torchrun's WORLD_SIZE, else 1)")
       ->check(CLI::PositiveNumber);
-  cmd->add_option("--resume", a.resume,
+  cmd->add_option("--resume", a.r.resume,
                   "auto (the newest checkpoint in --run that reads, if any: a damaged newer one is skipped with a "
                   "warning), none, or a checkpoint path (an error if it does not read)")
       ->capture_default_str();
-  cmd->add_option("--init", a.init,
+  cmd->add_option("--init", a.r.init,
                   "start a new run from these weights: UP-LVSM (ours or official, loaded strictly) or DINOv2 "
                   "(Meta .pth or HuggingFace safetensors, into the image tokenizer, as the official code does); a "
                   "run or checkpoints directory means its latest checkpoint")
       ->check(CLI::ExistingPath);
-  cmd->add_option("--vgg19", a.vgg19,
+  cmd->add_option("--vgg19", a.r.vgg19,
                   "VGG19 weights for the perceptual loss (torchvision features.N.*: torchvision vgg19 .pth, or the "
                   "<out>.vgg19.safetensors that `uplvsm convert` extracts from an official checkpoint); a config "
                   "with training.perceptual_loss_weight > 0 refuses to start without it")
       ->check(CLI::ExistingFile);
   add_vgg19_input_option(cmd, a.vgg19_input);
-  cmd->add_option("--amp", a.amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
+  cmd->add_option("--amp", a.r.amp, "override training.amp: none (fp32) or bf16 (autocast, fp32 master weights)")
       ->check(CLI::IsMember({"none", "bf16"}));
-  cmd->add_option("--stage", a.stage,
+  cmd->add_option("--stage", a.r.stage,
                   "main: the config as given; mapper: camera-control fine-tuning (paper appendix) - adds the linear "
                   "pose mapper (model.pose_mapper), fitted by least squares to the --init model's estimator, and "
                   "trains the whole model with target poses from dataset cameras through the mapper "
@@ -76,59 +68,43 @@ void add_train_options(CLI::App* cmd, TrainArgs& a) {
                   "<run>/tokenizer.safetensors in DINOv2 format for a later run's --init")
       ->check(CLI::IsMember({"main", "mapper", "tokenizer"}))
       ->capture_default_str();
-  cmd->add_option("--set", a.set,
+  cmd->add_option("--set", a.r.set,
                   "override a config field, section.field=value (repeatable), e.g. --set training.warmup=500 --set "
                   "model.transformer.n_latent_vectors=64; the run's config.json records the result");
-  cmd->add_option("--steps", a.steps, "override training.train_steps");
+  cmd->add_option("--steps", a.r.steps, "override training.train_steps");
   cmd->add_option("--stop-after", a.stop_after, "stop after this many steps of this invocation (checkpointed)");
-  cmd->add_option("--subset", a.subset,
+  cmd->add_option("--subset", a.r.subset,
                   "override training.subset: a manifest from `uplvsm dataset subset` (little/medium/large/full)")
       ->check(CLI::ExistingFile);
 }
 
-// The config file with --set and the command-line overrides applied; --stage mapper turns on the pose mapper.
-Config train_config(const TrainArgs& a) {
-  auto config = apply_config_overrides(load_config(a.config), a.set, a.config);
-  if (a.steps > 0) config.training.train_steps = a.steps;
-  if (!a.amp.empty()) config.training.amp = parse_amp(a.amp, "--amp");
-  // Absolute, so a resume from another working directory reads the same manifest from the run's config.
-  if (!a.subset.empty()) config.training.subset = std::filesystem::absolute(a.subset).string();
-  if (a.stage == "mapper") {
-    if (a.init.empty() && a.resume == "none")
-      throw std::runtime_error("train --stage mapper: give the trained UP-LVSM to start from with --init");
-    config.model.pose_mapper = true;
-    config.training.target_poses = TargetPoses::Mapper;
-    validate_config(config, a.config + " (--stage mapper)");
-  }
-  return config;
-}
-
 train::TrainOptions train_options(const TrainArgs& a, const Config& config) {
   train::TrainOptions opt;
-  opt.data_root = a.data;
-  opt.run_dir = a.run;
-  opt.resume = a.resume;
-  opt.init_weights = std::filesystem::is_directory(a.init) ? io::resolve_checkpoint(a.init) : a.init;
-  opt.perceptual_weights = a.vgg19;
+  opt.data_root = a.r.data;
+  opt.run_dir = a.r.run;
+  opt.resume = a.r.resume;
+  opt.init_weights = std::filesystem::is_directory(a.r.init) ? io::resolve_checkpoint(a.r.init) : a.r.init;
+  opt.perceptual_weights = a.r.vgg19;
   opt.perceptual_input = a.vgg19_input;
   // torchrun / SLURM launch variables make this process one rank of a data-parallel run.
   const auto env = train::distributed_env_from_environment();
   opt.device = train::rank_device(parse_device(a.common.device), env);
   if (env.distributed()) opt.comm = std::make_shared<train::Communicator>(env, opt.device);
   opt.stop_after_steps = a.stop_after;
-  if (config.training.eval_every > 0) opt.periodic_eval = eval::periodic_evaluation(config, a.data, a.run, opt.device);
+  if (config.training.eval_every > 0)
+    opt.periodic_eval = eval::periodic_evaluation(config, a.r.data, a.r.run, opt.device);
   return opt;
 }
 
 // --stage tokenizer: the masked-image pretraining of the tokenizer, on the config's model and training settings.
 void run_tokenizer_stage(const TrainArgs& a, const Config& config) {
-  if (!a.init.empty())
+  if (!a.r.init.empty())
     throw std::runtime_error(
         "train --stage tokenizer starts the tokenizer from scratch: --init is for the main stage "
         "that reads its output");
   train::TokenizerPretrainOptions opt;
-  opt.data_root = a.data;
-  opt.run_dir = a.run;
+  opt.data_root = a.r.data;
+  opt.run_dir = a.r.run;
   opt.device = parse_device(a.common.device);
   log_kernel_paths();
   const auto r = train::pretrain_tokenizer(config, opt);
@@ -136,46 +112,26 @@ void run_tokenizer_stage(const TrainArgs& a, const Config& config) {
                            r.steps, r.first_loss, r.last_loss, r.weights);
 }
 
-// What the plan says of the data a run of `config` on `data` draws from: the subset's scenes, then the first
-// max_train_scenes of them, and how the views are drawn.
-void describe_training_data(const Config& config, const std::string& data, train::RunPlan& plan) {
-  data::ChunkDataset dataset(data, "train");
-  if (!config.training.subset.empty()) dataset.keep_only(data::read_subset_manifest(config.training.subset).scenes);
-  plan.ordered_views = data::uses_ordered_views(config.training.view_sampler, dataset.info());
-  const int64_t cap = config.training.max_train_scenes;
-  plan.scenes = cap > 0 ? std::min(cap, dataset.size()) : dataset.size();
-  plan.split_scenes = dataset.size();
-}
-
 // --dry-run: the run's plan and its pre-flight checks (the global batch divides, the loss has what it needs), then
 // exit; non-zero when the run itself would refuse to start.
 void run_dry(const TrainArgs& a, const Config& config) {
   log_kernel_paths();
   const int64_t ranks = a.ranks > 0 ? a.ranks : train::distributed_env_from_environment().world_size;
-  train::RunPlan plan;
-  plan.config = config;
-  plan.batch = train::plan_batch(config.training, ranks, a.config);
-  plan.device = parse_device(a.common.device).str();
-  plan.perceptual_weights = a.vgg19;
-  plan.init = a.init;
-  plan.resuming = !a.run.empty() && train::run_resumes(a.run, a.resume);
-  plan.data_root = a.data;
-  if (!a.data.empty()) describe_training_data(config, a.data, plan);
-  std::cout << fmt::format("uplvsm train --dry-run --config {} ({} stage)\n", a.config, a.stage);
+  const auto plan = train::dry_run_plan(a.r, config, ranks, parse_device(a.common.device).str());
+  std::cout << fmt::format("uplvsm train --dry-run --config {} ({} stage)\n", a.r.config_path, a.r.stage);
   for (const auto& line : train::describe_run_plan(plan)) std::cout << "  " << line << "\n";
-  train::require_perceptual_weights(config, a.vgg19);
-  train::require_tokenizer_start(config, a.init, plan.resuming);
+  train::require_run_starts(plan);
   std::cout << "checks passed: this run would start\n";
 }
 
 void run_train(const TrainArgs& a) {
   apply_common_options(a.common);
-  const auto config = train_config(a);
+  const auto config = train::train_config(a.r);
   if (a.dry_run) return run_dry(a, config);
-  if (a.data.empty() || a.run.empty())
+  if (a.r.data.empty() || a.r.run.empty())
     throw std::runtime_error(
-        fmt::format("train: {} is required (only --dry-run runs without it)", a.data.empty() ? "--data" : "--run"));
-  if (a.stage == "tokenizer") return run_tokenizer_stage(a, config);
+        fmt::format("train: {} is required (only --dry-run runs without it)", a.r.data.empty() ? "--data" : "--run"));
+  if (a.r.stage == "tokenizer") return run_tokenizer_stage(a, config);
   auto r = train::train(config, train_options(a, config));
   std::cout << fmt::format("trained to step {} in {:.1f} s: loss {:.5f}, PSNR {:.2f} dB; checkpoint {}\n", r.step,
                            r.seconds, r.last_loss, r.last_psnr, r.last_checkpoint.empty() ? "-" : r.last_checkpoint);
