@@ -113,15 +113,11 @@ struct MapperScenesArgs : FitArgs<train::MapperRunOptions> {
 void run_mapper_scenes(const MapperScenesArgs& a) {
   apply_common_options(a.common);
   const auto options = a.options();
-  data::ChunkDataset posed(options.data, options.split), held_out(a.eval_data, "test");
-  auto s = train::load_for_mapper_fit(options, posed);
   study::MapperScenesOptions opt;
   opt.scene_counts = a.counts;
-  opt.mapper = train::mapper_options(options);
-  opt.fit = s.fit;
   opt.eval_scenes = a.eval_scenes;
   opt.out_dir = a.out;
-  auto rows = study::run_mapper_scenes(s.net, posed, held_out, data::preprocess_options(s.config), opt);
+  const auto rows = study::run_mapper_scenes_study(options, a.eval_data, opt);
   for (const auto& r : rows)
     std::cout << fmt::format("{:>6} scenes: PSNR {:.2f} dB, SSIM {:.4f} ({} views, fitted in {:.1f} s)\n", r.scenes,
                              r.psnr, r.ssim, r.fit.calibration_views, r.fit.seconds);

@@ -96,4 +96,13 @@ void write_mapper_scenes(const std::vector<MapperScenesRow>& rows, const std::st
   io::write_png((out / "psnr.png").string(), io::plot_lines({psnr, copy}, po));
 }
 
+std::vector<MapperScenesRow> run_mapper_scenes_study(const train::MapperRunOptions& run, const std::string& eval_data,
+                                                     MapperScenesOptions options) {
+  data::ChunkDataset posed(run.data, run.split), held_out(eval_data, "test");
+  auto s = train::load_for_mapper_fit(run, posed);
+  options.mapper = train::mapper_options(run);
+  options.fit = s.fit;
+  return run_mapper_scenes(s.net, posed, held_out, data::preprocess_options(s.config), options);
+}
+
 }  // namespace uplvsm::study

@@ -12,6 +12,7 @@
 #include "uplvsm/model/novel_view_model.h"
 #include "uplvsm/model/pose_mapper.h"
 #include "uplvsm/train/mapper_fitting.h"
+#include "uplvsm/train/mapper_run.h"
 
 namespace uplvsm::study {
 
@@ -33,6 +34,11 @@ struct MapperScenesRow {
 std::vector<MapperScenesRow> run_mapper_scenes(model::NovelViewModel& net, const data::ChunkDataset& posed,
                                                const data::ChunkDataset& held_out, const data::PreprocessOptions& prep,
                                                const MapperScenesOptions& options);
+
+// The study as `uplvsm study mapper-scenes` asks for it: the model and posed scenes of `run`, loaded as fit-mapper
+// loads them, scored on `eval_data`'s test split; options.mapper and options.fit are taken from `run`.
+std::vector<MapperScenesRow> run_mapper_scenes_study(const train::MapperRunOptions& run, const std::string& eval_data,
+                                                     MapperScenesOptions options);
 
 void write_mapper_scenes(const std::vector<MapperScenesRow>& rows, const std::string& out_dir);
 
