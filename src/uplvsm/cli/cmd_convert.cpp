@@ -1,6 +1,5 @@
 // `uplvsm convert`: the authors' UP-LVSM checkpoints and DINOv2 weight files -> our safetensors checkpoint (weights +
 // config), with a per-module summary and an optional verification forward pass.
-#include <filesystem>
 #include <iostream>
 #include <set>
 
@@ -8,15 +7,13 @@
 
 #include "uplvsm/cli/commands.h"
 #include "uplvsm/core/runtime.h"
-#include "uplvsm/io/checkpoint_io.h"
 #include "uplvsm/io/pretrained_weights.h"
 #include "uplvsm/model/model_factory.h"
 #include "uplvsm/model/round_trip_check.h"
+#include "uplvsm/model/weight_conversion.h"
 #include "uplvsm/train/vgg19_extraction.h"
 
 namespace uplvsm::cli {
-
-namespace fs = std::filesystem;
 
 namespace {
 
@@ -53,41 +50,19 @@ void verify(const std::string& output, const model::NovelViewModelImpl& converte
 
 void run_convert(const ConvertArgs& a) {
   apply_common_options(a.common);
-  auto w = io::read_pretrained_weights(a.input);
-  Config config;
-  if (!a.config.empty()) config = load_config(a.config);
-  nlohmann::json state = {{"step", 0}, {"converted_from", a.input}, {"source", io::to_string(w.source)}};
-  model::NovelViewModel net{nullptr};
-  if (w.source == io::WeightSource::Uplvsm) {
-    if (a.config.empty()) {
-      config.name = fs::path(a.input).stem().string();
-      config.model = model::infer_model_config(w.tensors, config.model);
-    }
-    validate_config(config, a.config.empty() ? a.input + " (inferred config)" : a.config);
-    net = model::make_model(config.model);
-    auto report = io::load_state_dict(*net, w.tensors, a.input);
-    std::cout << report.summary(a.input) << "\n";
-  } else {
-    if (a.config.empty())
-      throw std::runtime_error(
-          fmt::format("convert: {} holds {} weights; give --config (e.g. configs/paper_x224.json) "
-                      "for the UP-LVSM model to initialise around them",
-                      a.input, io::to_string(w.source)));
-    validate_config(config, a.config);
-    torch::manual_seed(static_cast<uint64_t>(config.training.seed));
-    net = model::make_model(config.model);
-    auto report = model::load_dinov2_into_tokenizer(*net, w.tensors, a.input);
-    std::cout << report.summary(a.input) << "\n(the rest of the model is freshly initialised with seed "
-              << config.training.seed << ")\n";
-  }
-  print_summary(*net, w);
-  io::write_checkpoint(a.output, config, state, io::state_dict(*net), {});
-  std::cout << fmt::format("wrote {} ({})\n", a.output, config.name);
+  const auto w = io::read_pretrained_weights(a.input);
+  const auto c = model::convert_weights(w, a.input, a.config);
+  std::cout << c.load_summary << "\n";
+  if (c.tokenizer_only)
+    std::cout << "(the rest of the model is freshly initialised with seed " << c.config.training.seed << ")\n";
+  print_summary(*c.net, w);
+  model::write_converted(a.output, a.input, w, c);
+  std::cout << fmt::format("wrote {} ({})\n", a.output, c.config.name);
   // The known extras of official checkpoints: the perceptual loss's VGG19, for a later `train --vgg19`.
   if (const auto vgg = train::write_vgg19_extras(w, a.output); vgg.tensors > 0)
     std::cout << fmt::format("wrote the {} VGG19 feature tensors of the perceptual loss to {}\n", vgg.tensors,
                              vgg.path);
-  if (a.verify) verify(a.output, *net, parse_device(a.common.device));
+  if (a.verify) verify(a.output, *c.net, parse_device(a.common.device));
 }
 
 }  // namespace
