@@ -13,19 +13,7 @@ namespace fs = std::filesystem;
 
 TEST(MapperScenes, OneRowPerSceneCountFromACheckpoint) {
   const auto dir = test::temp_dir("mapper_scenes");
-  auto config = test::micro_config();
-  config.training.train_steps = 1;
-  const auto run = (dir / "run").string();
-  ASSERT_FALSE(train::train(config, test::micro_run_options(run)).last_checkpoint.empty());
-  train::MapperRunOptions o;
-  o.checkpoint = run;
-  o.data = test::micro_dataset();
-  o.kind = "linear";
-  o.batch = 3;
-  o.targets = 3;
-  o.min_frame_dist = 2;
-  o.max_frame_dist = 6;
-  o.fit.calibration_views = 8;
+  const auto o = test::micro_mapper_run(dir, 8);
   study::MapperScenesOptions opt;
   opt.scene_counts = {1, 2};
   opt.eval_scenes = 1;

@@ -13,19 +13,9 @@ namespace fs = std::filesystem;
 
 TEST(MapperRun, FitsAndSavesAMapperForACheckpoint) {
   const auto dir = test::temp_dir("mapper_run");
-  auto config = test::micro_config();
-  config.training.train_steps = 1;
-  const auto run = (dir / "run").string();
-  ASSERT_FALSE(train::train(config, test::micro_run_options(run)).last_checkpoint.empty());
   train::FitMapperOptions o;
-  o.checkpoint = run;
-  o.data = test::micro_dataset();
-  o.kind = "linear";
-  o.batch = 3;
-  o.targets = 3;
-  o.min_frame_dist = 2;
-  o.max_frame_dist = 6;
-  o.fit.calibration_views = 16;
+  static_cast<train::MapperRunOptions&>(o) = test::micro_mapper_run(dir, 16);
+  const auto run = o.checkpoint;
   o.scenes = 3;
   o.out = (dir / "mapper.safetensors").string();
   const auto r = train::fit_mapper(o);

@@ -11,6 +11,7 @@
 #include "uplvsm/core/config.h"
 #include "uplvsm/data/preprocess.h"
 #include "uplvsm/data/synthetic/room_scenes.h"
+#include "uplvsm/train/mapper_run.h"
 #include "uplvsm/train/trainer.h"
 
 namespace uplvsm::test {
@@ -84,6 +85,26 @@ inline train::TrainOptions micro_run_options(const std::string& run) {
   o.data_root = micro_dataset();
   o.run_dir = run;
   o.progress = false;
+  return o;
+}
+
+// A one-step micro UP-LVSM trained into <dir>/run, and options that fit a linear mapper to it on micro_dataset()
+// (3 targets a scene, 3 scenes a batch).
+inline train::MapperRunOptions micro_mapper_run(const std::filesystem::path& dir, int64_t calibration_views) {
+  auto config = micro_config();
+  config.training.train_steps = 1;
+  const auto run = (dir / "run").string();
+  if (train::train(config, micro_run_options(run)).last_checkpoint.empty())
+    throw std::runtime_error("micro_mapper_run: the one-step run wrote no checkpoint");
+  train::MapperRunOptions o;
+  o.checkpoint = run;
+  o.data = micro_dataset();
+  o.kind = "linear";
+  o.batch = 3;
+  o.targets = 3;
+  o.min_frame_dist = 2;
+  o.max_frame_dist = 6;
+  o.fit.calibration_views = calibration_views;
   return o;
 }
 

@@ -38,6 +38,21 @@ struct EvalArgs {
   int64_t trajectory_frames = 96;
 };
 
+// Camera control along a path past the inputs, scored against the built-in rooms' ray-traced truth.
+void add_trajectory_options(CLI::App* cmd, EvalArgs& e) {
+  cmd->add_option("--trajectory", e.trajectory,
+                  "built-in rooms: also score camera control along this path past the inputs (orbit, spiral, "
+                  "dolly or a camera-path file in baseline units) against the ray-traced truth, as `study "
+                  "camera-paths` does: PSNR/SSIM inside and beyond the inputs' span, wobble (<out>/trajectory/)")
+      ->check(CLI::IsMember({"orbit", "spiral", "dolly"}) | CLI::ExistingFile);
+  cmd->add_option("--trajectory-frames", e.trajectory_frames, "poses of a --trajectory preset")
+      ->check(CLI::Range(3, 1000))
+      ->capture_default_str();
+  cmd->add_option("--room-config", e.room_config,
+                  "--trajectory: the config the rooms were made with (default: the checkpoint's dataset section)")
+      ->check(CLI::ExistingFile);
+}
+
 void add_eval_options(CLI::App* cmd, EvalArgs& e) {
   add_common_options(cmd, e.common);
   add_model_options(cmd, e.model);
@@ -77,17 +92,7 @@ void add_eval_options(CLI::App* cmd, EvalArgs& e) {
                 "also render a smooth path along each scene's real cameras (camera control: --mapper, the "
                 "checkpoint's mapper or a posed model) and report the jitter, how much the rendered picture's motion "
                 "changes from one render to the next in pixels per frame² (jitter.json)");
-  cmd->add_option("--trajectory", e.trajectory,
-                  "built-in rooms: also score camera control along this path past the inputs (orbit, spiral, "
-                  "dolly or a camera-path file in baseline units) against the ray-traced truth, as `study "
-                  "camera-paths` does: PSNR/SSIM inside and beyond the inputs' span, wobble (<out>/trajectory/)")
-      ->check(CLI::IsMember({"orbit", "spiral", "dolly"}) | CLI::ExistingFile);
-  cmd->add_option("--trajectory-frames", e.trajectory_frames, "poses of a --trajectory preset")
-      ->check(CLI::Range(3, 1000))
-      ->capture_default_str();
-  cmd->add_option("--room-config", e.room_config,
-                  "--trajectory: the config the rooms were made with (default: the checkpoint's dataset section)")
-      ->check(CLI::ExistingFile);
+  add_trajectory_options(cmd, e);
   cmd->add_option("--lpips-net", a.lpips_net, "LPIPS backbone: vgg (the papers' choice) or alex")
       ->check(CLI::IsMember({"vgg", "alex"}))
       ->capture_default_str();
